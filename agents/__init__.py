@@ -1,0 +1,1 @@
+"""Guidance baselines for the debris_gym environments."""

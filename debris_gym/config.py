@@ -1,0 +1,208 @@
+"""Typed, validated configuration of :class:`debris_gym.envs.DebrisFieldEnv`.
+
+Every keyword a user can pass to ``gym.make("DebrisGym/…", **kwargs)`` is a field of
+:class:`EnvConfig`, and every field's unit, allowed range and meaning is in :data:`OPTIONS` —
+the one place input is checked (``docs/environments.md`` is generated from the same table).
+Unknown keys and out-of-range values raise ``ValueError`` naming the key and what is allowed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import numbers
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from debris_gym.dynamics import DEFAULT_ORBIT_RADIUS, R_EARTH, mean_motion
+
+
+@dataclass(frozen=True)
+class Option:
+    """How one config key is checked and documented.
+
+    Attributes:
+        unit: physical unit ("" for none).
+        low, high: inclusive numeric range (None = unbounded on that side).
+        choices: allowed values for categorical keys.
+        optional: whether None is allowed (meaning "off" / "derive").
+        doc: one-line meaning.
+    """
+
+    unit: str = ""
+    low: float | None = None
+    high: float | None = None
+    choices: tuple[Any, ...] | None = None
+    optional: bool = False
+    doc: str = ""
+
+    def describe(self) -> str:
+        """Human-readable allowed range, as used in error messages and docs."""
+        if self.choices is not None:
+            text = " | ".join(repr(c) for c in self.choices)
+        else:
+            lo = "-inf" if self.low is None else f"{self.low:g}"
+            hi = "inf" if self.high is None else f"{self.high:g}"
+            text = f"[{lo}, {hi}]"
+        return text + (" or None" if self.optional else "")
+
+
+OPTIONS: dict[str, Option] = {
+    "dim": Option(choices=(2, 3), doc="2 = in-plane (x, y) motion, 3 = full 3D"),
+    "scenario": Option(
+        choices=("random", "paper"),
+        doc="field source on reset: a seeded random field, or seed 000's fixed world",
+    ),
+    "n_targets": Option(low=1, high=20, doc="debris to rendezvous with"),
+    "n_obstacles": Option(low=0, high=2000, doc="other debris to avoid"),
+    "field_size": Option("m", 20.0, 1e6, doc="edge of the square / cubic world, dock at centre"),
+    "obstacle_radius_min": Option("m", 0.01, None, doc="smallest obstacle (bounding) radius"),
+    "obstacle_radius_max": Option("m", 0.01, None, doc="largest obstacle (bounding) radius"),
+    "target_radius_min": Option("m", 0.01, None, doc="smallest target radius"),
+    "target_radius_max": Option("m", 0.01, None, doc="largest target radius"),
+    "polygon_fraction": Option(
+        "", 0.0, 1.0, doc="share of 2D obstacles that are convex polygons (3D: all spheres)"
+    ),
+    "min_gap": Option("m", 0.0, None, doc="smallest free gap between generated bodies"),
+    "orbit_radius": Option(
+        "m", R_EARTH, 1e9, doc="reference orbit radius; sets the mean motion n = sqrt(μ/r³)"
+    ),
+    "mean_motion": Option(
+        "rad/s", 0.0, 1e-2, optional=True,
+        doc="overrides orbit_radius when set; 0 = free space (double integrator)",
+    ),  # fmt: skip
+    "dt": Option("s", 1e-3, 600.0, doc="decision step length (thrust held constant over a step)"),
+    "max_accel": Option("m/s²", 1e-6, 100.0, doc="thrust acceleration limit"),
+    "observation": Option(choices=("kinematics", "lidar"), doc="observation mode"),
+    "action": Option(choices=("continuous", "discrete"), doc="action mode"),
+    "thrust_model": Option(
+        choices=("ball", "box"),
+        doc="'ball': one gimballed engine, |u| <= max_accel; 'box': per-axis thrusters",
+    ),
+    "capture_radius": Option("m", 1e-6, None, doc="capture zone depth around a target's surface"),
+    "capture_speed": Option("m/s", 0.0, None, doc="largest relative speed that still captures"),
+    "target_order": Option(
+        choices=("any", "queued"), doc="'any': agent chooses; 'queued': env fixes the order"
+    ),
+    "return_to_dock": Option(choices=(True, False), doc="after the last capture, return to dock"),
+    "delta_v_budget": Option(
+        "m/s", 1e-6, None, optional=True, doc="Δv available; the episode ends when spent"
+    ),
+    "chaser_radius": Option("m", 0.0, None, doc="chaser radius (bodies are inflated by it)"),
+    "collision_substeps": Option(
+        "", 1, 256, doc="sub-samples per step swept for continuous collision checking"
+    ),
+    "obs_targets": Option("", 1, 20, doc="target slots K in the observation"),
+    "obs_obstacles": Option("", 0, 64, doc="nearest-obstacle slots in 'kinematics' observations"),
+    "lidar_rays": Option("", 4, 1024, doc="rays in 'lidar' observations"),
+    "lidar_range": Option("m", 1e-3, None, doc="lidar range"),
+    "reward_capture": Option("", 0.0, None, doc="bonus per target captured"),
+    "reward_success": Option("", 0.0, None, doc="bonus for completing the mission"),
+    "reward_progress": Option("", 0.0, None, doc="weight of potential-based progress shaping"),
+    "reward_delta_v": Option("1/(m/s)", 0.0, None, doc="penalty per m/s of Δv spent"),
+    "reward_collision": Option("", 0.0, None, doc="penalty for a collision"),
+    "reward_out_of_bounds": Option("", 0.0, None, doc="penalty for leaving the world bounds"),
+    "reward_time": Option("", 0.0, None, doc="penalty per step"),
+    "shaping_gamma": Option("", 0.0, 1.0, doc="γ of the shaping term F = γΦ(s′) − Φ(s)"),
+}
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """Configuration of a :class:`~debris_gym.envs.DebrisFieldEnv`; see :data:`OPTIONS`."""
+
+    dim: int = 2
+    scenario: str = "random"
+    n_targets: int = 3
+    n_obstacles: int = 20
+    field_size: float = 1000.0
+    obstacle_radius_min: float = 2.0
+    obstacle_radius_max: float = 25.0
+    target_radius_min: float = 3.0
+    target_radius_max: float = 10.0
+    polygon_fraction: float = 0.5
+    min_gap: float = 10.0
+    orbit_radius: float = DEFAULT_ORBIT_RADIUS
+    mean_motion: float | None = None
+    dt: float = 10.0
+    max_accel: float = 0.05
+    observation: str = "kinematics"
+    action: str = "continuous"
+    thrust_model: str = "ball"
+    capture_radius: float = 5.0
+    capture_speed: float = 0.5
+    target_order: str = "any"
+    return_to_dock: bool = True
+    delta_v_budget: float | None = 100.0
+    chaser_radius: float = 1.0
+    collision_substeps: int = 8
+    obs_targets: int = 3
+    obs_obstacles: int = 8
+    lidar_rays: int = 32
+    lidar_range: float = 250.0
+    reward_capture: float = 10.0
+    reward_success: float = 50.0
+    reward_progress: float = 10.0
+    reward_delta_v: float = 0.05
+    reward_collision: float = 50.0
+    reward_out_of_bounds: float = 50.0
+    reward_time: float = 0.01
+    shaping_gamma: float = 0.99
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            _check(f.name, getattr(self, f.name), f.type)
+        pairs = (
+            ("obstacle_radius_min", "obstacle_radius_max"),
+            ("target_radius_min", "target_radius_max"),
+        )
+        for lo_key, hi_key in pairs:
+            if getattr(self, lo_key) > getattr(self, hi_key):
+                raise ValueError(f"{lo_key} must be <= {hi_key}")
+        if self.scenario == "paper" and self.dim != 2:
+            raise ValueError("scenario='paper' is a 2D world; use dim=2")
+
+    @classmethod
+    def from_kwargs(cls, **kwargs: Any) -> EnvConfig:
+        """Build a config, rejecting unknown keys with the list of known ones."""
+        unknown = sorted(set(kwargs) - set(OPTIONS))
+        if unknown:
+            raise ValueError(
+                f"unknown config key(s) {unknown}; known keys: {', '.join(sorted(OPTIONS))}"
+            )
+        return cls(**kwargs)
+
+    @property
+    def n(self) -> float:
+        """Mean motion (rad/s): ``mean_motion`` if set, else derived from ``orbit_radius``."""
+        return self.mean_motion if self.mean_motion is not None else mean_motion(self.orbit_radius)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain dict of every key (for saving next to results)."""
+        return dataclasses.asdict(self)
+
+
+def _check(key: str, value: Any, annotation: Any) -> None:
+    opt = OPTIONS[key]
+    allowed = opt.describe()
+    if value is None:
+        if opt.optional:
+            return
+        raise ValueError(f"{key} must not be None; allowed: {allowed}")
+    if opt.choices is not None:
+        is_bool = isinstance(value, (bool, np.bool_))
+        if is_bool != isinstance(opt.choices[0], bool) or value not in opt.choices:
+            raise ValueError(f"{key}={value!r} is not allowed; allowed: {allowed}")
+        return
+    integral = "int" in str(annotation)
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{key} must be a number, got {type(value).__name__}; allowed: {allowed}")
+    if integral and float(value) != int(value):
+        raise ValueError(f"{key} must be a whole number, got {value!r}; allowed: {allowed}")
+    if not math.isfinite(value):
+        raise ValueError(f"{key} must be finite, got {value!r}; allowed: {allowed}")
+    if (opt.low is not None and value < opt.low) or (opt.high is not None and value > opt.high):
+        unit = f" {opt.unit}" if opt.unit else ""
+        raise ValueError(f"{key}={value!r}{unit} is out of range; allowed: {allowed}{unit}")
