@@ -70,9 +70,12 @@ OPTIONS: dict[str, Option] = {
         "m", R_EARTH, 1e9, doc="reference orbit radius; sets the mean motion n = sqrt(μ/r³)"
     ),
     "mean_motion": Option(
-        "rad/s", 0.0, 1e-2, optional=True,
+        "rad/s",
+        0.0,
+        1e-2,
+        optional=True,
         doc="overrides orbit_radius when set; 0 = free space (double integrator)",
-    ),  # fmt: skip
+    ),
     "dt": Option("s", 1e-3, 600.0, doc="decision step length (thrust held constant over a step)"),
     "max_accel": Option("m/s²", 1e-6, 100.0, doc="thrust acceleration limit"),
     "observation": Option(choices=("kinematics", "lidar"), doc="observation mode"),

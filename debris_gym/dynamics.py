@@ -90,7 +90,7 @@ class DiscreteModel:
     bd: np.ndarray
 
     def step(self, states: np.ndarray, accels: np.ndarray) -> np.ndarray:
-        """Propagate one step. Works on one state (2d,) or a batch (..., 2d) with accels (..., d)."""
+        """Propagate one step: one state (2d,) or a batch (..., 2d) with accels (..., d)."""
         return propagate(states, accels, self.ad, self.bd)
 
 
@@ -121,9 +121,7 @@ def discretize(n: float, dt: float, dim: int) -> DiscreteModel:
     return DiscreteModel(n=float(n), dt=float(dt), dim=dim, ad=ad, bd=bd)
 
 
-def propagate(
-    states: np.ndarray, accels: np.ndarray, ad: np.ndarray, bd: np.ndarray
-) -> np.ndarray:
+def propagate(states: np.ndarray, accels: np.ndarray, ad: np.ndarray, bd: np.ndarray) -> np.ndarray:
     """Batched x⁺ = Φ x + Γ u over any leading batch shape.
 
     Args:

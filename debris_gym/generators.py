@@ -139,7 +139,9 @@ def _draw_field(rng, spec: FieldSpec, bounds, mean_motion, dt, max_accel) -> Sce
         if p is None:
             return None
         vertices = None if verts is None else tuple((float(x), float(y)) for x, y in verts)
-        obstacles.append(Body(position=tuple(p), radius=r, velocity=(0.0,) * dim, vertices=vertices))
+        obstacles.append(
+            Body(position=tuple(p), radius=r, velocity=(0.0,) * dim, vertices=vertices)
+        )
     return Scenario(
         dim=dim,
         bounds=bounds,
@@ -225,8 +227,9 @@ def _disjoint_balls_route(scenario: Scenario, chaser_radius: float, capture_radi
 
     if not free(np.asarray(scenario.dock, dtype=float)[None])[0]:
         return False
-    return all(free(points).any() for points in _capture_points(scenario, chaser_radius,
-                                                                    capture_radius))
+    return all(
+        free(points).any() for points in _capture_points(scenario, chaser_radius, capture_radius)
+    )
 
 
 def grid_route_exists(

@@ -41,9 +41,8 @@ class FieldGeometry:
         self.circle_idx = np.flatnonzero(~self.is_polygon)
         self.polygon_idx = np.flatnonzero(self.is_polygon)
         self._build_polygons([bodies[i] for i in self.polygon_idx])
-        reach = self.radii + self.inflate
-        self.aabb_low = self.centers - reach[:, None]
-        self.aabb_high = self.centers + reach[:, None]
+        self._circle_axes = [self.centers[self.circle_idx, k].copy() for k in range(self.dim)]
+        self._circle_radii = self.radii[self.circle_idx].copy()
         self._space = None
         self._shapes: list = []
 
@@ -70,10 +69,23 @@ class FieldGeometry:
         self.poly_verts = verts
         self.poly_next = nxt
         self.poly_edges = self.poly_next - verts
-        self.poly_edge_len2 = np.maximum(np.einsum("pvi,pvi->pv", self.poly_edges, self.poly_edges),
-                                         1e-300)  # fmt: skip
+        self.poly_edge_len2 = np.maximum(
+            np.einsum("pvi,pvi->pv", self.poly_edges, self.poly_edges), 1e-300
+        )
         self.poly_normals = normals
         self.poly_offsets = np.einsum("pvi,pvi->pv", normals, verts)
+        # Flat per-edge arrays (no padding) for the single-point fast path.
+        counts = [len(b.vertices) for b in polys]
+        keep = (
+            np.concatenate([np.arange(c) + k * vmax for k, c in enumerate(counts)]).astype(int)
+            if polys
+            else np.zeros(0, dtype=int)
+        )
+        self._edge_start = verts.reshape(-1, 2)[keep].T.copy()  # (2, E)
+        self._edge_vec = self.poly_edges.reshape(-1, 2)[keep].T.copy()
+        self._edge_inv_len2 = 1.0 / self.poly_edge_len2.reshape(-1)[keep]
+        self._edge_normal = normals.reshape(-1, 2)[keep].T.copy()
+        self._edge_first = np.cumsum([0, *counts[:-1]]).astype(np.intp)
 
     @property
     def space(self):
@@ -87,7 +99,9 @@ class FieldGeometry:
             shapes = []
             for i, body in enumerate(self.scenario.bodies):
                 if body.is_polygon:
-                    pts = [(p[0] + body.position[0], p[1] + body.position[1]) for p in body.vertices]
+                    pts = [
+                        (p[0] + body.position[0], p[1] + body.position[1]) for p in body.vertices
+                    ]
                     shape = pymunk.Poly(space.static_body, pts)
                 else:
                     shape = pymunk.Circle(space.static_body, body.radius, tuple(body.position))
@@ -121,12 +135,44 @@ class FieldGeometry:
         out = np.empty((pts.shape[0], self.n_bodies))
         if self.circle_idx.size:
             diff = pts[:, None, :] - self.centers[None, self.circle_idx, :]
-            out[:, self.circle_idx] = np.sqrt(np.einsum("mbi,mbi->mb", diff, diff)) - self.radii[
-                self.circle_idx
-            ]
+            out[:, self.circle_idx] = (
+                np.sqrt(np.einsum("mbi,mbi->mb", diff, diff)) - self.radii[self.circle_idx]
+            )
         if self.polygon_idx.size:
             out[:, self.polygon_idx] = self._polygon_signed_distance(pts)
         return out[0] if single else out
+
+    def point_gaps(self, point: np.ndarray) -> np.ndarray:
+        """Signed distance (m) from one point (dim,) to every body: the per-step fast path.
+
+        Same answer as :meth:`signed_distance` for a single point, with fewer numpy calls.
+        """
+        out = np.empty(self.n_bodies)
+        ci = self.circle_idx
+        if ci.size:
+            sq = None
+            for axis in range(self.dim):
+                diff = self._circle_axes[axis] - point[axis]
+                sq = diff * diff if sq is None else sq + diff * diff
+            out[ci] = np.sqrt(sq) - self._circle_radii
+        if self.polygon_idx.size:
+            dx = point[0] - self._edge_start[0]
+            dy = point[1] - self._edge_start[1]
+            ex, ey = self._edge_vec
+            t = (dx * ex + dy * ey) * self._edge_inv_len2
+            np.maximum(t, 0.0, out=t)
+            np.minimum(t, 1.0, out=t)
+            cx = dx - t * ex
+            cy = dy - t * ey
+            edge = np.sqrt(np.minimum.reduceat(cx * cx + cy * cy, self._edge_first))
+            depth = np.maximum.reduceat(
+                dx * self._edge_normal[0] + dy * self._edge_normal[1], self._edge_first
+            )
+            # outside (depth > 0): distance to the nearest edge; inside: minus the depth
+            out[self.polygon_idx] = (
+                edge if (depth > 0.0).all() else np.where(depth > 0.0, edge, depth)
+            )
+        return out
 
     def _polygon_signed_distance(self, pts: np.ndarray) -> np.ndarray:
         """Exact signed distance of points (M, 2) to the convex polygons, shape (M, P)."""
@@ -147,23 +193,30 @@ class FieldGeometry:
 
     # --- swept collision ----------------------------------------------------------------------
 
-    def first_hit(self, path: np.ndarray) -> int:
+    def first_hit(self, path: np.ndarray, start_gaps: np.ndarray | None = None) -> int:
         """Index of the first body the polyline ``path`` touches (inflated), or -1.
 
         The path (K+1, dim) is swept segment by segment, so a step that crosses a body between
-        its end points is caught. Broad phase: axis-aligned boxes in numpy; narrow phase: pymunk
-        segment queries (2D) or exact segment-sphere distance (3D).
+        its end points is caught. Broad phase: the whole path lies in the ball around ``path[0]``
+        of radius R = max_k |path[k] − path[0]|, so only bodies whose gap at ``path[0]`` is below
+        R + inflate can be touched. Narrow phase: pymunk segment queries (2D) or the exact
+        segment-sphere distance (3D).
+
+        Args:
+            path: (K+1, dim) positions (m) along the step.
+            start_gaps: :meth:`point_gaps` of ``path[0]`` if already known (saves a query).
         """
         if self.n_bodies == 0:
             return -1
-        lo = path.min(axis=0)
-        hi = path.max(axis=0)
-        near = np.flatnonzero(np.all((self.aabb_high >= lo) & (self.aabb_low <= hi), axis=1))
+        if start_gaps is None:
+            start_gaps = self.point_gaps(path[0])
+        rel = path[1:] - path[0]
+        reach = math.sqrt(float((rel * rel).sum(axis=1).max())) + self.inflate
+        near = np.flatnonzero(start_gaps <= reach)
         if near.size == 0:
             return -1
         for k in range(path.shape[0] - 1):
-            a, b = path[k], path[k + 1]
-            hits = self._segment_hits(a, b, near)
+            hits = self._segment_hits(path[k], path[k + 1], near)
             if hits:
                 return min(hits, key=lambda item: item[1])[0]
         return -1

@@ -101,7 +101,9 @@ def _validate_convex_ccw(vertices: tuple[tuple[float, float], ...]) -> None:
     if len(pts) < 3:
         raise ValueError(f"a polygon needs at least 3 vertices, got {len(pts)}")
     edges = np.roll(pts, -1, axis=0) - pts
-    cross = edges[:, 0] * np.roll(edges, -1, axis=0)[:, 1] - edges[:, 1] * np.roll(edges, -1, 0)[:, 0]
+    cross = (
+        edges[:, 0] * np.roll(edges, -1, axis=0)[:, 1] - edges[:, 1] * np.roll(edges, -1, 0)[:, 0]
+    )
     if not np.all(cross > 0):
         raise ValueError("polygon vertices must form a strictly convex, counter-clockwise polygon")
 
@@ -224,13 +226,23 @@ class Scenario:
     def from_dict(cls, data: dict[str, Any]) -> Scenario:
         """Build and validate a scenario from :meth:`to_dict` output (or hand-written JSON)."""
         known = {
-            "dim", "bounds", "dock", "targets", "obstacles", "mean_motion", "dt", "max_accel",
-            "motion", "name",
-        }  # fmt: skip
+            "dim",
+            "bounds",
+            "dock",
+            "targets",
+            "obstacles",
+            "mean_motion",
+            "dt",
+            "max_accel",
+            "motion",
+            "name",
+        }
         unknown = set(data) - known
         if unknown:
             raise ValueError(f"unknown scenario keys {sorted(unknown)}; allowed: {sorted(known)}")
-        dim = int(data["dim"])
+        dim = data["dim"]
+        if dim not in (2, 3):
+            raise ValueError(f"dim must be 2 or 3, got {dim!r}")
         return cls(
             dim=dim,
             bounds=tuple((float(lo), float(hi)) for lo, hi in data["bounds"]),

@@ -23,7 +23,7 @@ def commanded_accel(action: np.ndarray, max_accel: float, model: str) -> np.ndar
     if model == "box":
         return max_accel * np.clip(a, -1.0, 1.0)
     if model == "ball":
-        norm = np.sqrt(np.einsum("...i,...i->...", a, a))[..., None]
+        norm = np.sqrt((a * a).sum(axis=-1, keepdims=True))
         return max_accel * a / np.maximum(norm, 1.0)
     raise ValueError(f"thrust_model must be one of {THRUST_MODELS}, got {model!r}")
 
@@ -38,5 +38,5 @@ def delta_v_rate(accel: np.ndarray, model: str) -> np.ndarray:
     if model == "box":
         return np.abs(u).sum(axis=-1)
     if model == "ball":
-        return np.sqrt(np.einsum("...i,...i->...", u, u))
+        return np.sqrt((u * u).sum(axis=-1))
     raise ValueError(f"thrust_model must be one of {THRUST_MODELS}, got {model!r}")

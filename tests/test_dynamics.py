@@ -258,14 +258,13 @@ def test_matrix_exponential_matches_mpmath(dim, dt):
     # norm-relative agreement of the whole matrices
     assert np.linalg.norm(model.ad - ad_ref) <= 1e-12 * np.linalg.norm(ad_ref)
     assert np.linalg.norm(model.bd - bd_ref) <= 1e-12 * np.linalg.norm(bd_ref)
-    # elementwise: every entry relative to itself, with an absolute floor set by the largest entry
-    # of its column (so a column's tiny coupling terms, e.g. 3n²·dt ≈ 4e-12 at dt = 1 ms, are
-    # still required to ~1e-16 absolute accuracy relative to the 1 on the diagonal).
+    # elementwise: every non-zero entry relative to itself, including the tiny coupling terms
+    # (e.g. 3n²·dt ≈ 4e-12 at dt = 1 ms next to 1 on the diagonal). Observed worst: 1.6e-14
+    # (dt = 600 s), ~4e-16 at dt = 1 ms.
     for got, ref in ((model.ad, ad_ref), (model.bd, bd_ref)):
-        floor = 1e-14 * np.max(np.abs(ref), axis=0, keepdims=True)
-        assert np.all(np.abs(got - ref) <= 1e-12 * np.abs(ref) + floor), np.abs(got - ref) / (
-            np.abs(ref) + floor
-        )
+        nz = ref != 0.0
+        rel = np.abs(got - ref)[nz] / np.abs(ref)[nz]
+        assert np.max(rel) <= 1e-12, np.max(rel)
 
 
 def test_mpmath_reference_is_independent_of_closed_form():
@@ -359,21 +358,24 @@ def test_two_body_closed_relative_orbit_in_plane():
     x0 = 100.0
     rel0 = np.array([x0, 0.0, 0.0, 0.0, -2 * N_LEO * x0, 0.0])
     pos_err, vel_err, sep = two_body_vs_cwh(rel0)
-    # observed: pos_err ≈ 0.10 m over one orbit at ~200 m max separation
+    # observed: pos_err ≈ 0.014 m (7e-5 of the separation), vel_err ≈ 7e-6 m/s over one orbit
     assert sep == pytest.approx(200.0, rel=0.01)
     assert pos_err < 0.01 * sep
     assert pos_err < 1.0
-    assert vel_err < 1e-3
+    assert pos_err < 1e-3 * sep  # an order of magnitude above what is observed
+    assert vel_err < 1e-4
 
 
 def test_two_body_generic_3d():
     n = N_LEO
     rel0 = np.array([60.0, -70.0, 40.0, 0.02, -2 * n * 60.0 + 0.004, -0.03])
     pos_err, vel_err, sep = two_body_vs_cwh(rel0)
+    # observed: pos_err ≈ 0.016 m at ~241 m max separation, vel_err ≈ 6e-6 m/s
     assert sep > 100.0
     assert pos_err < 0.01 * sep
     assert pos_err < 1.0
-    assert vel_err < 1e-3
+    assert pos_err < 1e-3 * sep
+    assert vel_err < 1e-4
 
 
 def test_two_body_error_is_quadratic_in_separation():

@@ -108,7 +108,9 @@ class DebrisFieldEnv(gym.Env):
         self.observation_space = spaces.Box(
             -OBS_LIMIT, OBS_LIMIT, shape=(len(self._obs_names),), dtype=np.float32
         )
-        self._lidar_dirs = lidar_directions(d, cfg.lidar_rays) if cfg.observation == "lidar" else None
+        self._lidar_dirs = (
+            lidar_directions(d, cfg.lidar_rays) if cfg.observation == "lidar" else None
+        )
         self._field_spec = FieldSpec(
             dim=d,
             n_targets=cfg.n_targets,
@@ -170,15 +172,22 @@ class DebrisFieldEnv(gym.Env):
             raise ValueError(f"scenario has dim={scenario.dim} but the env has dim={self.dim}")
         self.scenario = scenario
         self._geometry = FieldGeometry(scenario, inflate=cfg.chaser_radius)
-        self._model = discretize(scenario.mean_motion, scenario.dt, self.dim)
-        self._sub_positions = substep_position_matrix(
+        model = discretize(scenario.mean_motion, scenario.dt, self.dim)
+        sub_positions = substep_position_matrix(
             scenario.mean_motion, scenario.dt, self.dim, cfg.collision_substeps
         )
+        # One matrix maps [x₀, u] to the K sub-step positions (the last is the end position)
+        # followed by the end velocity: a single matmul per step gives the path and the new state.
+        end_velocity = np.hstack([model.ad[self.dim :], model.bd[self.dim :]])
+        self._step_matrix = np.vstack([sub_positions, end_velocity])
         self._n_targets = len(scenario.targets)
         self._length_scale = scenario.size / 2.0
         self._speed_scale = math.sqrt(scenario.max_accel * self._length_scale)
         self._dock = np.asarray(scenario.dock, dtype=float)
+        self._low, self._high = scenario.low, scenario.high
         self._obstacle_radii = self._geometry.radii[self._n_targets :]
+        self._obstacle_centers = self._geometry.centers[self._n_targets :]
+        self._obs_buffer = np.zeros(self.observation_space.shape[0])
         self._target_radii = self._geometry.radii[: self._n_targets]
 
     # --- gymnasium API ------------------------------------------------------------------------
@@ -216,7 +225,8 @@ class DebrisFieldEnv(gym.Env):
         self._collision = False
         self._out_of_bounds = False
         self._success = False
-        self._gaps = self._geometry.signed_distance(state[:d])
+        self._path = np.empty((self.config.collision_substeps + 1, d))
+        self._gaps = self._geometry.point_gaps(state[:d])
         self._min_clearance = float(self._gaps.min()) if self._gaps.size else math.inf
         self._trail = [state[:d].copy()]
         self._potential = self._potential_now()
@@ -234,7 +244,9 @@ class DebrisFieldEnv(gym.Env):
             raise ValueError("chaser_state must be finite")
         scen = self.scenario
         if np.any(state[:d] <= scen.low) or np.any(state[:d] >= scen.high):
-            raise ValueError(f"chaser_state position {state[:d]} is outside the bounds {scen.bounds}")
+            raise ValueError(
+                f"chaser_state position {state[:d]} is outside the bounds {scen.bounds}"
+            )
         gap = self._geometry.signed_distance(state[:d]).min() - self.config.chaser_radius
         if gap <= 0:
             raise ValueError(f"chaser_state position {state[:d]} touches debris (gap {gap:.3g} m)")
@@ -255,8 +267,8 @@ class DebrisFieldEnv(gym.Env):
         terms = self._reward_terms(new_captures, dv)
         terminated = self._success or self._collision or self._out_of_bounds or self._budget_spent()
         if terminated:
-            terms["progress"] -= self.config.reward_progress * self.config.shaping_gamma * (
-                self._potential
+            terms["progress"] -= (
+                self.config.reward_progress * self.config.shaping_gamma * (self._potential)
             )  # Φ(terminal) = 0
         reward = float(sum(terms.values()))
         if self.render_mode == "human":
@@ -283,7 +295,7 @@ class DebrisFieldEnv(gym.Env):
             a = np.asarray(action, dtype=float)
             if a.shape != (self.dim,):
                 raise ValueError(f"action must have shape ({self.dim},), got {a.shape}")
-            if not np.isfinite(a).all():
+            if not math.isfinite(a.sum()):  # NaN or ±inf anywhere makes the sum non-finite
                 raise ValueError(f"action must be finite (no NaN or inf), got {a}")
         accel = commanded_accel(a, scen.max_accel, cfg.thrust_model)
         dv = float(delta_v_rate(accel, cfg.thrust_model)) * scen.dt
@@ -298,39 +310,37 @@ class DebrisFieldEnv(gym.Env):
         """Propagate one step exactly and sweep the path; returns the first body hit or -1."""
         d = self.dim
         start = self._state
-        stacked = np.concatenate([start, accel])
-        path = np.empty((self.config.collision_substeps + 1, d))
+        out = self._step_matrix @ np.concatenate([start, accel])
+        path = self._path
         path[0] = start[:d]
-        path[1:] = (self._sub_positions @ stacked).reshape(-1, d)
-        self._state = self._model.step(start, accel)
+        path[1:] = out[:-d].reshape(-1, d)
+        self._state = np.concatenate([path[-1], out[-d:]])
         self._time += self.scenario.dt
         self._steps += 1
         self._delta_v += dv
         self._accel = accel
-        self._trail.append(self._state[:d].copy())
-        return self._geometry.first_hit(path)
+        self._trail.append(path[-1].copy())
+        return self._geometry.first_hit(path, self._gaps)
 
     def _update_mission(self, hit: int) -> int:
         """Update captures, collision, bounds and success; return the number of new captures."""
         cfg, d = self.config, self.dim
         pos, vel = self._state[:d], self._state[d:]
-        self._gaps = gaps = self._geometry.signed_distance(pos)
+        self._gaps = gaps = self._geometry.point_gaps(pos)
         if gaps.size:
             self._min_clearance = min(self._min_clearance, float(gaps.min()))
         speed = math.sqrt(float(vel @ vel))  # targets are at rest in LVLH (frozen field)
         new = 0
         if speed <= cfg.capture_speed:
-            surface_gap = gaps[: self._n_targets] - cfg.chaser_radius
+            reach = cfg.capture_radius + cfg.chaser_radius
             for i in self._eligible_targets():
-                if surface_gap[i] <= cfg.capture_radius:
+                if gaps[i] <= reach:
                     self._captured[i] = True
                     new += 1
         if hit >= 0 and (hit >= self._n_targets or speed > cfg.capture_speed):
             self._collision = True  # any debris contact, or touching a target too fast
-        self._out_of_bounds = bool(
-            np.any(pos <= self.scenario.low) or np.any(pos >= self.scenario.high)
-        )
-        if self._captured.all() and not self._collision:
+        self._out_of_bounds = bool((pos <= self._low).any() or (pos >= self._high).any())
+        if not self._collision and self._captured.all():
             if not cfg.return_to_dock:
                 self._success = True
             else:
@@ -341,10 +351,8 @@ class DebrisFieldEnv(gym.Env):
 
     def _eligible_targets(self) -> list[int]:
         """Targets that can be captured now: all uncaptured, or the queue head if queued."""
-        remaining = np.flatnonzero(~self._captured)
-        if self.config.target_order == "queued":
-            return [int(remaining[0])] if remaining.size else []
-        return [int(i) for i in remaining]
+        remaining = [i for i, c in enumerate(self._captured.tolist()) if not c]
+        return remaining[:1] if self.config.target_order == "queued" else remaining
 
     def _budget_spent(self) -> bool:
         budget = self.config.delta_v_budget
@@ -353,12 +361,13 @@ class DebrisFieldEnv(gym.Env):
     def _current_goal(self) -> tuple[float, int]:
         """(gap (m) to the current goal, number of goals after it)."""
         cfg, d = self.config, self.dim
-        remaining = np.flatnonzero(~self._captured)
+        remaining = self._eligible_targets()
         dock_goal = 1 if cfg.return_to_dock else 0
-        if remaining.size:
-            surface = self._gaps[remaining] - cfg.chaser_radius
-            k = 0 if cfg.target_order == "queued" else int(np.argmin(surface))
-            return max(float(surface[k]), 0.0), remaining.size - 1 + dock_goal
+        if remaining:
+            gaps = self._gaps
+            gap = min(float(gaps[i]) for i in remaining) - cfg.chaser_radius
+            left = self._n_targets - int(self._captured.sum())
+            return max(gap, 0.0), left - 1 + dock_goal
         if dock_goal:
             off = self._state[:d] - self._dock
             return math.sqrt(float(off @ off)), 0
@@ -387,20 +396,29 @@ class DebrisFieldEnv(gym.Env):
         cfg, d = self.config, self.dim
         L, V = self._length_scale, self._speed_scale
         pos, vel = self._state[:d], self._state[d:]
-        parts = [pos / L, vel / V]
-        parts.append(self._target_slots(pos, vel).ravel())
-        parts.append((self._dock - pos) / L)
+        obs = self._obs_buffer
+        obs[:d] = pos / L
+        obs[d : 2 * d] = vel / V
+        k = 2 * d
+        width = cfg.obs_targets * (2 * d + 2)
+        self._fill_target_slots(obs[k : k + width].reshape(cfg.obs_targets, 2 * d + 2), pos, vel)
+        k += width
+        obs[k : k + d] = (self._dock - pos) / L
+        k += d
         if cfg.observation == "kinematics":
-            parts.append(self._obstacle_slots(pos).ravel())
+            width = cfg.obs_obstacles * (d + 2)
+            self._fill_obstacle_slots(obs[k : k + width].reshape(cfg.obs_obstacles, d + 2), pos)
         else:
+            width = cfg.lidar_rays
             ranges = self._geometry.lidar(pos, self._lidar_dirs, cfg.lidar_range)
-            parts.append(ranges / cfg.lidar_range)
+            obs[k : k + width] = ranges / cfg.lidar_range
+        k += width
         budget = cfg.delta_v_budget
-        dv_left = 1.0 if budget is None else max(budget - self._delta_v, 0.0) / budget
+        obs[k] = 1.0 if budget is None else max(budget - self._delta_v, 0.0) / budget
         horizon = self._horizon_steps()
-        parts.append(np.array([dv_left, max(horizon - self._steps, 0) / horizon]))
-        obs = np.concatenate(parts)
-        np.clip(obs, -OBS_LIMIT, OBS_LIMIT, out=obs)
+        obs[k + 1] = max(horizon - self._steps, 0) / horizon
+        np.minimum(obs, OBS_LIMIT, out=obs)
+        np.maximum(obs, -OBS_LIMIT, out=obs)
         return obs.astype(np.float32)
 
     def _horizon_steps(self) -> int:
@@ -409,40 +427,41 @@ class DebrisFieldEnv(gym.Env):
             return int(spec.max_episode_steps)
         return DEFAULT_HORIZON_STEPS
 
-    def _target_slots(self, pos: np.ndarray, vel: np.ndarray) -> np.ndarray:
+    def _fill_target_slots(self, slots: np.ndarray, pos: np.ndarray, vel: np.ndarray) -> None:
         """K × (rel pos, rel vel, radius, captured): goals first (queue order or nearest)."""
-        cfg, d = self.config, self.dim
+        d = self.dim
         L, V = self._length_scale, self._speed_scale
-        slots = np.zeros((cfg.obs_targets, 2 * d + 2))
-        slots[:, -1] = 1.0  # empty slots read as "captured"
-        remaining = np.flatnonzero(~self._captured)
-        if cfg.target_order == "any" and remaining.size > 1:
-            remaining = remaining[np.argsort(self._gaps[remaining], kind="stable")]
-        order = np.concatenate([remaining, np.flatnonzero(self._captured)])[: cfg.obs_targets]
-        centres = self._geometry.centers[order]
-        slots[: order.size, :d] = (centres - pos) / L
-        slots[: order.size, d : 2 * d] = -vel / V  # target velocity (0, frozen) minus chaser's
-        slots[: order.size, 2 * d] = self._target_radii[order] / L
-        slots[: order.size, 2 * d + 1] = self._captured[order]
-        return slots
+        captured = self._captured.tolist()
+        remaining = [i for i, c in enumerate(captured) if not c]
+        if self.config.target_order == "any" and len(remaining) > 1:
+            remaining.sort(key=self._gaps[: self._n_targets].tolist().__getitem__)
+        order = (remaining + [i for i, c in enumerate(captured) if c])[: len(slots)]
+        m = len(order)
+        slots[m:] = 0.0
+        slots[m:, -1] = 1.0  # empty slots read as "captured"
+        if m:
+            slots[:m, :d] = (self._geometry.centers[order] - pos) / L
+            slots[:m, d : 2 * d] = -vel / V  # target velocity (0, frozen) minus chaser's
+            slots[:m, 2 * d] = self._target_radii[order] / L
+            slots[:m, 2 * d + 1] = [captured[i] for i in order]
 
-    def _obstacle_slots(self, pos: np.ndarray) -> np.ndarray:
+    def _fill_obstacle_slots(self, slots: np.ndarray, pos: np.ndarray) -> None:
         """M nearest obstacles × (rel pos, radius, gap); empty slots: zero offset, gap 1."""
-        cfg, d = self.config, self.dim
+        d = self.dim
         L = self._length_scale
-        m = cfg.obs_obstacles
-        slots = np.zeros((m, d + 2))
-        slots[:, -1] = 1.0
         gaps = self._gaps[self._n_targets :]
-        if gaps.size and m:
-            k = min(m, gaps.size)
-            nearest = np.argpartition(gaps, k - 1)[:k] if gaps.size > k else np.arange(gaps.size)
-            nearest = nearest[np.argsort(gaps[nearest], kind="stable")]
-            centres = self._geometry.centers[self._n_targets + nearest]
-            slots[:k, :d] = (centres - pos) / L
+        k = min(len(slots), gaps.size)
+        slots[k:] = 0.0
+        slots[k:, -1] = 1.0
+        if k:
+            if gaps.size > k:
+                nearest = np.argpartition(gaps, k - 1)[:k]
+                nearest = nearest[np.argsort(gaps[nearest])]
+            else:
+                nearest = np.argsort(gaps)
+            slots[:k, :d] = (self._obstacle_centers[nearest] - pos) / L
             slots[:k, d] = self._obstacle_radii[nearest] / L
             slots[:k, d + 1] = gaps[nearest] / L
-        return slots
 
     def _info(self, terms: dict[str, float]) -> dict[str, Any]:
         return {

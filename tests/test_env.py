@@ -1,0 +1,461 @@
+"""Behaviour of DebrisFieldEnv: API checks, determinism, Δv accounting, collisions, captures."""
+
+from __future__ import annotations
+
+import math
+import pickle
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env as gym_check_env
+
+import debris_gym
+from debris_gym.dynamics import discretize
+from debris_gym.envs import DebrisFieldEnv
+from debris_gym.rewards import REWARD_TERMS
+from debris_gym.scenario import Body, Scenario
+
+ALL_IDS = list(debris_gym.ENV_SPECS)
+INFO_KEYS = {
+    "chaser_state",
+    "time",
+    "delta_v",
+    "targets_captured",
+    "n_targets",
+    "min_clearance",
+    "collision",
+    "is_success",
+    "reward_terms",
+}
+
+
+def simple_scenario(**overrides) -> Scenario:
+    """Free-space field: one target 100 m along-track, one circle obstacle, dock at origin."""
+    data = dict(
+        dim=2,
+        bounds=((-500.0, 500.0), (-500.0, 500.0)),
+        dock=(0.0, 0.0),
+        targets=(Body(position=(0.0, 100.0), radius=5.0, velocity=(0.0, 0.0)),),
+        obstacles=(Body(position=(200.0, 0.0), radius=20.0, velocity=(0.0, 0.0)),),
+        mean_motion=0.0,
+        dt=10.0,
+        max_accel=0.05,
+    )
+    data.update(overrides)
+    return Scenario(**data)
+
+
+@pytest.mark.parametrize("env_id", ALL_IDS)
+@pytest.mark.parametrize("observation", ["kinematics", "lidar"])
+@pytest.mark.parametrize("action", ["continuous", "discrete"])
+def test_check_env_passes_without_warnings(env_id, observation, action):
+    from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        env = gym.make(env_id, observation=observation, action=action)
+        gym_check_env(env.unwrapped)
+        sb3_check_env(env.unwrapped, warn=True)
+        env.close()
+
+
+def test_make_with_module_prefix_needs_no_import():
+    import subprocess
+    import sys
+
+    code = (
+        "import gymnasium as gym\n"
+        "env = gym.make('debris_gym:DebrisGym/Rendezvous2D-v0')\n"
+        "obs, info = env.reset(seed=1)\n"
+        "print(env.spec.max_episode_steps, obs.shape)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split()[0] == "1000"
+
+
+def rollout(env_id, seed, steps=150, **kwargs):
+    env = gym.make(env_id, **kwargs)
+    obs, info = env.reset(seed=seed)
+    env.action_space.seed(seed)
+    record = [obs.tobytes()]
+    for _ in range(steps):
+        obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+        record.append(
+            (obs.tobytes(), reward, terminated, truncated, info["chaser_state"].tobytes())
+        )
+        if terminated or truncated:
+            obs, info = env.reset()
+            record.append(obs.tobytes())
+    scenario = env.unwrapped.scenario
+    env.close()
+    return record, scenario
+
+
+@pytest.mark.parametrize("env_id", ALL_IDS)
+def test_same_seed_gives_bit_identical_episodes(env_id):
+    first, scen1 = rollout(env_id, seed=3)
+    second, scen2 = rollout(env_id, seed=3)
+    assert first == second
+    assert scen1 == scen2
+
+
+@pytest.mark.parametrize("env_id", ["DebrisGym/Rendezvous2D-v0", "DebrisGym/Rendezvous3D-v0"])
+def test_different_seeds_give_different_fields(env_id):
+    env = gym.make(env_id)
+    env.reset(seed=1)
+    a = env.unwrapped.scenario
+    env.reset(seed=2)
+    b = env.unwrapped.scenario
+    assert a != b
+    assert not np.allclose(a.body_positions(), b.body_positions())
+
+
+def test_default_difficulty_matches_design():
+    env = gym.make("DebrisGym/Rendezvous2D-v0")
+    env.reset(seed=0)
+    scen = env.unwrapped.scenario
+    assert len(scen.targets) == 3 and len(scen.obstacles) == 20
+    radii = [b.radius for b in scen.obstacles]
+    assert 2.0 <= min(radii) and max(radii) <= 25.0
+    assert any(b.is_polygon for b in scen.obstacles) and not all(
+        b.is_polygon for b in scen.obstacles
+    )
+    assert scen.size == pytest.approx(1000.0)
+    assert scen.mean_motion == pytest.approx(1.1314e-3, rel=1e-4)
+    assert env.unwrapped.config.return_to_dock
+
+
+@pytest.mark.parametrize("env_id", ALL_IDS)
+def test_info_keys_on_reset_and_step(env_id):
+    env = gym.make(env_id)
+    _, info = env.reset(seed=0)
+    assert INFO_KEYS <= set(info)
+    assert set(info["reward_terms"]) == set(REWARD_TERMS)
+    _, reward, _, _, info = env.step(env.action_space.sample())
+    assert INFO_KEYS <= set(info)
+    assert reward == pytest.approx(sum(info["reward_terms"].values()))
+    dim = env.unwrapped.dim
+    assert info["chaser_state"].shape == (2 * dim,)
+
+
+def test_coasting_and_thrusting_follow_exact_dynamics():
+    """Env states equal the independent ODE solution of the CWH equations."""
+    from scipy.integrate import solve_ivp
+
+    env = DebrisFieldEnv(dim=3, thrust_model="box", delta_v_budget=None, n_obstacles=0)
+    env.reset(seed=0)
+    scen = env.scenario
+    n, dt, amax = scen.mean_motion, scen.dt, scen.max_accel
+    state = np.array([1.0, -2.0, 3.0, 0.01, 0.02, -0.01])
+    env.reset(seed=0, options={"scenario": scen, "chaser_state": state})
+    actions = [np.zeros(3), np.array([1.0, -0.5, 0.25]), np.array([-0.3, 0.9, -1.0])] * 3
+
+    def rhs(_t, s, u):
+        x, y, z, vx, vy, vz = s
+        return [
+            vx,
+            vy,
+            vz,
+            3 * n * n * x + 2 * n * vy + u[0],
+            -2 * n * vx + u[1],
+            -n * n * z + u[2],
+        ]
+
+    truth = state.copy()
+    for a in actions:
+        _, _, terminated, _, info = env.step(a.astype(np.float32))
+        u = amax * a.astype(np.float32).astype(float)
+        sol = solve_ivp(rhs, (0, dt), truth, args=(u,), method="DOP853", rtol=1e-12, atol=1e-12)
+        truth = sol.y[:, -1]
+        got = info["chaser_state"]
+        assert np.linalg.norm(got - truth) <= 1e-6 * np.linalg.norm(truth)
+        assert not terminated
+
+
+@pytest.mark.parametrize("thrust_model", ["box", "ball"])
+def test_delta_v_accounting_is_exact(thrust_model):
+    env = DebrisFieldEnv(thrust_model=thrust_model, delta_v_budget=None)
+    env.reset(seed=0)
+    scen = env.scenario
+    actions = np.array([[1.0, 1.0], [0.3, -0.4], [0.0, 0.0], [-2.0, 0.5], [0.6, 0.8]])
+    expected = 0.0
+    for a in actions:
+        _, _, _, _, info = env.step(a.astype(np.float32))
+        a32 = a.astype(np.float32).astype(float)
+        if thrust_model == "box":
+            u = scen.max_accel * np.clip(a32, -1, 1)
+            expected += np.abs(u).sum() * scen.dt
+        else:
+            u = scen.max_accel * a32 / max(1.0, np.linalg.norm(a32))
+            expected += np.linalg.norm(u) * scen.dt
+        assert info["delta_v"] == pytest.approx(expected, rel=1e-12, abs=1e-15)
+    # hand-computed: ball, [1, 1] → |u| = max_accel, Δv = 0.05 · 10 = 0.5 m/s for the first step
+    if thrust_model == "ball":
+        env.reset(seed=0)
+        _, _, _, _, info = env.step(np.array([1.0, 1.0], dtype=np.float32))
+        assert info["delta_v"] == pytest.approx(0.5, rel=1e-12)
+
+
+def test_budget_is_spent_exactly_and_ends_the_episode():
+    env = DebrisFieldEnv(thrust_model="ball", delta_v_budget=1.2)
+    env.reset(seed=0, options={"scenario": simple_scenario()})
+    deltas = []
+    for _ in range(5):
+        _, _, terminated, _, info = env.step(np.array([0.0, -1.0], dtype=np.float32))
+        deltas.append(info["delta_v"])
+        if terminated:
+            break
+    assert deltas == pytest.approx([0.5, 1.0, 1.2])
+    assert terminated and not info["collision"]
+
+
+def test_long_step_through_a_body_is_a_collision():
+    """Both ends of the step lie outside the obstacle, but the straight path crosses it."""
+    scen = simple_scenario(
+        obstacles=(Body(position=(0.0, 50.0), radius=5.0, velocity=(0.0, 0.0)),),
+        targets=(Body(position=(300.0, 300.0), radius=5.0, velocity=(0.0, 0.0)),),
+        dt=100.0,
+    )
+    env = DebrisFieldEnv(mean_motion=0.0, delta_v_budget=None)
+    env.reset(seed=0, options={"scenario": scen, "chaser_state": [0.0, 0.0, 0.0, 1.0]})
+    _, reward, terminated, _, info = env.step(np.zeros(2, dtype=np.float32))
+    assert info["chaser_state"][1] == pytest.approx(100.0)  # ended 45 m beyond the obstacle
+    assert info["collision"] and terminated
+    assert info["reward_terms"]["collision"] == -env.config.reward_collision
+    # the same step beside the obstacle is clean
+    env.reset(seed=0, options={"scenario": scen, "chaser_state": [7.0, 0.0, 0.0, 1.0]})
+    _, _, terminated, _, info = env.step(np.zeros(2, dtype=np.float32))
+    assert not info["collision"] and not terminated
+
+
+def test_polygon_is_hit_between_substeps_too():
+    square = ((-3.0, -3.0), (3.0, -3.0), (3.0, 3.0), (-3.0, 3.0))
+    scen = simple_scenario(
+        obstacles=(
+            Body(position=(0.0, 55.0), radius=math.sqrt(18), velocity=(0.0, 0.0), vertices=square),
+        ),
+        targets=(Body(position=(300.0, 300.0), radius=5.0, velocity=(0.0, 0.0)),),
+        dt=100.0,
+    )
+    env = DebrisFieldEnv(collision_substeps=1, delta_v_budget=None)
+    env.reset(seed=0, options={"scenario": scen, "chaser_state": [0.0, 0.0, 0.0, 1.0]})
+    _, _, terminated, _, info = env.step(np.zeros(2, dtype=np.float32))
+    assert info["collision"] and terminated
+
+
+def test_capture_requires_distance_and_low_speed():
+    scen = simple_scenario()
+    env = DebrisFieldEnv(return_to_dock=True, delta_v_budget=None, capture_radius=5.0)
+    # 3 m from the target surface (chaser radius 1 → surface gap 2 m), at rest: captured
+    env.reset(seed=0, options={"scenario": scen, "chaser_state": [0.0, 92.0, 0.0, 0.0]})
+    _, reward, terminated, _, info = env.step(np.zeros(2, dtype=np.float32))
+    assert info["targets_captured"] == 1 and not terminated
+    assert info["reward_terms"]["capture"] == env.config.reward_capture
+    # same place but drifting at 1 m/s (> capture_speed 0.5): not captured
+    env.reset(seed=0, options={"scenario": scen, "chaser_state": [0.0, 82.0, 1.0, 0.0]})
+    _, _, _, _, info = env.step(np.zeros(2, dtype=np.float32))
+    assert info["targets_captured"] == 0
+    # then come home to the dock slowly: success
+    env.reset(seed=0, options={"scenario": scen, "chaser_state": [0.0, 92.0, 0.0, 0.0]})
+    env.step(np.zeros(2, dtype=np.float32))
+    env.unwrapped._state[:] = [0.0, 2.0, 0.0, -0.01]
+    _, reward, terminated, _, info = env.step(np.zeros(2, dtype=np.float32))
+    assert info["is_success"] and terminated
+    assert info["reward_terms"]["success"] == env.config.reward_success
+
+
+def test_touching_a_target_too_fast_is_a_collision():
+    scen = simple_scenario()
+    env = DebrisFieldEnv(delta_v_budget=None)
+    env.reset(seed=0, options={"scenario": scen, "chaser_state": [0.0, 80.0, 0.0, 2.0]})
+    _, _, terminated, _, info = env.step(np.zeros(2, dtype=np.float32))
+    assert info["collision"] and terminated and info["targets_captured"] == 0
+
+
+def test_queued_order_only_counts_the_current_target():
+    targets = (
+        Body(position=(0.0, 100.0), radius=5.0, velocity=(0.0, 0.0)),
+        Body(position=(0.0, -100.0), radius=5.0, velocity=(0.0, 0.0)),
+    )
+    scen = simple_scenario(targets=targets)
+    for order, expected in (("queued", 0), ("any", 1)):
+        env = DebrisFieldEnv(target_order=order, delta_v_budget=None)
+        env.reset(seed=0, options={"scenario": scen, "chaser_state": [0.0, -92.0, 0.0, 0.0]})
+        _, _, _, _, info = env.step(np.zeros(2, dtype=np.float32))
+        assert info["targets_captured"] == expected, order
+
+
+def test_leaving_bounds_terminates():
+    env = DebrisFieldEnv(delta_v_budget=None)
+    env.reset(seed=0, options={"scenario": simple_scenario(), "chaser_state": [0, 495, 0, 1.0]})
+    _, _, terminated, _, info = env.step(np.zeros(2, dtype=np.float32))
+    assert terminated and info["out_of_bounds"] and not info["collision"]
+    assert info["reward_terms"]["out_of_bounds"] == -env.config.reward_out_of_bounds
+
+
+def test_progress_shaping_telescopes_to_potential_difference():
+    """Σ γ^t F_t = γ^T Φ(s_T) − Φ(s_0): the shaping is potential-based."""
+    gamma = 0.9
+    env = DebrisFieldEnv(shaping_gamma=gamma, reward_progress=1.0, delta_v_budget=None)
+    env.reset(seed=4)
+    phi0 = env._potential
+    total, discount = 0.0, 1.0
+    rng = np.random.default_rng(0)
+    for _ in range(60):
+        _, _, terminated, _, info = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
+        total += discount * info["reward_terms"]["progress"]
+        discount *= gamma
+        if terminated:
+            break
+    phi_end = 0.0 if terminated else env._potential
+    assert total == pytest.approx(discount * phi_end - phi0, rel=1e-9, abs=1e-9)
+
+
+def test_observation_is_normalised_and_named():
+    env = DebrisFieldEnv()
+    obs, _ = env.reset(seed=0)
+    names = env.observation_names()
+    assert len(names) == obs.shape[0] == env.observation_space.shape[0]
+    assert obs.dtype == np.float32 and env.observation_space.contains(obs)
+    assert np.all(np.abs(obs) <= 1.5)
+    values = dict(zip(names, obs))
+    assert values["delta_v_remaining"] == 1.0 and values["time_remaining"] == 1.0
+    # slot 0 is the nearest uncaptured target, matching the scenario geometry
+    scen = env.scenario
+    gaps = [np.linalg.norm(t.position) - t.radius for t in scen.targets]
+    nearest = scen.targets[int(np.argmin(gaps))]
+    half = scen.size / 2
+    assert values["target0_rel_pos_x"] == pytest.approx(nearest.position[0] / half, rel=1e-5)
+    assert values["target0_radius"] == pytest.approx(nearest.radius / half, rel=1e-5)
+
+
+def test_obstacle_slots_hold_nearest_gaps():
+    env = DebrisFieldEnv(obs_obstacles=4)
+    obs, _ = env.reset(seed=2)
+    values = dict(zip(env.observation_names(), obs))
+    geom = env._geometry
+    gaps = geom.signed_distance(np.zeros(2))[len(env.scenario.targets) :]
+    half = env.scenario.size / 2
+    expected = np.sort(gaps)[:4] / half
+    got = [values[f"obstacle{k}_gap"] for k in range(4)]
+    np.testing.assert_allclose(got, expected, rtol=1e-5)
+
+
+def test_lidar_observation_sees_an_obstacle_ahead():
+    scen = simple_scenario()
+    env = DebrisFieldEnv(observation="lidar", lidar_rays=4, lidar_range=250.0)
+    obs, _ = env.reset(seed=0, options={"scenario": scen})
+    values = dict(zip(env.observation_names(), obs))
+    # rays: +x, +y, -x, -y. Obstacle at x = 200 (r 20): 180 m; target at y = 100 (r 5): 95 m.
+    assert values["lidar0"] == pytest.approx(180 / 250, rel=1e-5)
+    assert values["lidar1"] == pytest.approx(95 / 250, rel=1e-5)
+    assert values["lidar2"] == 1.0 and values["lidar3"] == 1.0
+
+
+@pytest.mark.parametrize(
+    "kwargs, fragment",
+    [
+        ({"dt": 0}, "dt"),
+        ({"dt": 1e4}, "dt"),
+        ({"max_accel": -1}, "max_accel"),
+        ({"n_targets": 0}, "n_targets"),
+        ({"observation": "pixels"}, "observation"),
+        ({"thrust_model": "rocket"}, "thrust_model"),
+        ({"capture_radius": float("nan")}, "capture_radius"),
+        ({"n_tragets": 3}, "n_tragets"),
+        ({"obstacle_radius_min": 30.0}, "obstacle_radius_min"),
+        ({"dim": 3, "scenario": "paper"}, "paper"),
+    ],
+)
+def test_bad_kwargs_raise_value_error_naming_the_key(kwargs, fragment):
+    with pytest.raises(ValueError, match=fragment):
+        gym.make("DebrisGym/Rendezvous2D-v0", **kwargs)
+
+
+@pytest.mark.parametrize(
+    "action",
+    [
+        np.array([np.nan, 0.0], dtype=np.float32),
+        np.array([np.inf, 0.0], dtype=np.float32),
+        np.array([0.0, 0.0, 0.0], dtype=np.float32),
+        np.array([[0.1, 0.2]], dtype=np.float32),
+    ],
+)
+def test_bad_continuous_actions_raise(action):
+    env = DebrisFieldEnv()
+    env.reset(seed=0)
+    state = env._state.copy()
+    with pytest.raises(ValueError, match="action"):
+        env.step(action)
+    np.testing.assert_array_equal(env._state, state)  # nothing propagated
+
+
+@pytest.mark.parametrize("action", [5, -1, 2.5, np.array([1, 2])])
+def test_bad_discrete_actions_raise(action):
+    env = DebrisFieldEnv(action="discrete")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="action"):
+        env.step(action)
+
+
+def test_discrete_actions_map_to_full_thrust_axes():
+    env = DebrisFieldEnv(action="discrete", delta_v_budget=None)
+    env.reset(seed=0, options={"scenario": simple_scenario()})
+    model = discretize(0.0, 10.0, 2)
+    _, _, _, _, info = env.step(3)  # +y
+    expected = model.step(np.zeros(4), np.array([0.0, 0.05]))
+    np.testing.assert_allclose(info["chaser_state"], expected, rtol=1e-12)
+    assert info["delta_v"] == pytest.approx(0.5)
+
+
+def test_reset_options_validation(tmp_path):
+    env = DebrisFieldEnv()
+    with pytest.raises(ValueError, match="unknown reset option"):
+        env.reset(options={"scenaro": None})
+    with pytest.raises(ValueError, match="chaser_state"):
+        env.reset(seed=0, options={"scenario": simple_scenario(), "chaser_state": [0, 0, 0]})
+    with pytest.raises(ValueError, match="touches debris"):
+        env.reset(seed=0, options={"scenario": simple_scenario(), "chaser_state": [200, 0, 0, 0]})
+    with pytest.raises(ValueError, match="outside the bounds"):
+        env.reset(seed=0, options={"scenario": simple_scenario(), "chaser_state": [900, 0, 0, 0]})
+    with pytest.raises(ValueError, match="dim"):
+        DebrisFieldEnv(dim=3).reset(options={"scenario": simple_scenario()})
+    # a scenario as dict and as a path work and pin the field
+    scen = simple_scenario()
+    path = tmp_path / "field.json"
+    scen.save(path)
+    for value in (scen, scen.to_dict(), str(path), path):
+        env.reset(seed=9, options={"scenario": value})
+        assert env.scenario == scen
+
+
+def test_step_before_reset_raises():
+    with pytest.raises(RuntimeError, match="reset"):
+        DebrisFieldEnv().step(np.zeros(2, dtype=np.float32))
+
+
+@pytest.mark.parametrize("env_id", ALL_IDS)
+def test_env_pickles_mid_episode(env_id):
+    env = gym.make(env_id)
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+    clone = pickle.loads(pickle.dumps(env))
+    action = env.action_space.sample()
+    a = env.step(action)
+    b = clone.step(action)
+    np.testing.assert_array_equal(a[0], b[0])
+    assert a[1] == b[1]
+
+
+def test_min_clearance_is_running_minimum():
+    env = DebrisFieldEnv(delta_v_budget=None)
+    env.reset(seed=0, options={"scenario": simple_scenario(), "chaser_state": [100, 0, 1.0, 0]})
+    seen = []
+    for _ in range(6):
+        _, _, terminated, _, info = env.step(np.zeros(2, dtype=np.float32))
+        seen.append(info["min_clearance"])
+    # moving +x at 1 m/s toward the obstacle at x=200 (r=20): gap 180 - 10 k - chaser radius
+    assert seen == pytest.approx([80 - 10 * k - 1 for k in range(1, 7)])
+    assert all(a >= b for a, b in zip(seen, seen[1:]))

@@ -1,0 +1,233 @@
+"""Scenario data, serialisation, generators (property-based) and the paper preset."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pymunk
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from debris_gym.generators import (
+    FieldSpec,
+    grid_route_exists,
+    is_solvable,
+    paper_field,
+    random_field,
+)
+from debris_gym.geometry import FieldGeometry
+from debris_gym.scenario import Body, Scenario, as_scenario
+
+
+def make(spec: FieldSpec, seed: int, capture_radius: float = 5.0) -> Scenario:
+    return random_field(
+        np.random.default_rng(seed),
+        spec,
+        mean_motion=1.1e-3,
+        dt=10.0,
+        max_accel=0.05,
+        capture_radius=capture_radius,
+    )
+
+
+def pymunk_overlaps(scen: Scenario) -> list[tuple[int, int]]:
+    """Independent overlap test with pymunk's own queries.
+
+    Two convex bodies overlap iff an edge of one enters the other (segment query), a circle's
+    centre is within its radius of the other (point query), or one holds the other's centre.
+    """
+    shapes = FieldGeometry(scen).shapes
+    pairs = []
+    for i, a in enumerate(shapes):
+        for j, b in enumerate(shapes):
+            if j <= i:
+                continue
+            hit = False
+            for first, second in ((a, b), (b, a)):
+                if isinstance(second, pymunk.Circle):
+                    centre = second.offset
+                    hit |= first.point_query(centre).distance <= second.radius
+                else:
+                    verts = second.get_vertices()
+                    for k in range(len(verts)):
+                        v, w = verts[k], verts[(k + 1) % len(verts)]
+                        hit |= first.segment_query(v, w, 0.0) is not None
+                    centroid = sum(verts, pymunk.Vec2d(0, 0)) / len(verts)
+                    hit |= first.point_query(centroid).distance <= 0
+            if hit:
+                pairs.append((i, j))
+    return pairs
+
+
+def spec_strategy(dim: int, sizes: tuple[float, float]):
+    return st.builds(
+        FieldSpec,
+        dim=st.just(dim),
+        n_targets=st.integers(1, 6),
+        n_obstacles=st.integers(0, 40),
+        field_size=st.floats(*sizes),
+        polygon_fraction=st.floats(0.0, 1.0),
+        min_gap=st.floats(4.0, 30.0),
+        chaser_radius=st.floats(0.0, 2.0),
+    )
+
+
+def check_field(spec: FieldSpec, seed: int, capture_radius: float) -> None:
+    scen = make(spec, seed, capture_radius)
+    assert len(scen.targets) == spec.n_targets and len(scen.obstacles) == spec.n_obstacles
+    geom = FieldGeometry(scen)
+    assert geom.clearance(np.asarray(scen.dock)) > spec.chaser_radius
+    # bounding circles / spheres at least min_gap apart (so the exact shapes are too)
+    centres = scen.body_positions()
+    radii = np.array([b.radius for b in scen.bodies])
+    gaps = np.linalg.norm(centres[:, None] - centres[None], axis=-1) - radii[:, None] - radii[None]
+    np.fill_diagonal(gaps, np.inf)
+    assert gaps.min() >= spec.min_gap - 1e-9
+    if scen.dim == 2:
+        assert pymunk_overlaps(scen) == []
+    assert np.all(centres - radii[:, None] > scen.low) and np.all(
+        centres + radii[:, None] < scen.high
+    )
+    # solvable by the generator's own proof AND by an independent grid search, whose cell is
+    # small enough (diagonal below the capture depth) that it cannot step over a capture zone
+    assert is_solvable(scen, spec.chaser_radius, capture_radius)
+    cell = 0.9 * capture_radius / math.sqrt(scen.dim)
+    assert grid_route_exists(scen, spec.chaser_radius, capture_radius, cell=cell)
+
+
+@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(spec=spec_strategy(2, (600.0, 1500.0)), seed=st.integers(0, 2**32 - 1))
+def test_generated_2d_fields_never_overlap_and_are_solvable(spec, seed):
+    check_field(spec, seed, capture_radius=5.0)
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(spec=spec_strategy(3, (600.0, 900.0)), seed=st.integers(0, 2**32 - 1))
+def test_generated_3d_fields_never_overlap_and_are_solvable(spec, seed):
+    check_field(spec, seed, capture_radius=20.0)
+
+
+def test_overlap_probe_detects_overlaps():
+    """The independent probe itself must be able to fail."""
+    square = ((-5.0, -5.0), (5.0, -5.0), (5.0, 5.0), (-5.0, 5.0))
+    scen = Scenario(
+        dim=2,
+        bounds=((-100, 100), (-100, 100)),
+        dock=(0, 0),
+        targets=(Body(position=(50.0, 0.0), radius=3.0),),
+        obstacles=(
+            Body(position=(20.0, 20.0), radius=math.sqrt(50), vertices=square),
+            Body(position=(26.0, 20.0), radius=2.0),
+            Body(position=(-40.0, 0.0), radius=2.0),
+        ),
+    )
+    assert pymunk_overlaps(scen) == [(1, 2)]
+
+
+def test_grid_search_detects_an_enclosed_target():
+    """A target walled in by overlapping debris is reported unsolvable by both checks."""
+    ring = tuple(
+        Body(position=(200 + 30 * math.cos(a), 30 * math.sin(a)), radius=9.0)
+        for a in np.linspace(0, 2 * math.pi, 16, endpoint=False)
+    )
+    scen = Scenario(
+        dim=2,
+        bounds=((-500, 500), (-500, 500)),
+        dock=(0, 0),
+        targets=(Body(position=(200.0, 0.0), radius=3.0),),
+        obstacles=ring,
+    )
+    assert not grid_route_exists(scen, 1.0, 5.0)
+    assert not is_solvable(scen, 1.0, 5.0)
+    # opening the ring (drop two neighbouring stones) makes it solvable again
+    opened = Scenario(
+        dim=2, bounds=scen.bounds, dock=scen.dock, targets=scen.targets, obstacles=ring[2:]
+    )
+    assert is_solvable(opened, 1.0, 5.0)
+
+
+def test_crowded_field_raises_a_clear_error():
+    spec = FieldSpec(n_obstacles=2000, field_size=300.0)
+    with pytest.raises(ValueError, match="n_obstacles"):
+        make(spec, 0)
+
+
+def test_generator_is_deterministic_per_seed():
+    spec = FieldSpec()
+    assert make(spec, 5) == make(spec, 5)
+    assert make(spec, 5) != make(spec, 6)
+
+
+def test_polygons_are_convex_ccw_with_circumradius():
+    scen = make(FieldSpec(polygon_fraction=1.0), 3)
+    for b in scen.obstacles:
+        v = np.asarray(b.vertices)
+        assert np.max(np.linalg.norm(v, axis=1)) == pytest.approx(b.radius)
+        e = np.roll(v, -1, axis=0) - v
+        cross = e[:, 0] * np.roll(e, -1, axis=0)[:, 1] - e[:, 1] * np.roll(e, -1, axis=0)[:, 0]
+        assert np.all(cross > 0)
+
+
+def test_json_round_trip(tmp_path):
+    scen = make(FieldSpec(), 1)
+    again = Scenario.from_dict(json.loads(json.dumps(scen.to_dict())))
+    assert again == scen
+    path = tmp_path / "s.json"
+    scen.save(path)
+    assert Scenario.load(path) == scen
+    assert as_scenario(str(path)) == scen
+    assert [p.name for p in tmp_path.iterdir()] == ["s.json"]  # no temp files left behind
+
+
+def test_save_is_atomic_on_failure(tmp_path, monkeypatch):
+    path = tmp_path / "s.json"
+    path.write_text("previous content")
+    scen = make(FieldSpec(), 1)
+
+    def boom(*_args, **_kwargs):
+        raise OSError("disk full")
+
+    monkeypatch.setattr("os.replace", boom)
+    with pytest.raises(OSError):
+        scen.save(path)
+    assert path.read_text() == "previous content"
+    assert [p.name for p in tmp_path.iterdir()] == ["s.json"]
+
+
+@pytest.mark.parametrize(
+    "mutate, fragment",
+    [
+        (lambda d: d.update(dim=4), "dim"),
+        (lambda d: d.update(targets=[]), "target"),
+        (lambda d: d["targets"][0].update(radius=-1), "radius"),
+        (lambda d: d.update(dt=0), "dt"),
+        (lambda d: d.update(max_accel=float("nan")), "max_accel"),
+        (lambda d: d.update(extra=1), "unknown scenario keys"),
+        (
+            lambda d: d["obstacles"].append(
+                {"position": [0, 0], "vertices": [[0, 0], [1, 1], [2, 0]]}
+            ),
+            "convex",
+        ),
+        (lambda d: d["targets"][0].update(velocity=[1.0, 0.0]), "frozen"),
+        (lambda d: d.update(motion="keplerian"), "motion"),
+        (lambda d: d.update(dock=[0.0]), "dock"),
+    ],
+)
+def test_invalid_scenarios_raise(mutate, fragment):
+    data = make(FieldSpec(n_obstacles=2), 0).to_dict()
+    mutate(data)
+    with pytest.raises(ValueError, match=fragment):
+        Scenario.from_dict(data)
+
+
+def test_paper_field_matches_seed_000_world():
+    scen = paper_field()
+    assert scen.bounds == ((0.0, 20.0), (0.0, 20.0))
+    assert scen.mean_motion == 0.0 and scen.dt == pytest.approx(0.1)
+    assert all(not b.is_polygon for b in scen.obstacles)
+    assert is_solvable(scen, 0.1, 0.2)
+    assert grid_route_exists(scen, 0.1, 0.2, cell=0.05)
