@@ -1,4 +1,4 @@
-"""Fly one episode of DebrisGym/Rendezvous2D-v0 with a simple PD guidance law.
+"""Fly one episode of DebrisGym/Rendezvous2D-v0 with a simple braking-profile guidance law.
 
 Prints a summary and saves a picture of the final frame. A placeholder main job until
 ``evaluate.py`` ships the baselines; the controller here ignores debris (it may collide).
@@ -17,23 +17,28 @@ import numpy as np
 import debris_gym  # noqa: F401  (registers the IDs)
 
 
-def pd_action(env: gym.Env, k_p: float = 0.004, k_d: float = 0.12) -> np.ndarray:
-    """Acceleration toward the nearest uncaptured target (then the dock), as a normalised action."""
+def guidance_action(env: gym.Env) -> np.ndarray:
+    """Braking-profile guidance toward the nearest uncaptured target, then the dock.
+
+    Commands the velocity v_des = min(v_max, sqrt(a · gap)) toward the goal point, so the chaser
+    can always stop in time with half its thrust, and thrusts to match it. Ignores debris.
+    """
     base = env.unwrapped
-    scen, state, d = base.scenario, base._state, base.dim
+    scen, cfg, state, d = base.scenario, base.config, base._state, base.dim
     pos, vel = state[:d], state[d:]
     remaining = [i for i, c in enumerate(base._captured) if not c]
     if remaining:
         centres = np.array([scen.targets[i].position for i in remaining])
-        k = int(np.argmin(np.linalg.norm(centres - pos, axis=1)))
-        target = scen.targets[remaining[k]]
+        target = scen.targets[remaining[int(np.argmin(np.linalg.norm(centres - pos, axis=1)))]]
         offset = np.asarray(target.position) - pos
-        dist = np.linalg.norm(offset)
-        stand_off = target.radius + base.config.chaser_radius + 0.5 * base.config.capture_radius
-        goal = pos + offset * (1.0 - stand_off / max(dist, 1e-9))
+        stand_off = target.radius + cfg.chaser_radius + 0.5 * cfg.capture_radius
+        offset -= offset / max(np.linalg.norm(offset), 1e-9) * stand_off
     else:
-        goal = np.asarray(scen.dock)
-    accel = k_p * (goal - pos) - k_d * vel
+        offset = np.asarray(scen.dock) - pos
+    gap = float(np.linalg.norm(offset))
+    speed = min(0.5 * cfg.capture_speed + np.sqrt(scen.max_accel * gap), 10.0)
+    v_des = offset / max(gap, 1e-9) * min(speed, gap / scen.dt)
+    accel = (v_des - vel) / scen.dt
     return np.clip(accel / scen.max_accel, -1.0, 1.0).astype(np.float32)
 
 
@@ -49,7 +54,7 @@ def main() -> None:
     total, steps = 0.0, 0
     terminated = truncated = False
     while not (terminated or truncated):
-        obs, reward, terminated, truncated, info = env.step(pd_action(env))
+        obs, reward, terminated, truncated, info = env.step(guidance_action(env))
         total += reward
         steps += 1
     frame = env.render()

@@ -41,7 +41,7 @@ class Option:
     def describe(self) -> str:
         """Human-readable allowed range, as used in error messages and docs."""
         if self.choices is not None:
-            text = " | ".join(repr(c) for c in self.choices)
+            text = "one of " + ", ".join(repr(c) for c in self.choices)
         else:
             lo = "-inf" if self.low is None else f"{self.low:g}"
             hi = "inf" if self.high is None else f"{self.high:g}"

@@ -26,6 +26,7 @@ ENV_SPECS: dict[str, dict] = {
             "chaser_radius": 0.1,
             "delta_v_budget": None,
             "lidar_range": 5.0,
+            "obs_targets": 4,
         },
     },
 }

@@ -1,0 +1,443 @@
+"""Matplotlib rendering of :class:`debris_gym.envs.DebrisFieldEnv`.
+
+The field is drawn in the LVLH frame with the usual top-view convention: along-track (y) to the
+right, radial (x) up. A 3D field gets a second panel beside it, along-track (y) right and
+cross-track (z) up; spheres are drawn as circles in both projections.
+
+Speed: a frame is three layers. The *frame* layer (axes, ticks, labels, legend, titles) depends
+only on the world's bounds, dimension and name and is drawn once; the *field* layer (debris, dock,
+target labels) is drawn on top of it once per scenario; each frame restores that cached picture
+and draws only the dynamic artists (targets, trail, chaser, thrust arrow, status numbers) on top
+("blitting"). Frames are rendered off screen with Agg in both modes; ``"human"`` also shows them in
+a pyplot window.
+
+Matplotlib is imported only when a :class:`Renderer` is built, so importing the env stays light.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from typing import Any
+
+import numpy as np
+
+from debris_gym.scenario import Scenario
+
+RENDER_MODES = ("human", "rgb_array")
+
+DPI = 100
+PANEL_PX = 480
+"""Edge of one square field panel (pixels)."""
+
+ARROW_FRACTION = 0.05
+"""Length of the thrust arrow at full thrust (|accel| = max_accel), as a fraction of the world."""
+
+DEBRIS_FACE, DEBRIS_EDGE = "#a6a6a6", "#5f5f5f"
+TARGET_OPEN, TARGET_DONE, TARGET_EDGE = "#ff8c00", "#2ca02c", "#6b3d00"
+CHASER, TRAIL, THRUST, DOCK = "#1f5fd0", "#5b8fe8", "#d62728", "#222222"
+
+AXIS_LABELS = {0: "x radial [m]", 1: "y along-track [m]", 2: "z cross-track [m]"}
+PANEL_TITLES = {
+    (1, 0): "in-plane (y–x): along-track →, radial ↑",
+    (1, 2): "out-of-plane (y–z): along-track →, cross-track ↑",
+}
+VIEWS = {2: ((1, 0),), 3: ((1, 0), (1, 2))}
+"""(horizontal, vertical) state components of each panel, per dimension."""
+
+STATUS_FIELDS = (
+    # static label, value format, typical widest value (reserves its width)
+    ("t = ", "{:.1f} s", "0000.0 s"),
+    ("Δv = ", "{:.2f} m/s", "00.00 m/s"),
+    ("|v| = ", "{:.3g} m/s", "0.000 m/s"),
+    ("captured ", "{:d}/{n}", "0/0"),
+)
+STATUS_FONTSIZE = 9.5
+
+
+def _import_matplotlib() -> Any:
+    try:
+        import matplotlib
+    except ImportError as exc:  # pragma: no cover - matplotlib is a declared dependency
+        raise ImportError(
+            "rendering debris_gym environments needs matplotlib; install it with "
+            "`pip install matplotlib`"
+        ) from exc
+    return matplotlib
+
+
+def _interactive_pyplot() -> Any:
+    """pyplot on an interactive backend, or a RuntimeError saying why there is none."""
+    _import_matplotlib()
+    hint = (
+        "render_mode='human' needs a display and an interactive matplotlib backend; "
+        "use render_mode='rgb_array' to get frames as arrays instead"
+    )
+    if sys.platform.startswith("linux") and not (
+        os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+    ):
+        raise RuntimeError(f"{hint} (neither DISPLAY nor WAYLAND_DISPLAY is set)")
+    import matplotlib.pyplot as plt
+
+    backend = str(plt.get_backend()).lower()
+    try:
+        from matplotlib.backends import BackendFilter, backend_registry
+
+        interactive = set(backend_registry.list_builtin(BackendFilter.INTERACTIVE))
+    except ImportError:  # matplotlib < 3.9
+        from matplotlib import rcsetup
+
+        interactive = {b.lower() for b in rcsetup.interactive_bk}
+    if backend not in interactive and not backend.startswith("module://"):
+        raise RuntimeError(f"{hint} (the matplotlib backend is {backend!r})")
+    return plt
+
+
+class _Panel:
+    """One 2D projection: horizontal axis = state component ``h``, vertical = component ``v``."""
+
+    def __init__(self, ax: Any, h: int, v: int) -> None:
+        self.ax, self.h, self.v = ax, h, v
+        self.field: list[Any] = []  # static per-scenario artists (debris, dock, labels)
+        self.targets: Any = None  # true-size target discs
+        self.rings: Any = None  # fixed-size rings around targets, so small ones stay visible
+        self.trail: Any = None
+        self.arrow: Any = None
+        self.chaser: Any = None
+
+    def xy(self, points: Any) -> tuple[Any, Any]:
+        points = np.asarray(points, dtype=float)
+        return points[..., self.h], points[..., self.v]
+
+    def dynamic(self) -> tuple[Any, ...]:
+        return (self.targets, self.rings, self.trail, self.arrow, self.chaser)
+
+
+class Renderer:
+    """Draws frames of a debris field with the chaser, its trail and its thrust.
+
+    Args:
+        mode: ``"rgb_array"`` (return frames) or ``"human"`` (also show them in a window).
+        fps: frame rate of the ``"human"`` window (it pauses ``1 / fps`` s per frame).
+
+    Raises:
+        RuntimeError: ``mode="human"`` without a display or an interactive matplotlib backend.
+    """
+
+    def __init__(self, mode: str, fps: int = 15) -> None:
+        if mode not in RENDER_MODES:
+            raise ValueError(f"mode must be one of {RENDER_MODES}, got {mode!r}")
+        if not fps > 0:
+            raise ValueError(f"fps must be > 0, got {fps!r}")
+        self.mode = mode
+        self.fps = fps
+        _import_matplotlib()
+        self._plt = _interactive_pyplot() if mode == "human" else None
+        self._scenario: Scenario | None = None
+        self._layout_key: tuple[Any, ...] | None = None
+        self._fig: Any = None
+        self._canvas: Any = None
+        self._frame_background: Any = None
+        self._background: Any = None
+        self._panels: list[_Panel] = []
+        self._status: list[Any] = []
+        self._rgba_open = self._rgba_done = np.zeros(4)
+        self._window: Any = None
+        self._window_image: Any = None
+
+    # --- public API ---------------------------------------------------------------------------
+
+    def draw(
+        self,
+        *,
+        scenario: Scenario,
+        chaser_state: np.ndarray,
+        captured: np.ndarray,
+        trail: np.ndarray,
+        accel: np.ndarray,
+        time: float,
+        delta_v: float,
+    ) -> np.ndarray:
+        """Render one frame: an (H, W, 3) uint8 RGB array (also shown on screen if human).
+
+        Args:
+            scenario: the field; its static part is drawn once and reused while it is the same.
+            chaser_state: LVLH state, position then velocity, length 2·dim (m, m/s).
+            captured: one flag per target.
+            trail: past chaser positions, shape (n, dim) (m).
+            accel: commanded acceleration of the last step, length dim (m/s²).
+            time: elapsed time (s).
+            delta_v: Δv spent so far (m/s).
+        """
+        self._ensure_scene(scenario)
+        d = scenario.dim
+        state = np.asarray(chaser_state, dtype=float).reshape(2 * d)
+        pos, vel = state[:d], state[d:]
+        captured = np.asarray(captured, dtype=bool).reshape(len(scenario.targets))
+        trail = np.asarray(trail, dtype=float).reshape(-1, d)
+        accel = np.asarray(accel, dtype=float).reshape(d)
+
+        colours = np.where(captured[:, None], self._rgba_done, self._rgba_open)
+        thrust = float(np.linalg.norm(accel)) / scenario.max_accel
+        arrow = accel / scenario.max_accel * (ARROW_FRACTION * scenario.size)
+        for panel in self._panels:
+            panel.targets.set_facecolor(colours)
+            panel.rings.set_edgecolor(colours)
+            panel.trail.set_data(*panel.xy(trail))
+            x, y = panel.xy(pos)
+            panel.chaser.set_data([x], [y])
+            dx, dy = panel.xy(arrow)
+            if thrust > 1e-9 and (dx != 0.0 or dy != 0.0):
+                panel.arrow.set_positions((x, y), (x + dx, y + dy))
+                panel.arrow.set_mutation_scale(5.0 + 7.0 * min(thrust, 1.0))  # head size (pt)
+                panel.arrow.set_visible(True)
+            else:
+                panel.arrow.set_visible(False)
+        values = (time, delta_v, float(np.linalg.norm(vel)), int(captured.sum()))
+        for text, field, value in zip(self._status, STATUS_FIELDS, values, strict=True):
+            text.set_text(field[1].format(value, n=captured.size))
+
+        fig, canvas = self._fig, self._canvas
+        canvas.restore_region(self._background)
+        for panel in self._panels:
+            for artist in panel.dynamic():
+                fig.draw_artist(artist)
+        for text in self._status:
+            fig.draw_artist(text)
+        rgba = np.asarray(canvas.buffer_rgba())
+        # Channel by channel: several times faster than copying the strided rgba[..., :3].
+        frame = np.stack([rgba[..., 0], rgba[..., 1], rgba[..., 2]], axis=-1)
+        if self.mode == "human":
+            self._show(frame)
+        return frame
+
+    def close(self) -> None:
+        """Release the figure and close the window, if any. The renderer can be used again."""
+        if self._window is not None and self._plt is not None:
+            self._plt.close(self._window)
+        self._window = self._window_image = None
+        self._fig = self._canvas = self._frame_background = self._background = None
+        self._panels, self._status = [], []
+        self._scenario = self._layout_key = None
+
+    # --- cached layers ------------------------------------------------------------------------
+
+    def _ensure_scene(self, scenario: Scenario) -> None:
+        if scenario is self._scenario:
+            return
+        key = (scenario.dim, scenario.bounds, scenario.name)
+        if key != self._layout_key:
+            self._build_frame(scenario)
+            self._layout_key = key
+        elif scenario == self._scenario:  # an equal copy: keep the drawn field
+            self._scenario = scenario
+            return
+        self._build_field(scenario)
+        self._scenario = scenario
+
+    def _build_frame(self, scenario: Scenario) -> None:
+        """Figure, axes, titles, status labels and legend: everything but the field itself."""
+        from matplotlib import colors
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+        from matplotlib.lines import Line2D
+        from matplotlib.patches import FancyArrowPatch
+
+        self._rgba_open = np.array(colors.to_rgba(TARGET_OPEN))
+        self._rgba_done = np.array(colors.to_rgba(TARGET_DONE))
+        views = VIEWS[scenario.dim]
+        n = len(views)
+        left, gap, right, bottom = 78, 84, 24, 86
+        top = 60 if n == 1 else 82  # room for the panel titles
+        width = left + n * PANEL_PX + (n - 1) * gap + right
+        height = bottom + PANEL_PX + top
+        fig = Figure(figsize=(width / DPI, height / DPI), dpi=DPI, facecolor="white")
+        canvas = FigureCanvasAgg(fig)
+        self._panels = []
+        for k, (h, v) in enumerate(views):
+            x0 = left + k * (PANEL_PX + gap)
+            ax = fig.add_axes((x0 / width, bottom / height, PANEL_PX / width, PANEL_PX / height))
+            ax.set_xlim(*scenario.bounds[h])
+            ax.set_ylim(*scenario.bounds[v])
+            ax.set_aspect("equal", adjustable="box")
+            ax.set_xlabel(AXIS_LABELS[h], fontsize=9)
+            ax.set_ylabel(AXIS_LABELS[v], fontsize=9)
+            ax.tick_params(labelsize=8)
+            ax.grid(True, color="#e4e4e4", linewidth=0.6)
+            ax.set_axisbelow(True)
+            ax.set_facecolor("#fbfbfd")
+            if n > 1:
+                ax.set_title(PANEL_TITLES[(h, v)], fontsize=9, pad=4)
+            panel = _Panel(ax, h, v)
+            panel.trail = ax.add_line(
+                Line2D([], [], color=TRAIL, linewidth=1.3, alpha=0.9, zorder=5, animated=True)
+            )
+            panel.arrow = ax.add_patch(
+                FancyArrowPatch(
+                    (0.0, 0.0), (0.0, 0.0), arrowstyle="-|>", mutation_scale=12, color=THRUST,
+                    linewidth=2.0, shrinkA=0.0, shrinkB=0.0, zorder=8, animated=True,
+                    visible=False,
+                )
+            )  # fmt: skip
+            panel.chaser = ax.add_line(
+                Line2D(
+                    [], [], marker="o", markersize=6.5, markerfacecolor=CHASER,
+                    markeredgecolor="white", markeredgewidth=1.0, linestyle="none", zorder=7,
+                    animated=True,
+                )
+            )  # fmt: skip
+            self._panels.append(panel)
+        name = scenario.name or "debris field"
+        fig.text(
+            0.5, 1.0 - 14 / height, f"{name} — LVLH frame" if n > 1 else f"{name} — LVLH top view",
+            ha="center", va="center", fontsize=11, fontweight="bold",
+        )  # fmt: skip
+        self._status = self._status_line(fig, canvas, 1.0 - 36 / height)
+        fig.legend(
+            handles=self._legend_handles(), loc="lower center", bbox_to_anchor=(0.5, 0.0),
+            ncol=7 if n > 1 else 4, fontsize=8, frameon=False, handlelength=1.6,
+            columnspacing=1.2, borderaxespad=0.3,
+        )  # fmt: skip
+        canvas.draw()
+        self._fig, self._canvas = fig, canvas
+        self._frame_background = canvas.copy_from_bbox(fig.bbox)
+        self._scenario = None
+
+    def _build_field(self, scenario: Scenario) -> None:
+        """Draw debris, dock and target labels over the frame layer; cache the result."""
+        from matplotlib.collections import PatchCollection
+        from matplotlib.lines import Line2D
+        from matplotlib.patches import Circle, Polygon
+
+        canvas, fig = self._canvas, self._fig
+        canvas.restore_region(self._frame_background)
+        centres = np.array([t.position for t in scenario.targets], dtype=float)
+        radii = np.array([t.radius for t in scenario.targets], dtype=float)
+        for panel in self._panels:
+            for artist in (*panel.field, panel.targets, panel.rings):
+                if artist is not None:
+                    artist.remove()
+            ax = panel.ax
+            patches = []
+            for body in scenario.obstacles:
+                if body.vertices is not None:
+                    pts = np.asarray(body.position) + np.asarray(body.vertices)
+                    patches.append(Polygon(np.column_stack(panel.xy(pts)), closed=True))
+                else:
+                    patches.append(Circle(panel.xy(body.position), body.radius))
+            debris = PatchCollection(
+                patches, facecolor=DEBRIS_FACE, edgecolor=DEBRIS_EDGE, linewidth=0.7, zorder=1,
+                alpha=0.85 if scenario.dim == 3 else 1.0, animated=True,
+            )  # fmt: skip
+            dx, dy = panel.xy(scenario.dock)
+            dock = Line2D(
+                [dx], [dy], marker="s", markersize=11, markerfacecolor="white",
+                markeredgecolor=DOCK, markeredgewidth=1.8, linestyle="none", zorder=2,
+                animated=True,
+            )  # fmt: skip
+            panel.field = [ax.add_collection(debris, autolim=False), ax.add_line(dock)]
+            tx, ty = panel.xy(centres)
+            for i, (x, y) in enumerate(zip(tx, ty, strict=True)):
+                label = ax.annotate(
+                    str(i), (x, y), xytext=(7, 6), textcoords="offset points", fontsize=8,
+                    color=TARGET_EDGE, fontweight="bold", zorder=4, animated=True,
+                )  # fmt: skip
+                panel.field.append(label)
+            for artist in panel.field:
+                fig.draw_artist(artist)
+            panel.targets = ax.add_collection(
+                PatchCollection(
+                    [Circle((x, y), r) for x, y, r in zip(tx, ty, radii, strict=True)],
+                    edgecolor=TARGET_EDGE, linewidth=0.6, zorder=3, animated=True,
+                ),
+                autolim=False,
+            )  # fmt: skip
+            panel.rings = ax.scatter(
+                tx, ty, s=110, facecolors="none", edgecolors=TARGET_OPEN, linewidths=1.8,
+                zorder=3, animated=True,
+            )  # fmt: skip
+        self._background = canvas.copy_from_bbox(fig.bbox)
+
+    @staticmethod
+    def _status_line(fig: Any, canvas: Any, y: float) -> list[Any]:
+        """Lay out the status line; return its value texts.
+
+        Labels are static (drawn into the cached frame layer); each value is its own animated
+        text starting at a fixed place, so only the numbers are redrawn per frame (text is the
+        slowest thing matplotlib draws) and the fields do not jump around as numbers change.
+        """
+        from matplotlib.font_manager import FontProperties
+
+        renderer = canvas.get_renderer()
+        prop = FontProperties(size=STATUS_FONTSIZE)
+
+        def width(text: str) -> float:
+            return renderer.get_text_width_height_descent(text, prop, ismath=False)[0]
+
+        gap = width("    ")
+        pieces = []  # (x offset (px), text, is a value)
+        x = 0.0
+        for label, _, widest in STATUS_FIELDS:
+            pieces.append((x, label, False))
+            x += width(label)
+            pieces.append((x, "", True))
+            x += width(widest) + gap
+        fig_width = fig.bbox.width
+        x0 = (fig_width - (x - gap)) / 2.0
+        values = []
+        for dx, text, is_value in pieces:
+            artist = fig.text(
+                (x0 + dx) / fig_width, y, text, ha="left", va="center",
+                fontsize=STATUS_FONTSIZE, animated=is_value,
+            )  # fmt: skip
+            if is_value:
+                values.append(artist)
+        return values
+
+    @staticmethod
+    def _legend_handles() -> list[Any]:
+        from matplotlib.lines import Line2D
+        from matplotlib.patches import Patch
+
+        def marker(label: str, **kw: Any) -> Any:
+            return Line2D([], [], linestyle="none", label=label, **kw)
+
+        return [
+            marker("dock", marker="s", markersize=8, markerfacecolor="white",
+                   markeredgecolor=DOCK, markeredgewidth=1.5),
+            marker("chaser", marker="o", markersize=7, markerfacecolor=CHASER,
+                   markeredgecolor="white"),
+            Line2D([], [], color=TRAIL, linewidth=1.3, label="trail"),
+            Line2D([], [], color=THRUST, linewidth=2.0, marker=">", markersize=5,
+                   markevery=[1], label="thrust"),
+            marker("target", marker="o", markersize=8, markerfacecolor=TARGET_OPEN,
+                   markeredgecolor=TARGET_OPEN),
+            marker("captured", marker="o", markersize=8, markerfacecolor=TARGET_DONE,
+                   markeredgecolor=TARGET_DONE),
+            Patch(facecolor=DEBRIS_FACE, edgecolor=DEBRIS_EDGE, label="debris"),
+        ]  # fmt: skip
+
+    # --- human window -------------------------------------------------------------------------
+
+    def _show(self, frame: np.ndarray) -> None:
+        plt = self._plt
+        window = self._window
+        if (
+            window is None
+            or not plt.fignum_exists(window.number)
+            or self._window_image.get_array().shape != frame.shape
+        ):
+            if window is not None:
+                plt.close(window)
+            height, width = frame.shape[:2]
+            window = plt.figure(figsize=(width / DPI, height / DPI), dpi=DPI)
+            if window.canvas.manager is not None:
+                window.canvas.manager.set_window_title("debris-gym")
+            ax = window.add_axes((0.0, 0.0, 1.0, 1.0))
+            ax.set_axis_off()
+            self._window_image = ax.imshow(frame, interpolation="nearest")
+            self._window = window
+            plt.show(block=False)
+        else:
+            self._window_image.set_data(frame)
+        plt.pause(1.0 / self.fps)

@@ -1,0 +1,114 @@
+"""Regenerate the tables of docs/environments.md from the code (config options, observation layout).
+
+python docs/gen_tables.py          # rewrite the tables in place
+python docs/gen_tables.py --check  # exit 1 if the docs are out of date (used by the tests)
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import re
+import sys
+import tempfile
+from pathlib import Path
+
+from debris_gym.config import OPTIONS, EnvConfig
+from debris_gym.envs import DebrisFieldEnv
+from debris_gym.registration import ENV_SPECS
+
+DOC = Path(__file__).with_name("environments.md")
+
+OBS_MEANING = [
+    (r"chaser_pos_(\w)", "chaser position {0}", "m", "L"),
+    (r"chaser_vel_(\w)", "chaser velocity {0}", "m/s", "V"),
+    (r"target(\d+)_rel_pos_(\w)", "target slot {0}: target − chaser position, {1}", "m", "L"),
+    (r"target(\d+)_rel_vel_(\w)", "target slot {0}: target − chaser velocity, {1}", "m/s", "V"),
+    (r"target(\d+)_radius", "target slot {0}: target radius", "m", "L"),
+    (r"target(\d+)_captured", "target slot {0}: 1 if captured (or empty slot), else 0", "", "1"),
+    (r"dock_rel_pos_(\w)", "dock − chaser position, {0}", "m", "L"),
+    (
+        r"obstacle(\d+)_rel_pos_(\w)",
+        "obstacle slot {0} (nearest first): centre − chaser {1}",
+        "m",
+        "L",
+    ),
+    (r"obstacle(\d+)_radius", "obstacle slot {0}: bounding radius", "m", "L"),
+    (r"obstacle(\d+)_gap", "obstacle slot {0}: distance from chaser centre to surface", "m", "L"),
+    (r"lidar(\d+)", "lidar ray {0}: range to first surface", "m", "lidar_range"),
+    (r"delta_v_remaining", "Δv budget left (1 without a budget)", "", "budget"),
+    (r"time_remaining", "steps left before truncation", "", "max_episode_steps"),
+]
+
+
+def describe_obs(name: str) -> tuple[str, str, str]:
+    for pattern, meaning, unit, scale in OBS_MEANING:
+        m = re.fullmatch(pattern, name)
+        if m:
+            return meaning.format(*m.groups()), unit, scale
+    raise KeyError(f"undocumented observation element {name!r}")
+
+
+def options_table() -> str:
+    defaults = {f.name: f.default for f in dataclasses.fields(EnvConfig)}
+    rows = ["| key | unit | default | allowed | meaning |", "|---|---|---|---|---|"]
+    for key, opt in OPTIONS.items():
+        rows.append(
+            f"| `{key}` | {opt.unit or '–'} | `{defaults[key]!r}` | {opt.describe()} | {opt.doc} |"
+        )
+    return "\n".join(rows)
+
+
+def ids_table() -> str:
+    rows = ["| ID | max_episode_steps | keyword arguments |", "|---|---|---|"]
+    for env_id, spec in ENV_SPECS.items():
+        kwargs = ", ".join(f"`{k}={v!r}`" for k, v in spec["kwargs"].items())
+        rows.append(f"| `{env_id}` | {spec['max_episode_steps']} | {kwargs} |")
+    return "\n".join(rows)
+
+
+def observation_table(**kwargs) -> str:
+    env = DebrisFieldEnv(**kwargs)
+    rows = ["| index | name | meaning | unit | divided by | min | max |", "|---" * 7 + "|"]
+    for i, name in enumerate(env.observation_names()):
+        meaning, unit, scale = describe_obs(name)
+        rows.append(f"| {i} | `{name}` | {meaning} | {unit or '–'} | {scale} | −10 | 10 |")
+    return "\n".join(rows)
+
+
+def render(text: str) -> str:
+    blocks = {
+        "ids": ids_table(),
+        "options": options_table(),
+        "obs-2d": observation_table(dim=2),
+        "obs-lidar-2d": observation_table(dim=2, observation="lidar", lidar_rays=8),
+    }
+    for name, table in blocks.items():
+        pattern = re.compile(rf"(<!-- table:{name} -->\n).*?(<!-- /table:{name} -->)", re.S)
+        if not pattern.search(text):
+            raise KeyError(f"marker for table {name!r} missing in {DOC}")
+        text = pattern.sub(lambda m, t=table: m.group(1) + t + "\n" + m.group(2), text)
+    return text
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--check", action="store_true", help="only check, do not write")
+    args = parser.parse_args()
+    old = DOC.read_text()
+    new = render(old)
+    if args.check:
+        if new != old:
+            print(f"{DOC} is out of date: run python docs/gen_tables.py", file=sys.stderr)
+            return 1
+        return 0
+    fd, tmp = tempfile.mkstemp(dir=DOC.parent, prefix=".environments.", suffix=".tmp")
+    with os.fdopen(fd, "w") as fh:
+        fh.write(new)
+    os.replace(tmp, DOC)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,187 @@
+"""Tests for the matplotlib renderer (:mod:`debris_gym.envs.rendering`) through the env API."""
+
+from __future__ import annotations
+
+import sys
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from matplotlib import colors
+
+import debris_gym  # noqa: F401 - registers the IDs
+from debris_gym.envs import rendering
+
+ENV_IDS = ["DebrisGym/Rendezvous2D-v0", "DebrisGym/Rendezvous3D-v0", "DebrisGym/PaperField2D-v0"]
+
+
+def _rgb(colour: str) -> np.ndarray:
+    return np.round(np.array(colors.to_rgb(colour)) * 255).astype(int)
+
+
+def _mask(frame: np.ndarray, colour: str, tol: int = 0) -> np.ndarray:
+    """Pixels within ``tol`` (per channel) of ``colour``."""
+    return np.all(np.abs(frame.astype(int) - _rgb(colour)) <= tol, axis=-1)
+
+
+def _check_frame(frame: np.ndarray) -> None:
+    assert isinstance(frame, np.ndarray)
+    assert frame.dtype == np.uint8
+    assert frame.ndim == 3 and frame.shape[2] == 3
+    assert frame.shape[0] > 100 and frame.shape[1] > 100
+    assert frame.min() < frame.max()  # not a constant image
+    packed = frame.astype(np.uint32) @ np.array([1 << 16, 1 << 8, 1], dtype=np.uint32)
+    assert np.unique(packed).size > 10  # a picture, not a few flat colours
+
+
+def _full_thrust_toward_target(env: gym.Env, info: dict) -> np.ndarray:
+    scenario = env.unwrapped.scenario
+    offset = np.asarray(scenario.targets[0].position) - info["chaser_state"][: scenario.dim]
+    return (offset / np.linalg.norm(offset)).astype(np.float32)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_rgb_array_frames_show_motion(env_id: str) -> None:
+    env = gym.make(env_id, render_mode="rgb_array")
+    try:
+        _, info = env.reset(seed=0)
+        for _ in range(2):
+            _, _, terminated, _, info = env.step(np.zeros(env.action_space.shape, np.float32))
+            assert not terminated
+        before = env.render()
+        _check_frame(before)
+        assert env.render().tobytes() == before.tobytes()  # same state, same picture
+
+        steps = 4 if env.unwrapped.scenario.dt >= 1.0 else 12  # move the chaser a few pixels
+        for _ in range(steps):
+            _, _, terminated, _, info = env.step(_full_thrust_toward_target(env, info))
+            assert not terminated
+        after = env.render()
+        _check_frame(after)
+        assert after.shape == before.shape
+        assert not np.array_equal(after, before)
+        # The chaser marker itself moved (its exact face colour covers other pixels now).
+        chaser_before = _mask(before, rendering.CHASER)
+        chaser_after = _mask(after, rendering.CHASER)
+        assert chaser_after.sum() > 10
+        assert np.count_nonzero(chaser_before != chaser_after) > 10
+        # The thrust arrow is drawn while thrusting.
+        assert (
+            _mask(after, rendering.THRUST, tol=10).sum() > _mask(before, rendering.THRUST, 10).sum()
+        )
+    finally:
+        env.close()
+
+
+def _state_next_to_target(env: gym.Env, index: int) -> np.ndarray:
+    """A chaser state at rest inside target ``index``'s capture zone and clear of other debris."""
+    base = env.unwrapped
+    scenario, cfg, d = base.scenario, base.config, base.dim
+    target = scenario.targets[index]
+    reach = target.radius + cfg.chaser_radius + 0.5 * cfg.capture_radius
+    rng = np.random.default_rng(0)
+    directions = [np.eye(d)[k] * s for k in range(d) for s in (1, -1)]
+    directions += list(rng.normal(size=(32, d)))
+    for u in directions:
+        pos = np.asarray(target.position) + reach * np.asarray(u) / np.linalg.norm(u)
+        state = np.concatenate([pos, np.zeros(d)])
+        try:
+            env.reset(seed=0, options={"chaser_state": state})
+        except ValueError:
+            continue
+        return state
+    raise AssertionError("no free spot next to the target")
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_capture_turns_target_green(env_id: str) -> None:
+    env = gym.make(env_id, render_mode="rgb_array")
+    try:
+        env.reset(seed=0)
+        state = _state_next_to_target(env, 0)
+        _, info = env.reset(seed=0, options={"chaser_state": state})
+        assert not info["captured"].any()
+        before = env.render()
+        _, _, _, _, info = env.step(np.zeros(env.action_space.shape, np.float32))
+        assert info["captured"][0] and info["targets_captured"] == 1
+        after = env.render()
+        _check_frame(after)
+        green = (_mask(before, rendering.TARGET_DONE, 30).sum(),
+                 _mask(after, rendering.TARGET_DONE, 30).sum())  # fmt: skip
+        orange = (_mask(before, rendering.TARGET_OPEN, 30).sum(),
+                  _mask(after, rendering.TARGET_OPEN, 30).sum())  # fmt: skip
+        n_panels = env.unwrapped.dim - 1  # 3D draws each target twice
+        assert green[1] - green[0] > 20 * n_panels
+        assert orange[0] - orange[1] > 20 * n_panels
+    finally:
+        env.close()
+
+
+def test_new_field_after_reset_redraws() -> None:
+    env = gym.make(ENV_IDS[0], render_mode="rgb_array")
+    try:
+        env.reset(seed=0)
+        first = env.render()
+        env.reset(seed=1)
+        second = env.render()
+        env.reset(seed=0)
+        again = env.render()
+    finally:
+        env.close()
+    assert not np.array_equal(first, second)
+    np.testing.assert_array_equal(first, again)
+
+
+def test_render_without_mode_warns_and_returns_none() -> None:
+    env = gym.make(ENV_IDS[0])
+    try:
+        env.reset(seed=0)
+        with pytest.warns(UserWarning, match="render_mode"):
+            assert env.render() is None
+    finally:
+        env.close()
+
+
+def test_renderer_rejects_bad_arguments() -> None:
+    with pytest.raises(ValueError, match="mode"):
+        rendering.Renderer("ansi", fps=15)
+    with pytest.raises(ValueError, match="fps"):
+        rendering.Renderer("rgb_array", fps=0)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="display detection is Linux's")
+def test_human_mode_without_display_raises_clearly(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    env = gym.make(ENV_IDS[2], render_mode="human")
+    try:
+        with pytest.raises(RuntimeError, match="rgb_array"):
+            env.reset(seed=0)  # human mode renders on reset
+    finally:
+        env.close()
+
+
+def test_human_mode_window_path(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The human path (window, updates, close), with pyplot on Agg standing in for a display."""
+    import matplotlib.pyplot as plt
+
+    def agg_pyplot():
+        plt.switch_backend("agg")
+        return plt
+
+    monkeypatch.setattr(rendering, "_interactive_pyplot", agg_pyplot)
+    env = gym.make(ENV_IDS[2], render_mode="human")
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*non-interactive.*")
+        env.reset(seed=0)
+        renderer = env.unwrapped._renderer
+        window = renderer._window
+        assert window is not None and plt.fignum_exists(window.number)
+        env.step(np.ones(2, np.float32))
+        assert renderer._window is window  # updated in place, not reopened
+        shown = renderer._window_image.get_array()
+        _check_frame(np.asarray(shown))
+        assert env.render() is None
+        env.close()
+    assert not plt.fignum_exists(window.number)
