@@ -174,6 +174,31 @@ class FieldGeometry:
             )
         return out
 
+    def gaps_and_normals(self, point: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Signed distance (m) to every body and the unit gradient of each distance.
+
+        The gradient points away from the body (the direction that increases clearance fastest):
+        what a repulsive potential needs. 2D uses pymunk's nearest-point queries; 3D, spheres in
+        numpy.
+
+        Returns:
+            ``(gaps (n_bodies,), normals (n_bodies, dim))``.
+        """
+        point = np.asarray(point, dtype=float)
+        if self.dim == 2:
+            gaps = np.empty(self.n_bodies)
+            normals = np.empty((self.n_bodies, 2))
+            p = (float(point[0]), float(point[1]))
+            for i, shape in enumerate(self.shapes):
+                info = shape.point_query(p)
+                gaps[i] = info.distance
+                normals[i] = info.gradient
+            return gaps, normals
+        diff = point - self.centers
+        dist = np.linalg.norm(diff, axis=1)
+        normals = diff / np.maximum(dist, 1e-12)[:, None]
+        return dist - self.radii, normals
+
     def _polygon_signed_distance(self, pts: np.ndarray) -> np.ndarray:
         """Exact signed distance of points (M, 2) to the convex polygons, shape (M, P)."""
         rel = pts[:, None, None, :] - self.poly_verts[None]  # (M, P, V, 2)

@@ -147,6 +147,26 @@ class DebrisFieldEnv(gym.Env):
         names += ["delta_v_remaining", "time_remaining"]
         return names
 
+    @property
+    def chaser_state(self) -> np.ndarray:
+        """Current chaser LVLH state [position (m), velocity (m/s)] (a copy)."""
+        return self._state.copy()
+
+    @property
+    def captured(self) -> np.ndarray:
+        """Per-target capture flags (a copy), in scenario target order."""
+        return self._captured.copy()
+
+    @property
+    def elapsed(self) -> float:
+        """Simulated time since reset (s)."""
+        return self._time
+
+    @property
+    def trail(self) -> np.ndarray:
+        """Chaser positions at every step end so far, shape (steps + 1, dim) (m)."""
+        return np.asarray(self._trail)
+
     def observation_names(self) -> list[str]:
         """Name of every observation element, in order."""
         return list(self._obs_names)
