@@ -471,3 +471,14 @@ def test_min_clearance_is_running_minimum():
     # moving +x at 1 m/s toward the obstacle at x=200 (r=20): gap 180 - 10 k - chaser radius
     assert seen == pytest.approx([80 - 10 * k - 1 for k in range(1, 7)])
     assert all(a >= b for a, b in zip(seen, seen[1:]))
+
+
+def test_min_clearance_ignores_targets():
+    """Approaching a target for capture does not count as losing clearance to debris."""
+    env = DebrisFieldEnv(delta_v_budget=None)
+    _, info = env.reset(
+        seed=0, options={"scenario": simple_scenario(), "chaser_state": [0, 92.0, 0, 0]}
+    )
+    # 2 m from the target's surface, 180-odd m from the obstacle at (200, 0)
+    expected = math.hypot(200.0, 92.0) - 20.0 - 1.0
+    assert info["min_clearance"] == pytest.approx(expected)

@@ -247,7 +247,8 @@ class DebrisFieldEnv(gym.Env):
         self._success = False
         self._path = np.empty((self.config.collision_substeps + 1, d))
         self._gaps = self._geometry.point_gaps(state[:d])
-        self._min_clearance = float(self._gaps.min()) if self._gaps.size else math.inf
+        obstacle_gaps = self._gaps[self._n_targets :]
+        self._min_clearance = float(obstacle_gaps.min()) if obstacle_gaps.size else math.inf
         self._trail = [state[:d].copy()]
         self._potential = self._potential_now()
         terms = dict.fromkeys(REWARD_TERMS, 0.0)
@@ -347,8 +348,8 @@ class DebrisFieldEnv(gym.Env):
         cfg, d = self.config, self.dim
         pos, vel = self._state[:d], self._state[d:]
         self._gaps = gaps = self._geometry.point_gaps(pos)
-        if gaps.size:
-            self._min_clearance = min(self._min_clearance, float(gaps.min()))
+        if gaps.size > self._n_targets:  # clearance to debris other than targets
+            self._min_clearance = min(self._min_clearance, float(gaps[self._n_targets :].min()))
         speed = math.sqrt(float(vel @ vel))  # targets are at rest in LVLH (frozen field)
         new = 0
         if speed <= cfg.capture_speed:
