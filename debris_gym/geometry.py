@@ -218,13 +218,23 @@ class FieldGeometry:
 
     # --- swept collision ----------------------------------------------------------------------
 
+    def _candidates(self, path: np.ndarray, start_gaps: np.ndarray | None) -> np.ndarray:
+        """Broad phase: bodies the polyline could touch.
+
+        The whole path lies in the ball around ``path[0]`` of radius R = max_k |path[k] − path[0]|,
+        so only bodies whose gap at ``path[0]`` is at most R + inflate can be touched.
+        """
+        if start_gaps is None:
+            start_gaps = self.point_gaps(path[0])
+        rel = path[1:] - path[0]
+        reach = math.sqrt(float((rel * rel).sum(axis=1).max())) + self.inflate
+        return np.flatnonzero(start_gaps <= reach)
+
     def first_hit(self, path: np.ndarray, start_gaps: np.ndarray | None = None) -> int:
         """Index of the first body the polyline ``path`` touches (inflated), or -1.
 
         The path (K+1, dim) is swept segment by segment, so a step that crosses a body between
-        its end points is caught. Broad phase: the whole path lies in the ball around ``path[0]``
-        of radius R = max_k |path[k] − path[0]|, so only bodies whose gap at ``path[0]`` is below
-        R + inflate can be touched. Narrow phase: pymunk segment queries (2D) or the exact
+        its end points is caught. Narrow phase: pymunk segment queries (2D) or the exact
         segment-sphere distance (3D).
 
         Args:
@@ -233,11 +243,7 @@ class FieldGeometry:
         """
         if self.n_bodies == 0:
             return -1
-        if start_gaps is None:
-            start_gaps = self.point_gaps(path[0])
-        rel = path[1:] - path[0]
-        reach = math.sqrt(float((rel * rel).sum(axis=1).max())) + self.inflate
-        near = np.flatnonzero(start_gaps <= reach)
+        near = self._candidates(path, start_gaps)
         if near.size == 0:
             return -1
         for k in range(path.shape[0] - 1):
@@ -245,6 +251,22 @@ class FieldGeometry:
             if hits:
                 return min(hits, key=lambda item: item[1])[0]
         return -1
+
+    def touched(self, path: np.ndarray, start_gaps: np.ndarray | None = None) -> list[int]:
+        """Indices (ascending) of every body the polyline ``path`` touches (inflated).
+
+        Same sweep as :meth:`first_hit`, but it keeps going after the first contact, so a path
+        that brushes one body and then enters another reports both.
+        """
+        if self.n_bodies == 0:
+            return []
+        near = self._candidates(path, start_gaps)
+        found: set[int] = set()
+        for k in range(path.shape[0] - 1):
+            if near.size == 0:
+                break
+            found.update(i for i, _ in self._segment_hits(path[k], path[k + 1], near))
+        return sorted(found)
 
     def _segment_hits(self, a: np.ndarray, b: np.ndarray, candidates: np.ndarray) -> list:
         """(body index, alpha along the segment) for every candidate the segment a→b touches."""

@@ -482,3 +482,18 @@ def test_min_clearance_ignores_targets():
     # 2 m from the target's surface, 180-odd m from the obstacle at (200, 0)
     expected = math.hypot(200.0, 92.0) - 20.0 - 1.0
     assert info["min_clearance"] == pytest.approx(expected)
+
+
+def test_gentle_target_touch_then_debris_in_one_step_is_a_collision():
+    """Regression: only the first body along the path was checked, so brushing a target gently
+    and then entering debris within the same step went unreported."""
+    scen = simple_scenario(
+        targets=(Body(position=(0.0, 10.0), radius=2.0, velocity=(0.0, 0.0)),),
+        obstacles=(Body(position=(0.0, 16.0), radius=2.0, velocity=(0.0, 0.0)),),
+        dt=40.0,
+    )
+    env = DebrisFieldEnv(delta_v_budget=None)
+    # 0.4 m/s along +y from the origin: touches the target (y 7..13) then the obstacle (y 13..19)
+    env.reset(seed=0, options={"scenario": scen, "chaser_state": [0.0, 0.0, 0.0, 0.4]})
+    _, _, terminated, _, info = env.step(np.zeros(2, dtype=np.float32))
+    assert info["collision"] and terminated

@@ -88,9 +88,11 @@ def test_3d_sphere_distance_and_swept_hit():
     # passes 1.4 m from the obstacle centre: inside 2 + 0.5 → hit, though both ends are clear
     assert geom.first_hit(np.array([[5.0, -4.0, 1.4], [5.0, 4.0, 1.4]])) == 1
     assert geom.first_hit(np.array([[5.0, -4.0, 2.6], [5.0, 4.0, 2.6]])) == -1
-    # first along the path wins
+    # first along the path wins; touched() reports every body
     path = np.array([[0.0, 8.0, 0.0], [0.0, 2.0, 0.0], [8.0, 0.0, 0.0]])
     assert geom.first_hit(path) == 0
+    assert geom.touched(path) == [0, 1]
+    assert geom.touched(np.array([[5.0, -4.0, 2.6], [5.0, 4.0, 2.6]])) == []
 
 
 def brute_force_hit(scen: Scenario, a, b, inflate: float, samples: int = 4001) -> bool:

@@ -283,8 +283,8 @@ class DebrisFieldEnv(gym.Env):
         if self.scenario is None:
             raise RuntimeError("call reset() before step()")
         accel, dv = self._thrust(action)
-        hit = self._simulate(accel, dv)
-        new_captures = self._update_mission(hit)
+        touched = self._simulate(accel, dv)
+        new_captures = self._update_mission(touched)
         terms = self._reward_terms(new_captures, dv)
         terminated = self._success or self._collision or self._out_of_bounds or self._budget_spent()
         if terminated:
@@ -327,8 +327,8 @@ class DebrisFieldEnv(gym.Env):
             accel, dv = accel * scale, dv * scale
         return accel, dv
 
-    def _simulate(self, accel: np.ndarray, dv: float) -> int:
-        """Propagate one step exactly and sweep the path; returns the first body hit or -1."""
+    def _simulate(self, accel: np.ndarray, dv: float) -> list[int]:
+        """Propagate one step exactly and sweep the path; returns the bodies it touched."""
         d = self.dim
         start = self._state
         out = self._step_matrix @ np.concatenate([start, accel])
@@ -341,9 +341,9 @@ class DebrisFieldEnv(gym.Env):
         self._delta_v += dv
         self._accel = accel
         self._trail.append(path[-1].copy())
-        return self._geometry.first_hit(path, self._gaps)
+        return self._geometry.touched(path, self._gaps)
 
-    def _update_mission(self, hit: int) -> int:
+    def _update_mission(self, touched: list[int]) -> int:
         """Update captures, collision, bounds and success; return the number of new captures."""
         cfg, d = self.config, self.dim
         pos, vel = self._state[:d], self._state[d:]
@@ -358,7 +358,7 @@ class DebrisFieldEnv(gym.Env):
                 if gaps[i] <= reach:
                     self._captured[i] = True
                     new += 1
-        if hit >= 0 and (hit >= self._n_targets or speed > cfg.capture_speed):
+        if touched and (touched[-1] >= self._n_targets or speed > cfg.capture_speed):
             self._collision = True  # any debris contact, or touching a target too fast
         self._out_of_bounds = bool((pos <= self._low).any() or (pos >= self._high).any())
         if not self._collision and self._captured.all():
