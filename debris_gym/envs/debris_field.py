@@ -7,21 +7,22 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 
 from debris_gym.config import EnvConfig
 from debris_gym.dynamics import discretize, substep_position_matrix
-from debris_gym.generators import FieldSpec, paper_field, random_field
+from debris_gym.envs.common import (
+    DEFAULT_HORIZON_STEPS,
+    OBS_LIMIT,
+    discrete_action_table,
+    field_spec,
+    new_scenario,
+    observation_names,
+    single_spaces,
+)
 from debris_gym.geometry import FieldGeometry, lidar_directions
 from debris_gym.rewards import REWARD_TERMS, potential
 from debris_gym.scenario import Scenario, as_scenario
 from debris_gym.thrust import commanded_accel, delta_v_rate
-
-OBS_LIMIT = 10.0
-"""Observation values are normalised to about [−1, 1] and clipped to ±OBS_LIMIT."""
-
-DEFAULT_HORIZON_STEPS = 1000
-"""Steps used for the 'time remaining' observation when the env has no registered time limit."""
 
 
 class DebrisFieldEnv(gym.Env):
@@ -95,57 +96,16 @@ class DebrisFieldEnv(gym.Env):
         self.render_mode = render_mode
         cfg = self.config
         self.dim = d = cfg.dim
-        if cfg.action == "continuous":
-            self.action_space = spaces.Box(-1.0, 1.0, shape=(d,), dtype=np.float32)
-        else:
-            self.action_space = spaces.Discrete(2 * d + 1)
-        table = np.zeros((2 * d + 1, d))
-        for axis in range(d):
-            table[1 + 2 * axis, axis] = 1.0
-            table[2 + 2 * axis, axis] = -1.0
-        self._discrete_actions = table
-        self._obs_names = self._build_observation_names()
-        self.observation_space = spaces.Box(
-            -OBS_LIMIT, OBS_LIMIT, shape=(len(self._obs_names),), dtype=np.float32
-        )
-        self._lidar_dirs = (
-            lidar_directions(d, cfg.lidar_rays) if cfg.observation == "lidar" else None
-        )
-        self._field_spec = FieldSpec(
-            dim=d,
-            n_targets=cfg.n_targets,
-            n_obstacles=cfg.n_obstacles,
-            field_size=cfg.field_size,
-            target_radius=(cfg.target_radius_min, cfg.target_radius_max),
-            obstacle_radius=(cfg.obstacle_radius_min, cfg.obstacle_radius_max),
-            polygon_fraction=cfg.polygon_fraction,
-            min_gap=cfg.min_gap,
-            dock_clearance=max(5.0 * cfg.capture_radius, 0.05 * cfg.field_size),
-            target_clearance=cfg.capture_radius + 2.0 * cfg.chaser_radius + cfg.min_gap,
-            min_target_distance=0.15 * cfg.field_size,
-            chaser_radius=cfg.chaser_radius,
-        )
+        self.observation_space, self.action_space = single_spaces(cfg)
+        self._discrete_actions = discrete_action_table(d)
+        self._obs_names = observation_names(cfg)
+        lidar = cfg.observation == "lidar"
+        self._lidar_dirs = lidar_directions(d, cfg.lidar_rays) if lidar else None
+        self._field_spec = field_spec(cfg)
         self.scenario: Scenario | None = None
         self._renderer = None
 
     # --- observation layout -------------------------------------------------------------------
-
-    def _build_observation_names(self) -> list[str]:
-        cfg, axes = self.config, "xyz"[: self.config.dim]
-        names = [f"chaser_pos_{a}" for a in axes] + [f"chaser_vel_{a}" for a in axes]
-        for k in range(cfg.obs_targets):
-            names += [f"target{k}_rel_pos_{a}" for a in axes]
-            names += [f"target{k}_rel_vel_{a}" for a in axes]
-            names += [f"target{k}_radius", f"target{k}_captured"]
-        names += [f"dock_rel_pos_{a}" for a in axes]
-        if cfg.observation == "kinematics":
-            for k in range(cfg.obs_obstacles):
-                names += [f"obstacle{k}_rel_pos_{a}" for a in axes]
-                names += [f"obstacle{k}_radius", f"obstacle{k}_gap"]
-        else:
-            names += [f"lidar{k}" for k in range(cfg.lidar_rays)]
-        names += ["delta_v_remaining", "time_remaining"]
-        return names
 
     @property
     def chaser_state(self) -> np.ndarray:
@@ -174,17 +134,7 @@ class DebrisFieldEnv(gym.Env):
     # --- scenario -----------------------------------------------------------------------------
 
     def _new_scenario(self) -> Scenario:
-        cfg = self.config
-        if cfg.scenario == "paper":
-            return paper_field(dt=cfg.dt, max_accel=cfg.max_accel)
-        return random_field(
-            self.np_random,
-            self._field_spec,
-            mean_motion=cfg.n,
-            dt=cfg.dt,
-            max_accel=cfg.max_accel,
-            capture_radius=cfg.capture_radius,
-        )
+        return new_scenario(self.config, self._field_spec, self.np_random)
 
     def _set_scenario(self, scenario: Scenario) -> None:
         cfg = self.config
