@@ -8,6 +8,7 @@ from __future__ import annotations
 import gymnasium as gym
 
 ENTRY_POINT = "debris_gym.envs.debris_field:DebrisFieldEnv"
+VECTOR_ENTRY_POINT = "debris_gym.envs.vector:DebrisFieldVectorEnv"
 
 ENV_SPECS: dict[str, dict] = {
     "DebrisGym/Rendezvous2D-v0": {"max_episode_steps": 1000, "kwargs": {"dim": 2}},
@@ -41,6 +42,7 @@ def register_envs() -> None:
         gym.register(
             id=env_id,
             entry_point=ENTRY_POINT,
+            vector_entry_point=VECTOR_ENTRY_POINT,
             max_episode_steps=spec["max_episode_steps"],
             kwargs=dict(spec["kwargs"]),
         )

@@ -497,3 +497,13 @@ def test_gentle_target_touch_then_debris_in_one_step_is_a_collision():
     env.reset(seed=0, options={"scenario": scen, "chaser_state": [0.0, 0.0, 0.0, 0.4]})
     _, _, terminated, _, info = env.step(np.zeros(2, dtype=np.float32))
     assert info["collision"] and terminated
+
+
+def test_time_remaining_uses_the_registered_limit():
+    """Regression: the unwrapped env's spec has no max_episode_steps, so the observation used
+    1000 steps for every ID (PaperField2D-v0 is limited to 2000)."""
+    env = gym.make("DebrisGym/PaperField2D-v0")
+    env.reset(seed=0)
+    obs, *_ = env.step(np.zeros(2, dtype=np.float32))
+    index = env.unwrapped.observation_names().index("time_remaining")
+    assert obs[index] == pytest.approx((2000 - 1) / 2000)

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.envs.registration import EnvSpec
 
 from debris_gym.config import EnvConfig
 from debris_gym.generators import FieldSpec, paper_field, random_field
@@ -14,6 +16,21 @@ OBS_LIMIT = 10.0
 
 DEFAULT_HORIZON_STEPS = 1000
 """Steps used for the 'time remaining' observation when the env has no registered time limit."""
+
+
+def registered_horizon(spec: EnvSpec | None) -> int:
+    """Episode limit (steps) the 'time remaining' observation counts down from.
+
+    The registered ``max_episode_steps`` of the env's ID (``gym.make`` hands the unwrapped env a
+    spec without it: the TimeLimit wrapper owns the limit), or :data:`DEFAULT_HORIZON_STEPS` for
+    an env built directly. A limit overridden at ``make`` time truncates episodes but does not
+    rescale this feature.
+    """
+    if spec is not None and spec.id in gym.registry:
+        registered = gym.registry[spec.id].max_episode_steps
+        if registered:
+            return int(registered)
+    return DEFAULT_HORIZON_STEPS
 
 
 def observation_names(cfg: EnvConfig) -> list[str]:

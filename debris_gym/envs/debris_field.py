@@ -11,12 +11,12 @@ import numpy as np
 from debris_gym.config import EnvConfig
 from debris_gym.dynamics import discretize, substep_position_matrix
 from debris_gym.envs.common import (
-    DEFAULT_HORIZON_STEPS,
     OBS_LIMIT,
     discrete_action_table,
     field_spec,
     new_scenario,
     observation_names,
+    registered_horizon,
     single_spaces,
 )
 from debris_gym.geometry import FieldGeometry, lidar_directions
@@ -103,6 +103,7 @@ class DebrisFieldEnv(gym.Env):
         self._lidar_dirs = lidar_directions(d, cfg.lidar_rays) if lidar else None
         self._field_spec = field_spec(cfg)
         self.scenario: Scenario | None = None
+        self._horizon: int | None = None
         self._renderer = None
 
     # --- observation layout -------------------------------------------------------------------
@@ -393,10 +394,9 @@ class DebrisFieldEnv(gym.Env):
         return obs.astype(np.float32)
 
     def _horizon_steps(self) -> int:
-        spec = self.spec
-        if spec is not None and spec.max_episode_steps:
-            return int(spec.max_episode_steps)
-        return DEFAULT_HORIZON_STEPS
+        if self._horizon is None:
+            self._horizon = registered_horizon(self.spec)
+        return self._horizon
 
     def _fill_target_slots(self, slots: np.ndarray, pos: np.ndarray, vel: np.ndarray) -> None:
         """K × (rel pos, rel vel, radius, captured): goals first (queue order or nearest)."""

@@ -1,0 +1,196 @@
+"""The native vector env against N single envs (gymnasium's SyncVectorEnv), and its geometry."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import debris_gym
+from debris_gym.batch_geometry import FieldBatch
+from debris_gym.envs.vector import DebrisFieldVectorEnv
+from debris_gym.generators import FieldSpec, random_field
+from debris_gym.geometry import FieldGeometry, lidar_directions
+from tests.test_env import simple_scenario
+
+INFO_KEYS = ["chaser_state", "time", "delta_v", "targets_captured", "min_clearance", "collision"]
+INFO_KEYS += ["out_of_bounds", "is_success", "captured"]
+
+
+def make_pair(env_id: str, n: int, **kwargs):
+    native = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
+    sync = gym.make_vec(env_id, num_envs=n, vectorization_mode="sync", **kwargs)
+    return native, sync
+
+
+def assert_same(a, b, what: str) -> None:
+    a, b = np.asarray(a), np.asarray(b)
+    if a.dtype == bool or b.dtype == bool or np.issubdtype(a.dtype, np.integer):
+        np.testing.assert_array_equal(a, b, err_msg=what)
+    else:
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9, err_msg=what)
+
+
+def compare_run(env_id: str, n: int, steps: int, scale: float, seed: int = 0, **kwargs) -> int:
+    """Step both with the same actions; everything must agree. Returns episodes ended."""
+    native, sync = make_pair(env_id, n, **kwargs)
+    obs_n, info_n = native.reset(seed=seed)
+    obs_s, info_s = sync.reset(seed=seed)
+    assert_same(obs_n, obs_s, "reset obs")
+    rng = np.random.default_rng(seed)
+    ended = 0
+    for step in range(steps):
+        if native.unwrapped.config.action == "discrete":
+            actions = rng.integers(0, native.single_action_space.n, size=n)
+            actions[rng.uniform(size=n) < 0.8] = 0
+        else:
+            actions = (rng.uniform(-1, 1, (n, native.unwrapped.dim)) * scale).astype(np.float32)
+        out_n = native.step(actions)
+        out_s = sync.step(actions)
+        for name, a, b in zip(("obs", "reward", "terminated", "truncated"), out_n, out_s):
+            assert_same(a, b, f"{name} at step {step}")
+        for key in INFO_KEYS:
+            assert_same(out_n[4][key], out_s[4][key], f"info[{key!r}] at step {step}")
+        for term, value in out_n[4]["reward_terms"].items():
+            assert_same(value, out_s[4]["reward_terms"][term], f"reward term {term} step {step}")
+        assert native.observation_space.contains(out_n[0])
+        ended += int(np.sum(out_n[2] | out_n[3]))
+    native.close()
+    sync.close()
+    return ended
+
+
+@pytest.mark.parametrize(
+    "env_id, kwargs, scale",
+    [
+        ("DebrisGym/Rendezvous2D-v0", {}, 0.3),
+        ("DebrisGym/Rendezvous2D-v0", {"max_episode_steps": 40}, 0.3),
+        ("DebrisGym/Rendezvous2D-v0", {"observation": "lidar", "lidar_rays": 16}, 0.3),
+        ("DebrisGym/Rendezvous2D-v0", {"action": "discrete"}, 1.0),
+        (
+            "DebrisGym/Rendezvous2D-v0",
+            {"target_order": "queued", "thrust_model": "box", "delta_v_budget": 15.0},
+            0.5,
+        ),
+        ("DebrisGym/Rendezvous2D-v0", {"n_obstacles": 60, "obs_obstacles": 3}, 0.3),
+        ("DebrisGym/Rendezvous3D-v0", {}, 0.3),
+        ("DebrisGym/Rendezvous3D-v0", {"observation": "lidar", "lidar_rays": 16}, 0.3),
+        ("DebrisGym/PaperField2D-v0", {"max_episode_steps": 60}, 0.1),
+    ],
+)
+def test_native_vector_env_equals_sync_vector_env(env_id, kwargs, scale):
+    ended = compare_run(env_id, n=5, steps=250, scale=scale, **kwargs)
+    assert ended > 0  # autoreset was exercised
+
+
+def test_make_vec_returns_the_native_env_for_every_id():
+    for env_id in debris_gym.ENV_SPECS:
+        env = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point")
+        assert isinstance(env.unwrapped, DebrisFieldVectorEnv)
+        obs, info = env.reset(seed=1)
+        assert obs.shape == (3, *env.single_observation_space.shape)
+        assert obs.dtype == np.float32 and env.observation_space.contains(obs)
+        assert env.action_space.shape[0] == 3
+        env.close()
+
+
+def test_seeding_is_per_env_and_deterministic():
+    a = gym.make_vec("DebrisGym/Rendezvous2D-v0", num_envs=3, vectorization_mode="vector_entry_point")
+    b = gym.make_vec("DebrisGym/Rendezvous2D-v0", num_envs=3, vectorization_mode="vector_entry_point")
+    a.reset(seed=7)
+    b.reset(seed=[7, 8, 9])
+    for x, y in zip(a.unwrapped.scenarios, b.unwrapped.scenarios):
+        assert x == y
+    assert a.unwrapped.scenarios[0] != a.unwrapped.scenarios[1]
+    single = gym.make("DebrisGym/Rendezvous2D-v0")
+    single.reset(seed=8)
+    assert single.unwrapped.scenario == a.unwrapped.scenarios[1]
+
+
+def test_bad_actions_and_arguments_raise():
+    env = DebrisFieldVectorEnv(num_envs=2)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="finite"):
+        env.step(np.array([[0.0, 0.0], [np.nan, 0.0]], dtype=np.float32))
+    with pytest.raises(ValueError, match="shape"):
+        env.step(np.zeros((3, 2), dtype=np.float32))
+    with pytest.raises(ValueError, match="num_envs"):
+        DebrisFieldVectorEnv(num_envs=0)
+    with pytest.raises(ValueError, match="unknown config key"):
+        DebrisFieldVectorEnv(num_envs=2, n_tragets=3)
+    with pytest.raises(ValueError, match="seed list"):
+        env.reset(seed=[1, 2, 3])
+    with pytest.raises(RuntimeError, match="reset"):
+        DebrisFieldVectorEnv(num_envs=1).step(np.zeros((1, 2), dtype=np.float32))
+
+
+def test_pinned_scenario_and_chaser_state():
+    env = DebrisFieldVectorEnv(num_envs=2, delta_v_budget=None)
+    scen = simple_scenario()
+    states = np.array([[0.0, 92.0, 0.0, 0.0], [0.0, 50.0, 0.0, 0.0]])
+    env.reset(seed=0, options={"scenario": scen, "chaser_state": states})
+    assert all(s == scen for s in env.scenarios)
+    _, _, _, _, info = env.step(np.zeros((2, 2), dtype=np.float32))
+    np.testing.assert_array_equal(info["targets_captured"], [1, 0])
+    with pytest.raises(ValueError, match="touches debris"):
+        env.reset(options={"scenario": scen, "chaser_state": [200.0, 0.0, 0.0, 0.0]})
+
+
+def random_fields(n: int, dim: int, seed: int = 0):
+    spec = FieldSpec(dim=dim, n_obstacles=30)
+    return [
+        random_field(
+            np.random.default_rng(seed + i), spec, mean_motion=0.0, dt=10.0, max_accel=0.05,
+            capture_radius=5.0,
+        )
+        for i in range(n)
+    ]  # fmt: skip
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_batch_geometry_matches_single_geometry(dim):
+    """Clearance, swept contacts and lidar of FieldBatch equal FieldGeometry's (pymunk in 2D)."""
+    n = 12
+    fields = random_fields(n, dim, seed=10 * dim)
+    batch = FieldBatch(n, len(fields[0].bodies), dim)
+    for i, f in enumerate(fields):
+        batch.load(i, f)
+    singles = [FieldGeometry(f, inflate=1.0) for f in fields]
+    rng = np.random.default_rng(dim)
+    dirs = lidar_directions(dim, 24)
+    hits = 0
+    for _ in range(60):
+        a = rng.uniform(-500, 500, (n, dim))
+        # aim half of the paths at a random body so that contacts are frequent
+        aim = np.stack([f.body_positions()[rng.integers(len(f.bodies))] for f in fields])
+        b = np.where(rng.uniform(size=(n, 1)) < 0.5, aim, a + rng.uniform(-120, 120, (n, dim)))
+        t = np.linspace(0.0, 1.0, 4)[None, :, None]
+        paths = a[:, None, :] * (1 - t) + b[:, None, :] * t
+        gaps = batch.gaps(paths[:, 0])
+        ref = np.stack([g.point_gaps(paths[i, 0]) for i, g in enumerate(singles)])
+        np.testing.assert_allclose(gaps, ref, rtol=1e-12, atol=1e-9)
+        touched = batch.touched(paths, gaps, 1.0)
+        for i, g in enumerate(singles):
+            assert list(np.flatnonzero(touched[i])) == g.touched(paths[i], ref[i])
+        hits += int(touched.any(axis=1).sum())
+        ranges = batch.lidar(paths[:, 0], dirs, 200.0)
+        ref_ranges = np.stack([g.lidar(paths[i, 0], dirs, 200.0) for i, g in enumerate(singles)])
+        np.testing.assert_allclose(ranges, ref_ranges, rtol=1e-9, atol=1e-9)
+    assert hits > 20  # the comparison covered real contacts
+
+
+def test_culled_gaps_keep_the_nearest_exact():
+    n = 8
+    fields = random_fields(n, 2, seed=3)
+    t = len(fields[0].targets)
+    batch = FieldBatch(n, len(fields[0].bodies), 2)
+    for i, f in enumerate(fields):
+        batch.load(i, f)
+    pts = np.random.default_rng(0).uniform(-500, 500, (n, 2))
+    exact = batch.gaps(pts)
+    culled = batch.gaps(pts, None, 5, t)
+    assert np.all(culled <= exact + 1e-12)  # elsewhere a lower bound
+    np.testing.assert_array_equal(culled[:, :t], exact[:, :t])
+    np.testing.assert_allclose(
+        np.sort(culled[:, t:], axis=1)[:, :5], np.sort(exact[:, t:], axis=1)[:, :5]
+    )
