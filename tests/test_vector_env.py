@@ -95,8 +95,8 @@ def test_make_vec_returns_the_native_env_for_every_id():
 
 
 def test_seeding_is_per_env_and_deterministic():
-    a = gym.make_vec("DebrisGym/Rendezvous2D-v0", num_envs=3, vectorization_mode="vector_entry_point")
-    b = gym.make_vec("DebrisGym/Rendezvous2D-v0", num_envs=3, vectorization_mode="vector_entry_point")
+    a = DebrisFieldVectorEnv(num_envs=3)
+    b = DebrisFieldVectorEnv(num_envs=3)
     a.reset(seed=7)
     b.reset(seed=[7, 8, 9])
     for x, y in zip(a.unwrapped.scenarios, b.unwrapped.scenarios):
