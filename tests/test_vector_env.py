@@ -5,6 +5,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
+from gymnasium.vector import AutoresetMode
 
 import debris_gym
 from debris_gym.batch_geometry import FieldBatch
@@ -17,9 +18,14 @@ INFO_KEYS = ["chaser_state", "time", "delta_v", "targets_captured", "min_clearan
 INFO_KEYS += ["out_of_bounds", "is_success", "captured"]
 
 
-def make_pair(env_id: str, n: int, **kwargs):
-    native = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
-    sync = gym.make_vec(env_id, num_envs=n, vectorization_mode="sync", **kwargs)
+def make_pair(env_id: str, n: int, mode: AutoresetMode = AutoresetMode.NEXT_STEP, **kwargs):
+    native = gym.make_vec(
+        env_id, num_envs=n, vectorization_mode="vector_entry_point", autoreset_mode=mode, **kwargs
+    )
+    sync = gym.make_vec(
+        env_id, num_envs=n, vectorization_mode="sync", vector_kwargs={"autoreset_mode": mode},
+        **kwargs,
+    )  # fmt: skip
     return native, sync
 
 
@@ -31,9 +37,12 @@ def assert_same(a, b, what: str) -> None:
         np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9, err_msg=what)
 
 
-def compare_run(env_id: str, n: int, steps: int, scale: float, seed: int = 0, **kwargs) -> int:
+def compare_run(
+    env_id: str, n: int, steps: int, scale: float, seed: int = 0,
+    mode: AutoresetMode = AutoresetMode.NEXT_STEP, **kwargs,
+) -> int:  # fmt: skip
     """Step both with the same actions; everything must agree. Returns episodes ended."""
-    native, sync = make_pair(env_id, n, **kwargs)
+    native, sync = make_pair(env_id, n, mode, **kwargs)
     obs_n, info_n = native.reset(seed=seed)
     obs_s, info_s = sync.reset(seed=seed)
     assert_same(obs_n, obs_s, "reset obs")
@@ -53,6 +62,13 @@ def compare_run(env_id: str, n: int, steps: int, scale: float, seed: int = 0, **
             assert_same(out_n[4][key], out_s[4][key], f"info[{key!r}] at step {step}")
         for term, value in out_n[4]["reward_terms"].items():
             assert_same(value, out_s[4]["reward_terms"][term], f"reward term {term} step {step}")
+        if "final_obs" in out_s[4]:
+            final = out_s[4]["_final_obs"]
+            assert_same(out_n[4]["_final_obs"], final, "final_obs mask")
+            for i in np.flatnonzero(final):
+                assert_same(out_n[4]["final_obs"][i], out_s[4]["final_obs"][i], "final_obs")
+                for key in INFO_KEYS:
+                    assert_same(out_n[4]["final_info"][key][i], out_s[4]["final_info"][key][i], key)
         assert native.observation_space.contains(out_n[0])
         ended += int(np.sum(out_n[2] | out_n[3]))
     native.close()
@@ -81,6 +97,14 @@ def compare_run(env_id: str, n: int, steps: int, scale: float, seed: int = 0, **
 def test_native_vector_env_equals_sync_vector_env(env_id, kwargs, scale):
     ended = compare_run(env_id, n=5, steps=250, scale=scale, **kwargs)
     assert ended > 0  # autoreset was exercised
+
+
+def test_same_step_autoreset_equals_sync_vector_env():
+    ended = compare_run(
+        "DebrisGym/Rendezvous2D-v0", n=4, steps=200, scale=0.3, mode=AutoresetMode.SAME_STEP,
+        max_episode_steps=30,
+    )  # fmt: skip
+    assert ended > 0
 
 
 def test_make_vec_returns_the_native_env_for_every_id():

@@ -49,6 +49,9 @@ class DebrisFieldVectorEnv(VectorEnv):
         max_episode_steps: truncation limit per episode (the registration's value when made
             through ``gym.make_vec``); None means no limit.
         render_mode: only None (render a single env to look at episodes).
+        autoreset_mode: ``NEXT_STEP`` (Gymnasium's default) or ``SAME_STEP`` (the ending step
+            already returns the new episode's first observation; the last one is in
+            ``info["final_obs"]``, its info in ``info["final_info"]``), as for SyncVectorEnv.
         **kwargs: any :class:`~debris_gym.config.EnvConfig` key, as for the single env.
     """
 
@@ -59,6 +62,7 @@ class DebrisFieldVectorEnv(VectorEnv):
         num_envs: int = 1,
         max_episode_steps: int | None = None,
         render_mode: str | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         **kwargs: Any,
     ) -> None:
         if not (isinstance(num_envs, (int, np.integer)) and num_envs >= 1):
@@ -69,6 +73,11 @@ class DebrisFieldVectorEnv(VectorEnv):
             raise ValueError(
                 "the vector env does not render; make a single env with render_mode='rgb_array'"
             )
+        mode = AutoresetMode(autoreset_mode)
+        if mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+            raise ValueError(f"autoreset_mode must be NEXT_STEP or SAME_STEP, got {mode!r}")
+        self.metadata = {**self.metadata, "autoreset_mode": mode}
+        self.autoreset_mode = mode
         self.config = cfg = EnvConfig.from_kwargs(**kwargs)
         self.num_envs = n = int(num_envs)
         self.max_episode_steps = max_episode_steps
@@ -270,17 +279,36 @@ class DebrisFieldVectorEnv(VectorEnv):
         limit = self.max_episode_steps
         truncated = (self._steps >= limit) & live if limit is not None else np.zeros(n, bool)
 
-        if restart.any():
-            for i in np.flatnonzero(restart):
-                self._load(i, self._draw(i))
-            self._start_episodes(restart)
-            for term in terms.values():
-                term[restart] = 0.0
         reward = np.zeros(n)
         for term in REWARD_TERMS:
             reward = reward + terms[term]
-        self._autoreset = terminated | truncated
+        ended = terminated | truncated
+        if self.autoreset_mode == AutoresetMode.SAME_STEP:
+            if not ended.any():
+                return self._observe(), reward, terminated, truncated, self._info(terms)
+            final_obs, final_info = self._observe(), self._info(terms, mask=ended)
+            self._restart(ended, terms)
+            info = self._info(terms)
+            info["final_obs"] = np.full(n, None, dtype=object)
+            for i in np.flatnonzero(ended):
+                info["final_obs"][i] = final_obs[i]
+            info["_final_obs"] = ended.copy()
+            info["final_info"] = final_info
+            info["_final_info"] = ended.copy()
+            return self._observe(), reward, terminated, truncated, info
+        if restart.any():
+            self._restart(restart, terms)
+            reward[restart] = 0.0
+        self._autoreset = ended
         return self._observe(), reward, terminated, truncated, self._info(terms)
+
+    def _restart(self, mask: np.ndarray, terms: dict[str, np.ndarray]) -> None:
+        """Draw new fields for the sub-envs in ``mask`` and start their episodes."""
+        for i in np.flatnonzero(mask):
+            self._load(i, self._draw(i))
+        self._start_episodes(mask)
+        for term in terms.values():
+            term[mask] = 0.0
 
     # --- step hooks ---------------------------------------------------------------------------
 
@@ -447,9 +475,9 @@ class DebrisFieldVectorEnv(VectorEnv):
         np.clip(obs, -OBS_LIMIT, OBS_LIMIT, out=obs)
         return obs.astype(np.float32)
 
-    def _info(self, terms: dict[str, np.ndarray]) -> dict[str, Any]:
+    def _info(self, terms: dict[str, np.ndarray], mask: np.ndarray | None = None) -> dict[str, Any]:
         n = self.num_envs
-        mask = np.ones(n, dtype=bool)
+        mask = np.ones(n, dtype=bool) if mask is None else mask
         values = {
             "chaser_state": self._state.copy(),
             "time": self._time.copy(),
@@ -466,7 +494,7 @@ class DebrisFieldVectorEnv(VectorEnv):
         for key, value in values.items():
             info[key] = value
             info["_" + key] = mask
-        info["reward_terms"] = {k: np.asarray(v, dtype=float) for k, v in terms.items()}
+        info["reward_terms"] = {k: np.array(v, dtype=float) for k, v in terms.items()}
         info["_reward_terms"] = mask
         return info
 

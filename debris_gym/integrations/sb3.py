@@ -1,0 +1,103 @@
+"""Stable-Baselines3 ``VecEnv`` over the native vector env, so SB3 trains on it directly.
+
+SB3 expects *same-step* autoreset (the step that ends an episode returns the next episode's first
+observation, the last one in ``info["terminal_observation"]``) and per-env info dicts; this adapter
+builds the native env in ``SAME_STEP`` mode and translates. Requires ``stable-baselines3``.
+
+    from debris_gym.integrations.sb3 import NativeVecEnv
+    venv = NativeVecEnv("DebrisGym/Rendezvous2D-v0", num_envs=64)
+    model = PPO("MlpPolicy", venv)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.vector import AutoresetMode
+
+try:
+    from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
+except ImportError as exc:  # pragma: no cover - exercised only without SB3
+    raise ImportError(
+        "debris_gym.integrations.sb3 needs stable-baselines3: pip install 'debris-gym[rl]'"
+    ) from exc
+
+INFO_KEYS = ("time", "delta_v", "targets_captured", "n_targets", "min_clearance", "collision",
+             "out_of_bounds", "is_success")  # fmt: skip
+
+
+class NativeVecEnv(VecEnv):
+    """SB3 view of ``gym.make_vec(env_id, num_envs, vectorization_mode="vector_entry_point")``.
+
+    Args:
+        env_id: a DebrisGym ID.
+        num_envs: number of sub-envs.
+        **kwargs: env options (any config key) and ``max_episode_steps``.
+    """
+
+    def __init__(self, env_id: str, num_envs: int, **kwargs: Any) -> None:
+        self.env_id = env_id
+        self.venv = gym.make_vec(
+            env_id,
+            num_envs=num_envs,
+            vectorization_mode="vector_entry_point",
+            autoreset_mode=AutoresetMode.SAME_STEP,
+            **kwargs,
+        )
+        super().__init__(
+            num_envs, self.venv.single_observation_space, self.venv.single_action_space
+        )
+        self._actions: np.ndarray | None = None
+
+    def reset(self) -> np.ndarray:
+        seeds = self._seeds
+        seed: list[int | None] | None = None if all(s is None for s in seeds) else list(seeds)
+        obs, _ = self.venv.reset(seed=seed)
+        self._reset_seeds()
+        self._reset_options()
+        return obs
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self._actions = np.asarray(actions)
+
+    def step_wait(self):
+        obs, reward, terminated, truncated, info = self.venv.step(self._actions)
+        dones = terminated | truncated
+        infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
+        for i in range(self.num_envs):
+            if dones[i]:
+                final = info["final_info"]
+                infos[i] = {key: final[key][i] for key in INFO_KEYS}
+                infos[i]["terminal_observation"] = info["final_obs"][i]
+                infos[i]["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
+            else:
+                infos[i] = {key: info[key][i] for key in INFO_KEYS}
+        return obs, reward.astype(np.float32), dones, infos
+
+    def close(self) -> None:
+        self.venv.close()
+
+    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
+        value = getattr(self.venv.unwrapped, attr_name)
+        return [value for _ in self._get_indices(indices)]
+
+    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
+        raise AttributeError(f"the native vector env does not support setting {attr_name!r}")
+
+    def env_method(
+        self, method_name: str, *method_args: Any, indices: VecEnvIndices = None, **kwargs: Any
+    ) -> list[Any]:
+        method = getattr(self.venv.unwrapped, method_name)
+        result = method(*method_args, **kwargs)
+        return [result for _ in self._get_indices(indices)]
+
+    def env_is_wrapped(
+        self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None
+    ) -> list[bool]:
+        return [False for _ in self._get_indices(indices)]
+
+    def get_images(self) -> Sequence[np.ndarray | None]:
+        return [None for _ in range(self.num_envs)]
