@@ -1,0 +1,308 @@
+"""evaluate.py and agents.evaluation: same scenarios, statistics, output files, CLI errors."""
+
+from __future__ import annotations
+
+import csv
+import importlib.util
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from scipy import stats
+
+import agents
+from agents import evaluation as ev
+
+ROOT = Path(__file__).resolve().parents[1]
+SCRIPT = ROOT / "evaluate.py"
+SMALL = {"n_obstacles": 5}
+
+DESIGN_KEYS = (
+    "success_rate",
+    "targets_captured_mean",
+    "delta_v_mean",
+    "time_mean",
+    "path_length_mean",
+    "collision_rate",
+    "min_clearance_min",
+    "decision_ms_p50",
+    "decision_ms_p95",
+)
+CI_KEYS = (
+    "success_rate_ci95",
+    "collision_rate_ci95",
+    "targets_captured_mean_ci95",
+    "delta_v_mean_ci95",
+    "time_mean_ci95",
+    "path_length_mean_ci95",
+)
+
+
+@pytest.fixture(scope="module")
+def cli():
+    spec = importlib.util.spec_from_file_location("debris_evaluate_cli", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def results():
+    return ev.evaluate_agents(
+        "DebrisGym/Rendezvous2D-v0",
+        "zero,random",
+        episodes=3,
+        seed=7,
+        env_kwargs=SMALL,
+        progress=False,
+        max_episode_steps=40,
+    )
+
+
+# --- the evaluate.py script end to end -------------------------------------------------------
+
+
+def test_script_writes_every_output(tmp_path):
+    out = tmp_path / "eval"
+    proc = subprocess.run(
+        [
+            sys.executable, str(SCRIPT), "--agents", "zero,random", "--episodes", "2",
+            "--env-kwargs", json.dumps(SMALL), "--max-steps", "60", "--plots", "2",
+            "--no-progress", "--out", str(out),
+        ],
+        cwd=ROOT, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    assert "| agent | success |" in proc.stdout and "| random |" in proc.stdout
+    assert str(out / "summary.json") in proc.stdout
+
+    with open(out / "episodes.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 2 * 2
+    assert [(r["agent"], r["episode"]) for r in rows] == [
+        ("zero", "0"), ("zero", "1"), ("random", "0"), ("random", "1"),
+    ]  # fmt: skip
+    assert {"delta_v", "time", "path_length", "decision_ms_p95", "return"} <= set(rows[0])
+    assert all(int(r["steps"]) <= 60 for r in rows)
+
+    summary = json.loads((out / "summary.json").read_text())
+    assert set(summary["agents"]) == {"zero", "random"}
+    for entry in summary["agents"].values():
+        for key in (*DESIGN_KEYS, *CI_KEYS):
+            assert key in entry, key
+        for key in CI_KEYS:
+            assert key in summary["ci_method"]
+            lo, hi = entry[key]
+            assert lo <= entry[key.removesuffix("_ci95")] <= hi
+    assert summary["agents"]["zero"]["delta_v_mean"] == 0.0
+    assert (out / "summary.md").read_text().startswith("Env `DebrisGym/Rendezvous2D-v0`")
+
+    pngs = sorted(out.glob("trajectories_ep*.png"))
+    assert [p.name for p in pngs] == ["trajectories_ep000.png", "trajectories_ep001.png"]
+    import matplotlib.image
+
+    for png in pngs:
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert matplotlib.image.imread(png).shape[2] in (3, 4)
+    assert not list(out.glob(".*.tmp"))  # atomic writes leave no temporaries
+
+
+def test_script_rejects_an_unknown_agent_by_name(tmp_path):
+    proc = subprocess.run(
+        [sys.executable, str(SCRIPT), "--agents", "zero,warp-drive", "--out", str(tmp_path)],
+        cwd=ROOT, capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert proc.returncode == 2
+    assert "--agents" in proc.stderr and "'warp-drive'" in proc.stderr
+    assert "apf-mpc" in proc.stderr  # lists the known ones
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize(
+    ("argv", "flag", "text"),
+    [
+        (["--episodes", "0"], "--episodes", ">= 1"),
+        (["--episodes", "two"], "--episodes", "integer"),
+        (["--env-kwargs", "{n_obstacles: 4}"], "--env-kwargs", "invalid JSON"),
+        (["--env-kwargs", "[1, 2]"], "--env-kwargs", "JSON object"),
+        (["--env-kwargs", '{"n_obstacle": 4}'], "--env-kwargs", "n_obstacle"),
+        (["--env", "DebrisGym/Nowhere-v0"], "--env", "Nowhere"),
+        (["--agents", "ppo"], "--agents", "ppo=path/to/model.zip"),
+        (["--agents", "xgboost=m.zip"], "--agents", "xgboost"),
+        (["--agents", "zero,zero"], "--agents", "more than once"),
+        (["--agents", "ppo=/no/such/model.zip"], "--agents", "not found"),
+        (["--paper", "--episodes", "3"], "--episodes", "--paper"),
+        (["--paper", "--agents", "zero"], "--agents", "--paper"),
+        (["--plots", "-1"], "--plots", ">= 0"),
+    ],
+)
+def test_cli_errors_name_the_flag(cli, capsys, tmp_path, argv, flag, text):
+    with pytest.raises(SystemExit) as exc:
+        cli.main([*argv, "--out", str(tmp_path / "out")])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert f"argument {flag}" in err and text in err, err
+
+
+def test_help_explains_outputs_and_agents(cli):
+    text = re.sub(r"-\s+", "-", cli.build_parser().format_help())  # argparse wraps at hyphens
+    for word in ("--agents", "--paper", "--env-kwargs", "--max-steps", "episodes.csv", "apf-rrt"):
+        assert word in text
+
+
+def test_paper_mode_writes_table_i_beside_ours(cli, monkeypatch, tmp_path, capsys):
+    # Stand-ins while the real planners are being written: the table's shape is what is tested.
+    monkeypatch.setitem(agents.BASELINES, "apf", "agents.simple:RandomAgent")
+    monkeypatch.setitem(agents.BASELINES, "apf-mpc", "agents.simple:ZeroAgent")
+    monkeypatch.setitem(agents.BASELINES, "astar", "agents.simple:ZeroAgent")
+    out = tmp_path / "paper"
+    assert cli.main(["--paper", "--max-steps", "30", "--no-progress", "--out", str(out)]) == 0
+    text = (out / "paper_table.md").read_text()
+    assert text.splitlines()[0] == (
+        "| metric | paper APF | ours APF | paper APF-MPC | ours APF-MPC | ours A* |"
+    )
+    assert "| Path length [m] | 841.7818 |" in text and "| 105.1884 |" in text
+    assert "| 83790 |" in text and "0.00038684" in text
+    table = json.loads((out / "paper_table.json").read_text())
+    assert set(table["ours"]) == {"apf", "apf-mpc", "astar"}
+    assert table["ours"]["apf-mpc"]["fuel"] == 0.0 and table["ours"]["astar"]["waypoints"] == 30
+    assert table["paper"]["apf"]["fuel"] == 2367.9007
+    assert "Seed 000 Table I" in capsys.readouterr().out
+
+
+# --- the library ------------------------------------------------------------------------------
+
+
+def test_every_agent_meets_the_same_scenarios(results):
+    env = gym.make("DebrisGym/Rendezvous2D-v0", **SMALL)
+    for i in range(results.episodes):
+        env.reset(seed=7 + i)
+        expected = ev.scenario_fingerprint(env.unwrapped.scenario)
+        group = results.for_episode(i)
+        assert [r.agent for r in group] == ["zero", "random"]
+        assert {r.scenario_id for r in group} == {expected}
+        assert all(r.seed == 7 + i for r in group)
+        assert all(r.scenario == results.scenarios[i] for r in group)
+        assert all(np.array_equal(r.trajectory.positions[0], env.unwrapped.trail[0]) for r in group)
+    env.close()
+    assert len({ev.scenario_fingerprint(s) for s in results.scenarios}) == results.episodes
+
+
+def test_records_match_the_env(results):
+    for rec in results.records:
+        traj = rec.trajectory
+        assert rec.steps == len(traj.decision_ms) == len(traj.accelerations) <= 40
+        assert traj.positions.shape == (rec.steps + 1, 2)
+        assert rec.time == pytest.approx(rec.steps * traj.dt)
+        assert rec.metrics.fuel == pytest.approx(rec.delta_v)  # accelerations rebuilt exactly
+        assert rec.decision_ms_p50 <= rec.decision_ms_p95 <= rec.decision_ms_max
+        assert rec.collision == (traj.collision_point is not None)
+    zero = results.for_agent("zero")
+    assert all(r.path_length == 0.0 and r.outcome == "time_limit" for r in zero)
+
+
+def test_fuel_is_rebuilt_when_the_delta_v_budget_cuts_the_last_burn():
+    res = ev.evaluate_agents(
+        "DebrisGym/Rendezvous2D-v0",
+        ["random"],
+        episodes=1,
+        seed=0,
+        env_kwargs={**SMALL, "delta_v_budget": 1.2, "thrust_model": "box"},
+        progress=False,
+    )
+    rec = res.records[0]
+    assert rec.delta_v == pytest.approx(1.2)
+    assert rec.outcome in ("delta_v_budget", "collision", "out_of_bounds")
+    assert rec.trajectory.thrust_model == "box"
+    assert rec.metrics.fuel == pytest.approx(rec.delta_v)  # Σ|u_i|·dt, the last burn cut
+
+
+def test_summary_statistics(results):
+    summary = ev.summarize(results)
+    rnd = summary["agents"]["random"]
+    recs = results.for_agent("random")
+    dv = [r.delta_v for r in recs]
+    assert rnd["delta_v_mean"] == pytest.approx(np.mean(dv))
+    assert rnd["delta_v_mean_ci95"] == pytest.approx(list(ev.t_interval(dv)))
+    k = sum(r.collision for r in recs)
+    assert rnd["collision_rate_ci95"] == pytest.approx(list(ev.wilson_interval(k, 3)))
+    all_ms = np.concatenate([r.trajectory.decision_ms for r in recs])
+    assert rnd["decision_ms_p95"] == pytest.approx(np.percentile(all_ms, 95))
+    assert rnd["decisions"] == all_ms.size
+    md = ev.summary_markdown(summary)
+    rows = [line for line in md.splitlines() if line.startswith("| ")]
+    assert [row.split(" | ")[0] for row in rows] == ["| agent", "| zero", "| random"]
+    json.loads(ev.to_json(summary))  # strict JSON
+
+
+def test_wilson_interval_hand_computed():
+    # z = 1.959964; centre (p + z²/2n)/(1 + z²/n), half-width z/(1 + z²/n)·sqrt(p(1−p)/n + z²/4n²)
+    assert ev.wilson_interval(0, 20) == pytest.approx((0.0, 0.161125), abs=1e-6)
+    assert ev.wilson_interval(20, 20) == pytest.approx((0.838875, 1.0), abs=1e-6)
+    assert ev.wilson_interval(10, 20) == pytest.approx((0.299298, 0.700702), abs=1e-6)
+    assert ev.wilson_interval(1, 3) == pytest.approx((0.061492, 0.792340), abs=1e-6)
+    with pytest.raises(ValueError):
+        ev.wilson_interval(3, 2)
+
+
+def test_t_interval_matches_scipy():
+    x = [3.1, 4.7, 2.2, 5.9, 4.0, 3.3]
+    expected = stats.t.interval(0.95, len(x) - 1, loc=np.mean(x), scale=stats.sem(x))
+    assert ev.t_interval(x) == pytest.approx(expected)
+    assert ev.t_interval([2.0, 2.0, 2.0]) == pytest.approx((2.0, 2.0))
+    assert ev.t_interval([1.0]) == (None, None)
+
+
+def test_agent_spec_parsing():
+    a, b, c, d = ev.parse_agent_specs("apf, ppo=runs/a/model.zip,ppo:runs/b/best.zip,pretrained")
+    assert (a.kind, a.name, a.label) == ("baseline", "apf", "apf")
+    assert (b.kind, b.name, b.path, b.label) == ("learned", "ppo", "runs/a/model.zip", "ppo:model")
+    assert (c.path, c.label, c.load_string) == (
+        "runs/b/best.zip",
+        "ppo:best",
+        "ppo:runs/b/best.zip",
+    )
+    assert (d.kind, d.load_string) == ("pretrained", "pretrained")
+    same_stem = ev.parse_agent_specs(["sac=x/model.zip", "sac=y/model.zip"])
+    assert [s.label for s in same_stem] == ["sac:model", "sac:model#2"]
+    for name in agents.BASELINES:
+        assert ev.parse_agent_spec(name).kind == "baseline"
+    with pytest.raises(ValueError, match="known baselines: zero, random"):
+        ev.parse_agent_spec("nope")
+
+
+def test_learned_agents_wait_for_load_agent(monkeypatch, tmp_path):
+    monkeypatch.delattr(agents, "load_agent", raising=False)
+    model = tmp_path / "model.zip"
+    model.write_bytes(b"")
+    spec = ev.parse_agent_spec(f"ppo={model}")
+    with pytest.raises(NotImplementedError, match="training issue"):
+        ev.check_agent_available(spec)
+    env = gym.make("DebrisGym/Rendezvous2D-v0", **SMALL)
+    with pytest.raises(NotImplementedError, match="training issue"):
+        ev.build_agent(spec, env)
+    with pytest.raises(NotImplementedError, match="training issue"):
+        ev.build_agent("pretrained", env)
+    calls = []
+    monkeypatch.setattr(
+        agents, "load_agent", lambda s, e: calls.append(s) or "policy", raising=False
+    )
+    assert ev.build_agent(spec, env) == "policy"
+    assert calls == [f"ppo:{model}"]
+    env.close()
+
+
+def test_plot_is_a_png_for_3d(tmp_path):
+    res = ev.evaluate_agents(
+        "DebrisGym/Rendezvous3D-v0", "zero,random", episodes=1, seed=0,
+        env_kwargs=SMALL, progress=False, max_episode_steps=20,
+    )  # fmt: skip
+    written = ev.write_outputs(res, tmp_path, plots=5)
+    names = [p.name for p in written]
+    assert names == ["episodes.csv", "summary.json", "summary.md", "trajectories_ep000.png"]
+    assert (tmp_path / "trajectories_ep000.png").read_bytes().startswith(b"\x89PNG")
