@@ -38,7 +38,7 @@ OBS_MEANING = [
     (r"obstacle(\d+)_gap", "obstacle slot {0}: distance from chaser centre to surface", "m", "L"),
     (r"lidar(\d+)", "lidar ray {0}: range to first surface", "m", "lidar_range"),
     (r"delta_v_remaining", "Δv budget left (1 without a budget)", "", "budget"),
-    (r"time_remaining", "steps left before truncation", "", "max_episode_steps"),
+    (r"time_remaining", "steps left of the registered limit", "", "max_episode_steps"),
 ]
 
 
