@@ -507,3 +507,26 @@ def test_time_remaining_uses_the_registered_limit():
     obs, *_ = env.step(np.zeros(2, dtype=np.float32))
     index = env.unwrapped.observation_names().index("time_remaining")
     assert obs[index] == pytest.approx((2000 - 1) / 2000)
+
+
+def test_leaving_a_target_after_gentle_contact_is_not_a_collision():
+    """Regression: after a gentle contact (a capture), thrusting away faster than capture_speed
+    was reported as a collision, although the chaser moved away from the target."""
+    scen = simple_scenario(
+        targets=(
+            Body(position=(50.0, 0.0), radius=5.0, velocity=(0.0, 0.0)),
+            Body(position=(-300.0, 0.0), radius=5.0, velocity=(0.0, 0.0)),
+        ),
+        obstacles=(),
+    )
+    env = DebrisFieldEnv(delta_v_budget=None)
+    env.reset(seed=0, options={"scenario": scen, "chaser_state": [43.5, 0.0, 0.2, 0.0]})
+    _, _, _, _, info = env.step(np.zeros(2, dtype=np.float32))
+    assert info["targets_captured"] == 1 and not info["collision"]
+    for _ in range(2):
+        _, _, terminated, _, info = env.step(np.array([-1.0, 0.0], dtype=np.float32))
+        assert not info["collision"] and not terminated
+    # ramming a target at speed is still a collision
+    env.reset(seed=0, options={"scenario": scen, "chaser_state": [30.0, 0.0, 2.0, 0.0]})
+    _, _, terminated, _, info = env.step(np.zeros(2, dtype=np.float32))
+    assert info["collision"] and terminated

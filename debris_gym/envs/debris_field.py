@@ -281,7 +281,7 @@ class DebrisFieldEnv(gym.Env):
     def _simulate(self, accel: np.ndarray, dv: float) -> list[int]:
         """Propagate one step exactly and sweep the path; returns the bodies it touched."""
         d = self.dim
-        start = self._state
+        self._start_state = start = self._state
         out = self._step_matrix @ np.concatenate([start, accel])
         path = self._path
         path[0] = start[:d]
@@ -309,8 +309,16 @@ class DebrisFieldEnv(gym.Env):
                 if gaps[i] <= reach:
                     self._captured[i] = True
                     new += 1
-        if touched and (touched[-1] >= self._n_targets or speed > cfg.capture_speed):
-            self._collision = True  # any debris contact, or touching a target too fast
+        if touched:
+            if touched[-1] >= self._n_targets:
+                self._collision = True  # any contact with debris that is not a target
+            elif speed > cfg.capture_speed:
+                # touching a target too fast, unless the chaser is leaving it at both ends of the
+                # step (departing after a gentle contact is not an impact)
+                centres = self._geometry.centers[touched]
+                start = self._start_state
+                closing = ((centres - start[:d]) @ start[d:] > 0.0) | ((centres - pos) @ vel > 0.0)
+                self._collision = bool(closing.any())
         self._out_of_bounds = bool((pos <= self._low).any() or (pos >= self._high).any())
         if not self._collision and self._captured.all():
             if not cfg.return_to_dock:

@@ -266,7 +266,7 @@ class DebrisFieldVectorEnv(VectorEnv):
         self._delta_v += np.where(live, dv, 0.0)
         self._accel = np.where(live[:, None], accel, self._accel)
 
-        new_captures = self._update_mission(touched, live)
+        new_captures = self._update_mission(touched, live, start)
         terms = self._reward_terms(new_captures, np.where(live, dv, 0.0))
         budget = cfg.delta_v_budget
         spent = np.zeros(n, dtype=bool) if budget is None else self._delta_v >= budget
@@ -343,7 +343,9 @@ class DebrisFieldVectorEnv(VectorEnv):
                 dv = dv * scale
         return accel, dv
 
-    def _update_mission(self, touched: np.ndarray, live: np.ndarray) -> np.ndarray:
+    def _update_mission(
+        self, touched: np.ndarray, live: np.ndarray, start: np.ndarray
+    ) -> np.ndarray:
         cfg, d, t = self.config, self.dim, self._n_targets
         pos, vel = self._state[:, :d], self._state[:, d:]
         self._gaps = gaps = self._field.gaps(pos, None, *self._cull)
@@ -358,7 +360,11 @@ class DebrisFieldVectorEnv(VectorEnv):
         new = capturable.sum(axis=1)
         self._captured |= capturable
         hit_debris = touched[:, t:].any(axis=1)
-        hit_target = touched[:, :t].any(axis=1)
+        # a target touched too fast counts unless the chaser leaves it at both step ends
+        centres = self._field.centers[:, :t]
+        closing = ((centres - start[:, None, :d]) * start[:, None, d:]).sum(axis=2) > 0.0
+        closing |= ((centres - pos[:, None, :]) * vel[:, None, :]).sum(axis=2) > 0.0
+        hit_target = (touched[:, :t] & closing).any(axis=1)
         self._collision |= live & (hit_debris | (hit_target & ~slow))
         oob = np.any(pos <= self._low, axis=1) | np.any(pos >= self._high, axis=1)
         self._out_of_bounds = np.where(live, oob, self._out_of_bounds)
