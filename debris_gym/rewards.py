@@ -21,6 +21,12 @@ learns but not which policy is optimal (for the same γ as the learner's).
 
 from __future__ import annotations
 
+from typing import Any
+
+import numpy as np
+
+from debris_gym.config import EnvConfig
+
 REWARD_TERMS = ("capture", "success", "progress", "delta_v", "collision", "out_of_bounds", "time")
 
 
@@ -35,3 +41,34 @@ def potential(goal_gap: float, goals_after: int, length_scale: float) -> float:
         length_scale: normalising length (m), e.g. half the field size.
     """
     return -(goal_gap / length_scale + goals_after)
+
+
+def reward_terms(
+    cfg: EnvConfig,
+    *,
+    new_captures: Any,
+    success: Any,
+    progress: Any,
+    delta_v: Any,
+    collision: Any,
+    out_of_bounds: Any,
+) -> dict[str, Any]:
+    """The weighted reward terms of one step, for one env (scalars) or a batch (arrays).
+
+    Args:
+        cfg: weights ``reward_<term>``.
+        new_captures: targets captured this step.
+        success, collision, out_of_bounds: this step's flags.
+        progress: γΦ(s′) − Φ(s) (before the terminal correction).
+        delta_v: Δv spent this step (m/s).
+    """
+    time = np.full(np.shape(delta_v), -cfg.reward_time) if np.ndim(delta_v) else -cfg.reward_time
+    return {
+        "capture": cfg.reward_capture * new_captures,
+        "success": cfg.reward_success * success,
+        "progress": cfg.reward_progress * progress,
+        "delta_v": -cfg.reward_delta_v * delta_v,
+        "collision": -cfg.reward_collision * collision,
+        "out_of_bounds": -cfg.reward_out_of_bounds * out_of_bounds,
+        "time": time,
+    }

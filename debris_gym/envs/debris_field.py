@@ -20,7 +20,7 @@ from debris_gym.envs.common import (
     single_spaces,
 )
 from debris_gym.geometry import FieldGeometry, lidar_directions
-from debris_gym.rewards import REWARD_TERMS, potential
+from debris_gym.rewards import REWARD_TERMS, potential, reward_terms
 from debris_gym.scenario import Scenario, as_scenario
 from debris_gym.thrust import commanded_accel, delta_v_rate
 
@@ -362,15 +362,15 @@ class DebrisFieldEnv(gym.Env):
         phi = self._potential_now()
         progress = cfg.shaping_gamma * phi - self._potential
         self._potential = phi
-        return {
-            "capture": cfg.reward_capture * new_captures,
-            "success": cfg.reward_success * self._success,
-            "progress": cfg.reward_progress * progress,
-            "delta_v": -cfg.reward_delta_v * dv,
-            "collision": -cfg.reward_collision * self._collision,
-            "out_of_bounds": -cfg.reward_out_of_bounds * self._out_of_bounds,
-            "time": -cfg.reward_time,
-        }
+        return reward_terms(
+            cfg,
+            new_captures=new_captures,
+            success=self._success,
+            progress=progress,
+            delta_v=dv,
+            collision=self._collision,
+            out_of_bounds=self._out_of_bounds,
+        )
 
     def _observe(self) -> np.ndarray:
         cfg, d = self.config, self.dim

@@ -36,7 +36,7 @@ from debris_gym.envs.common import (
     single_spaces,
 )
 from debris_gym.geometry import lidar_directions
-from debris_gym.rewards import REWARD_TERMS
+from debris_gym.rewards import REWARD_TERMS, reward_terms
 from debris_gym.scenario import Scenario, as_scenario
 from debris_gym.thrust import commanded_accel, delta_v_rate
 
@@ -404,15 +404,15 @@ class DebrisFieldVectorEnv(VectorEnv):
         phi = self._potential_now()
         progress = cfg.shaping_gamma * phi - self._potential
         self._potential = phi
-        return {
-            "capture": cfg.reward_capture * new_captures,
-            "success": cfg.reward_success * self._success,
-            "progress": cfg.reward_progress * progress,
-            "delta_v": -cfg.reward_delta_v * dv,
-            "collision": -cfg.reward_collision * self._collision,
-            "out_of_bounds": -cfg.reward_out_of_bounds * self._out_of_bounds,
-            "time": np.full(self.num_envs, -cfg.reward_time),
-        }
+        return reward_terms(
+            cfg,
+            new_captures=new_captures,
+            success=self._success,
+            progress=progress,
+            delta_v=dv,
+            collision=self._collision,
+            out_of_bounds=self._out_of_bounds,
+        )
 
     def _observe(self) -> np.ndarray:
         cfg, d, n, t = self.config, self.dim, self.num_envs, self._n_targets
