@@ -12,7 +12,8 @@ debris field comes from that seed. Outputs in --out DIR:
   paper_table.md/.json      with --paper: seed 000's Table I beside our measurements
 
 Agents: baseline names (see --agents), ALGO=PATH for a learned policy (ppo, sac, td3, dqn), or
-'pretrained'. Learned agents need agents.load_agent, which arrives with the training issue.
+'pretrained' (the policy shipped for the env, see docs/training.md). Learned agents are
+loaded with agents.load_agent; models trained by train.py restore their VecNormalize statistics.
 """
 
 from __future__ import annotations
@@ -180,15 +181,27 @@ def _default_agents(
     return names, {PRETRAINED: reason}
 
 
-def _usable(specs: list, explicit: bool, parser: argparse.ArgumentParser, flag: str) -> tuple:
-    """Check each agent can be built: an error naming it if listed explicitly, else a note."""
-    from agents.evaluation import check_agent_available
+def _usable(
+    specs: list, explicit: bool, parser: argparse.ArgumentParser, flag: str, make_env: Any
+) -> tuple:
+    """Check each agent can be built: an error naming it if listed explicitly, else a note.
+
+    Learned and pretrained agents are loaded once here (``make_env()`` gives the env), so a
+    wrong file, a space mismatch or a missing pretrained policy fails before any episode runs.
+    """
+    from agents.evaluation import build_agent, check_agent_available
 
     keep, skipped = [], {}
     for spec in specs:
         try:
             check_agent_available(spec)
-        except (ImportError, FileNotFoundError, NotImplementedError) as exc:
+            if spec.kind != "baseline":
+                env = make_env()
+                try:
+                    build_agent(spec, env)
+                finally:
+                    env.close()
+        except (ImportError, FileNotFoundError, NotImplementedError, ValueError) as exc:
             if explicit:
                 parser.error(f"argument {flag}: {exc}")
             _note(f"skipped — {exc}")
@@ -241,7 +254,9 @@ def main(argv: list[str] | None = None) -> int:
         specs = ev.parse_agent_specs(agent_text) if agent_text else []
     except ValueError as exc:
         parser.error(f"argument --agents: {exc}")
-    specs, skipped = _usable(specs, explicit, parser, "--agents")
+    specs, skipped = _usable(
+        specs, explicit, parser, "--agents", lambda: ev.make_env(env_id, env_kwargs, args.max_steps)
+    )
     skipped = {**unregistered, **skipped}
     if not specs:
         flag = "--paper" if args.paper else "--agents"

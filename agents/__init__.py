@@ -10,6 +10,10 @@
 ``apf-mpc``    APF reference path tracked by an OSQP MPC on the CWH model (seed 000)
 ``astar``      A* grid path tracked by the same MPC (seed 000's A* baseline)
 =============  ==================================================================
+
+``load_agent("ppo:runs/ppo/model.zip", env)`` loads a policy trained by ``train.py`` (``sac``,
+``td3``, ``dqn`` likewise; ``load_agent("pretrained", env)`` the shipped one) behind the same
+interface; see :mod:`agents.learned`.
 """
 
 from __future__ import annotations
@@ -41,4 +45,13 @@ def make_agent(name: str, env: Any, **params: Any) -> Any:
     return cls(env, **params)
 
 
-__all__ = ["BASELINES", "make_agent"]
+def load_agent(spec: str, env: Any, **kwargs: Any) -> Any:
+    """Load a learned policy: ``"ppo:PATH"`` (or ``ppo=PATH``; ``sac``, ``td3``, ``dqn``) or
+    ``"pretrained"``, for ``env``. See :func:`agents.learned.load_agent` (imported on first use,
+    so ``import agents`` does not import torch)."""
+    from agents.learned import load_agent as _load_agent
+
+    return _load_agent(spec, env, **kwargs)
+
+
+__all__ = ["BASELINES", "load_agent", "make_agent"]

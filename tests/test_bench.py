@@ -1,6 +1,8 @@
-"""Smoke test of bench/run.py: every measurement runs and lands in the report.
+"""Smoke test of bench/run.py: every measurement of every section runs and lands in the report.
 
-No timing assertions: speeds on shared machines are noise; only their presence is checked.
+No timing assertions: speeds on shared machines are noise; only their presence is checked. The
+vector, scaling, memory and training sections run at the tiny sizes of ``bench.TINY`` (a few
+envs, a few steps, a 256-step PPO learn).
 """
 
 from __future__ import annotations
@@ -26,8 +28,17 @@ def bench():
 
 
 @pytest.fixture(scope="module")
-def rows(bench):
-    return bench.run(quick=True, steps=20, resets=1, progress=False)
+def all_rows(bench):
+    return bench.run(quick=True, steps=20, resets=1, progress=False, sizes=bench.TINY)
+
+
+@pytest.fixture(scope="module")
+def rows(all_rows):
+    return [r for r in all_rows if r["section"] in ("step", "scaling", "reset")]
+
+
+def _finite_positive(x):
+    return x is not None and math.isfinite(x) and x > 0
 
 
 def test_every_env_has_a_step_row_at_both_wrapper_levels(bench, rows):
@@ -78,3 +89,145 @@ def test_write_atomic_replaces_the_file(bench, tmp_path):
     bench.write_atomic(str(out), "new\n")
     assert out.read_text() == "new\n"
     assert [p.name for p in out.parent.iterdir()] == ["table.md"]  # no temp file left behind
+
+
+def test_sections_are_selectable(bench):
+    assert bench.SECTIONS == ("single", "vector", "scaling", "memory", "train")
+    assert bench._sections(["train", "vector"]) == ("vector", "train")  # run order
+    assert bench._sections(None) == bench.SECTIONS
+    with pytest.raises(ValueError, match="unknown section"):
+        bench._sections(["single", "nope"])
+    rows = bench.run(
+        quick=True,
+        steps=3,
+        progress=False,
+        sections=["scaling"],
+        sizes={**bench.TINY, "scaling_rows": ((10, 2),)},
+    )
+    assert {r["section"] for r in rows} == {"vector_scaling"}
+    assert sorted(r["n_obstacles"] for r in rows) == [10, 20]  # the reference is added
+
+
+def test_vector_section_rows(bench, all_rows):
+    vec = [r for r in all_rows if r["section"] == "vector"]
+    tiny = bench.TINY
+    keys = {(r["level"], r["env_id"], r["variant"], r["num_envs"]) for r in vec}
+    expected = {("native", bench.CARTPOLE, "", tiny["cartpole_envs"])}
+    expected |= {("native", bench.ID_2D, "", n) for n in tiny["vector_envs"]}
+    expected |= {("native", bench.ID_3D, "", tiny["vector_variant_envs"])}
+    expected |= {("native", bench.ID_2D, "observation=lidar", tiny["vector_variant_envs"])}
+    expected |= {("sync", bench.ID_2D, "", tiny["sync_envs"])}
+    expected |= {("subproc", bench.ID_2D, "", n) for n in tiny["subproc_envs"]}
+    assert keys == expected
+    for row in vec:
+        assert row["error"] is None, row["error"]
+        assert row["count"] == 20 and row["repeats"] == 3
+        assert row["warmup_steps"] == tiny["warmup_steps"]
+        assert _finite_positive(row["env_steps_per_s"])
+        assert row["env_steps_per_s_best"] >= row["env_steps_per_s"]
+        assert row["ends_per_1000"] >= 0
+    native_2d = [r for r in vec if r["level"] == "native" and r["env_id"] == bench.ID_2D]
+    assert all(_finite_positive(r["ratio_cartpole"]) for r in native_2d)
+    assert all(_finite_positive(r["ratio_sync"]) for r in native_2d if not r["variant"])
+    subproc = [r for r in vec if r["level"] == "subproc"]
+    assert all(_finite_positive(r["ratio_sync"]) for r in subproc)
+
+
+def test_vector_scaling_rows(bench, all_rows):
+    scaling = [r for r in all_rows if r["section"] == "vector_scaling"]
+    pairs = {(r["n_obstacles"], r["num_envs"]) for r in scaling}
+    wanted = set(bench.TINY["scaling_rows"])
+    wanted |= {(bench.DEFAULT_OBSTACLES, n) for _, n in bench.TINY["scaling_rows"]}
+    assert pairs == wanted
+    assert {n for n, _ in pairs} >= set(bench.SCALING_COUNTS)
+    for row in scaling:
+        assert row["error"] is None, row["error"]
+        assert row["field_size"] == pytest.approx(bench.field_size_for(row["n_obstacles"]))
+        assert _finite_positive(row["env_steps_per_s"])
+        assert _finite_positive(row["reset_ms_per_env"])
+        assert _finite_positive(row["ratio"])
+        if row["n_obstacles"] == bench.DEFAULT_OBSTACLES:
+            assert row["ratio"] == pytest.approx(1.0)
+
+
+def test_memory_row(bench, all_rows):
+    (row,) = [r for r in all_rows if r["section"] == "memory"]
+    assert row["error"] is None, row["error"]
+    small, large = bench.TINY["memory_envs"]
+    assert (row["small_envs"], row["large_envs"]) == (small, large)
+    assert set(row["rss_growth"]) == {small, large}
+    assert math.isfinite(row["rss_per_env"])  # RSS moves in pages: at tiny N it may be 0
+    assert _finite_positive(row["array_bytes_per_env"])
+    assert _finite_positive(row["obs_buffer_bytes_per_env"])
+    names = {(a["owner"], a["name"]) for a in row["arrays"]}
+    assert {("field", "centers"), ("env", "_state"), ("env", "_obs")} <= names
+    assert [a["nbytes"] for a in row["arrays"]] == sorted(
+        (a["nbytes"] for a in row["arrays"]), reverse=True
+    )
+    state = sum(a["nbytes"] for a in row["arrays"] if not a["observation_buffer"])
+    assert row["array_bytes_per_env"] == pytest.approx(state / large)
+    assert _finite_positive(row["python_bytes_per_env"]["scenarios"])
+    assert _finite_positive(row["python_bytes_per_env"]["rngs"])
+
+
+def test_memory_child_counts_every_array(bench):
+    out = bench.memory_child(2)
+    assert out["num_envs"] == 2 and out["n_bodies"] >= 21
+    obs = [a for a in out["arrays"] if a["observation_buffer"]]
+    assert [a["name"] for a in obs] == ["_obs"]
+    assert all(a["shape"][0] == 2 for a in out["arrays"] if a["owner"] == "field")
+    assert out["rss_after_reset"] > 0
+
+
+def test_deep_size_counts_shared_objects_once(bench):
+    shared = tuple(float(i) for i in range(100))
+    one = bench._deep_size([shared])
+    assert bench._deep_size([shared, shared]) == one + 8  # one more list slot only
+    assert bench._deep_size(bench.np.zeros(1000)) >= 8000
+
+
+def test_train_rows(bench, all_rows):
+    train = [r for r in all_rows if r["section"] == "train"]
+    tiny = bench.TINY
+    assert [(r["level"], r["num_envs"]) for r in train] == [
+        *(("NativeVecEnv", n) for n in tiny["train_envs"]),
+        ("DummyVecEnv", tiny["dummy_envs"]),
+    ]
+    for row in train:
+        assert row["error"] is None, row["error"]
+        assert row["n_steps"] * row["num_envs"] == tiny["train_rollout"]
+        assert row["timesteps"] == tiny["train_rollout"] * tiny["train_rollouts"]
+        assert row["batch_size"] == tiny["train_batch"] and row["n_epochs"] == tiny["train_epochs"]
+        assert _finite_positive(row["env_steps_per_s"])
+        shares = (row["env_share"], row["policy_share"], row["update_share"])
+        assert all(0 <= s <= 1 for s in shares)
+        assert sum(shares) == pytest.approx(1.0)
+        assert _finite_positive(row["forward_ms"])
+    assert all(_finite_positive(r["ratio_dummy"]) for r in train if r["level"] != "DummyVecEnv")
+
+
+def test_report_has_every_section(bench, all_rows):
+    report = bench.format_report(all_rows, command="python bench/run.py --quick", elapsed=1.0)
+    for heading in (
+        "## Single-env step cost",
+        "## Vector env throughput",
+        "## Vector env: scaling with debris count",
+        "## Memory per sub-env",
+        "## Training throughput",
+    ):
+        assert heading in report
+    assert "SyncVectorEnv" in report and "SubprocVecEnv" in report
+    assert "Goal ≥ 20,000 env-steps/s end to end" in report
+    assert "## Errors" not in report
+    only_vector = bench.format_report(
+        [r for r in all_rows if r["section"] == "vector"], command="x", elapsed=1.0
+    )
+    assert (
+        "## Single-env step cost" not in only_vector and "## Vector env throughput" in only_vector
+    )
+
+
+def test_cli_rejects_unknown_sections(bench, capsys):
+    with pytest.raises(SystemExit):
+        bench.main(["--only", "single,bogus"])
+    assert "unknown section" in capsys.readouterr().err

@@ -1,0 +1,307 @@
+"""Learned policies (SB3 models saved by ``train.py``) behind the shared ``predict()`` interface.
+
+``load_agent("ppo:runs/ppo/model.zip", env)`` (also ``ppo=…``, and ``sac``, ``td3``, ``dqn``)
+returns a :class:`LearnedAgent`; ``load_agent("pretrained", env)`` the policy shipped in
+``agents/pretrained/`` for that env. The agent
+
+* restores the VecNormalize observation statistics saved next to the model (the
+  :func:`agents.training.sidecar_path` name: ``vecnormalize.pkl`` beside ``model.zip``,
+  ``best_model_vecnormalize.pkl`` beside ``best_model.zip``, ``rl_model_vecnormalize_N_steps.pkl``
+  beside a checkpoint) and normalises observations with them before calling the model, without
+  updating them;
+* checks the model's observation and action spaces against the env's (a clear error otherwise);
+* lets a DQN policy (trained with ``action="discrete"``) fly the default continuous env: discrete
+  action k becomes row k of the env's discrete action table (coast, ±x, ±y, ±z at full thrust),
+  which the env turns into exactly the same acceleration. So ``evaluate.py --agents
+  apf,dqn=model.zip`` compares it with the baselines on the same env.
+"""
+
+from __future__ import annotations
+
+import pickle
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+from agents.training import ALGOS, FINAL_MODEL, load_config_file, sidecar_path
+
+__all__ = ["PRETRAINED", "PRETRAINED_DIR", "PRETRAINED_POLICIES", "LearnedAgent", "load_agent"]
+
+PRETRAINED = "pretrained"
+
+PRETRAINED_DIR = Path(__file__).resolve().parent / "pretrained"
+"""Package data: the shipped policies (and their VecNormalize statistics)."""
+
+PRETRAINED_POLICIES: dict[str, tuple[str, str]] = {
+    "DebrisGym/Rendezvous2D-v0": ("ppo", "rendezvous2d_ppo.zip"),
+}
+"""Env ID → (algorithm, file in :data:`PRETRAINED_DIR`)."""
+
+
+class LearnedAgent:
+    """An SB3 model acting through the shared ``predict()`` interface.
+
+    Args:
+        model: the loaded SB3 model.
+        algo: its algorithm name (``"ppo"``, …).
+        path: the model file.
+        obs_normalizer: a VecNormalize object (unpickled, no venv) whose frozen observation
+            statistics are applied before the model, or None.
+        observation_space: the env's single observation space.
+        action_table: for a discrete model in a continuous env, row k = continuous action of
+            discrete action k; else None.
+    """
+
+    def __init__(
+        self,
+        model: Any,
+        algo: str,
+        path: Path,
+        obs_normalizer: Any,
+        observation_space: spaces.Space,
+        action_table: np.ndarray | None = None,
+    ) -> None:
+        self.model = model
+        self.algo = algo
+        self.name = algo
+        self.path = path
+        self.obs_normalizer = obs_normalizer
+        self.observation_space = observation_space
+        self.action_table = action_table
+
+    def normalize(self, observation: np.ndarray) -> np.ndarray:
+        """Observations as the model saw them in training (frozen VecNormalize statistics)."""
+        obs = np.asarray(observation, dtype=np.float32)
+        if self.obs_normalizer is None:
+            return obs
+        return np.asarray(self.obs_normalizer.normalize_obs(obs), dtype=np.float32)
+
+    def predict(
+        self,
+        observation: np.ndarray,
+        state: Any = None,
+        episode_start: np.ndarray | None = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, Any]:
+        """SB3-style ``predict`` for one observation or a batch, answering in the same shape.
+
+        Raises:
+            ValueError: an observation whose shape is neither the env's nor a batch of it.
+        """
+        obs = np.asarray(observation, dtype=np.float32)
+        single_shape = self.observation_space.shape
+        single = obs.shape == single_shape
+        if not single and obs.shape[1:] != single_shape:
+            raise ValueError(
+                f"observation shape {obs.shape} is neither {single_shape} nor a batch of it"
+            )
+        batch = self.normalize(obs[None] if single else obs)
+        action, state = self.model.predict(
+            batch, state=state, episode_start=episode_start, deterministic=deterministic
+        )
+        if self.action_table is not None:
+            action = self.action_table[np.asarray(action, dtype=np.int64)].astype(np.float32)
+        return (action[0] if single else action), state
+
+    def __repr__(self) -> str:
+        norm = "VecNormalize obs" if self.obs_normalizer is not None else "raw obs"
+        return f"LearnedAgent({self.algo}, {self.path}, {norm})"
+
+
+# --------------------------------------------------------------------------------------------------
+
+
+def _env_spaces(env: Any) -> tuple[spaces.Space, spaces.Space]:
+    """Single observation and action spaces of a gym env, SB3 VecEnv or gymnasium VectorEnv."""
+    if hasattr(env, "single_observation_space"):  # gymnasium VectorEnv
+        return env.single_observation_space, env.single_action_space
+    return env.observation_space, env.action_space
+
+
+def _env_id(env: Any) -> str | None:
+    if getattr(env, "env_id", None):  # NativeVecEnv
+        return str(env.env_id)
+    spec = getattr(env, "spec", None)
+    if spec is None and hasattr(env, "envs") and env.envs:  # SB3 DummyVecEnv
+        spec = getattr(env.envs[0], "spec", None)
+    return getattr(spec, "id", None)
+
+
+def _env_dim(env: Any) -> int | None:
+    base = env.envs[0] if hasattr(env, "envs") and env.envs else env
+    base = getattr(base, "unwrapped", base)
+    config = getattr(base, "config", None)
+    return getattr(config, "dim", None)
+
+
+def _describe(space: spaces.Space) -> str:
+    if isinstance(space, spaces.Box):
+        return f"Box(shape={space.shape}, dtype={space.dtype})"
+    return str(space)
+
+
+def _same_box(a: spaces.Box, b: spaces.Box) -> bool:
+    return (
+        a.shape == b.shape
+        and np.allclose(a.low, b.low, equal_nan=True)
+        and np.allclose(a.high, b.high, equal_nan=True)
+    )
+
+
+def _check_spaces(model: Any, env: Any, path: Path) -> np.ndarray | None:
+    """Raise ValueError on a mismatch; return the discrete→continuous table if one is needed."""
+    obs_space, act_space = _env_spaces(env)
+    m_obs, m_act = model.observation_space, model.action_space
+    hint = (
+        "was it trained on another env or with other env options (dim, observation, obs_targets, "
+        "obs_obstacles, lidar_rays)? Make the env with the options in the run's config.yaml"
+    )
+    if not (isinstance(m_obs, spaces.Box) and isinstance(obs_space, spaces.Box)) or not _same_box(
+        m_obs, obs_space
+    ):
+        raise ValueError(
+            f"{path}: the model observes {_describe(m_obs)} but the env gives "
+            f"{_describe(obs_space)}; {hint}"
+        )
+    if isinstance(m_act, spaces.Box) and isinstance(act_space, spaces.Box):
+        if _same_box(m_act, act_space):
+            return None
+    elif isinstance(m_act, spaces.Discrete) and isinstance(act_space, spaces.Discrete):
+        if m_act.n == act_space.n:
+            return None
+    elif isinstance(m_act, spaces.Discrete) and isinstance(act_space, spaces.Box):
+        dim = act_space.shape[0] if len(act_space.shape) == 1 else None
+        if dim is not None and m_act.n == 2 * dim + 1 and _env_dim(env) in (None, dim):
+            from debris_gym.envs.common import discrete_action_table
+
+            return discrete_action_table(dim).astype(np.float32)
+    raise ValueError(
+        f"{path}: the model acts in {_describe(m_act)} but the env expects {_describe(act_space)}"
+        + (
+            "; make the env with action='discrete' (e.g. --env-kwargs '{\"action\": \"discrete\"}')"
+            if isinstance(act_space, spaces.Discrete)
+            else ""
+        )
+    )
+
+
+def _trained_with_normalization(path: Path) -> bool | None:
+    """Whether the run that wrote ``path`` used VecNormalize observations (None: unknown)."""
+    for folder in (path.parent, path.parent.parent):
+        config = folder / "config.yaml"
+        if config.is_file():
+            try:
+                data, _ = load_config_file(config)
+            except (OSError, ValueError):
+                return None
+            norm = data.get("normalize") or {}
+            return bool(norm.get("enabled")) and bool(norm.get("norm_obs", True))
+    return None
+
+
+def _load_normalizer(path: Path, observation_space: spaces.Space) -> Any:
+    stats = sidecar_path(path, "vecnormalize")
+    if not stats.is_file():
+        if _trained_with_normalization(path):
+            raise FileNotFoundError(
+                f"{path} was trained with VecNormalize observations but its statistics "
+                f"{stats.name} are missing next to it"
+            )
+        return None
+    with open(stats, "rb") as fh:
+        normalizer = pickle.load(fh)
+    normalizer.training = False  # never update the statistics at evaluation
+    if not normalizer.norm_obs:
+        return None
+    mean_shape = np.shape(normalizer.obs_rms.mean)
+    if mean_shape != observation_space.shape:
+        raise ValueError(
+            f"{stats}: VecNormalize statistics of shape {mean_shape} do not fit observations of "
+            f"shape {observation_space.shape}"
+        )
+    return normalizer
+
+
+def _parse(spec: str) -> tuple[str, Path | None]:
+    text = str(spec).strip()
+    if text == PRETRAINED:
+        return PRETRAINED, None
+    seps = [i for i in (text.find(":"), text.find("=")) if i >= 0]
+    if not seps:
+        raise ValueError(
+            f"learned agent {text!r}: expected ALGO:PATH or ALGO=PATH (ALGO one of "
+            f"{', '.join(ALGOS)}) or {PRETRAINED!r}"
+        )
+    algo, path = text[: min(seps)].strip().lower(), text[min(seps) + 1 :].strip()
+    if algo not in ALGOS:
+        raise ValueError(
+            f"unknown learning algorithm {algo!r} in {text!r}; use one of {', '.join(ALGOS)}"
+        )
+    if not path:
+        raise ValueError(f"learned agent {text!r} needs a model path: {algo}:path/to/model.zip")
+    return algo, Path(path)
+
+
+def pretrained_path(env: Any) -> tuple[str, Path]:
+    """(algorithm, file) of the shipped policy for ``env``'s ID.
+
+    Raises:
+        ValueError: no pretrained policy is planned for this env.
+        FileNotFoundError: it is planned but not shipped yet.
+    """
+    env_id = _env_id(env)
+    if env_id not in PRETRAINED_POLICIES:
+        known = ", ".join(PRETRAINED_POLICIES)
+        raise ValueError(
+            f"no pretrained policy for {env_id or 'this env'} (there is one for {known})"
+        )
+    algo, name = PRETRAINED_POLICIES[env_id]
+    path = PRETRAINED_DIR / name
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"no pretrained policy for {env_id} yet: agents/pretrained/{name} is not shipped "
+            "(train one with train.py, see docs/training.md)"
+        )
+    return algo, path
+
+
+def load_agent(spec: str, env: Any, device: str = "cpu") -> LearnedAgent:
+    """Load a learned policy for ``env``.
+
+    Args:
+        spec: ``"ALGO:PATH"`` or ``"ALGO=PATH"`` (ALGO in ppo, sac, td3, dqn; PATH an SB3 zip
+            written by ``train.py``, e.g. ``runs/ppo/model.zip``), or ``"pretrained"``.
+        env: the env it will fly (gymnasium env, SB3 VecEnv or gymnasium VectorEnv); only its
+            spaces (and, for ``pretrained``, its ID) are used.
+        device: torch device for the model.
+
+    Raises:
+        ValueError: a bad spec, an unknown algorithm, a model of another algorithm, spaces that
+            do not match the env's, or no pretrained policy for this env.
+        FileNotFoundError: the model (or statistics it needs) is missing.
+    """
+    from agents.training import _algo_class
+
+    algo, path = _parse(spec)
+    if algo == PRETRAINED:
+        algo, path = pretrained_path(env)
+    assert path is not None
+    if path.is_dir() and (path / FINAL_MODEL).is_file():
+        path = path / FINAL_MODEL
+    if not path.is_file():
+        raise FileNotFoundError(f"{algo} model {str(path)!r} not found")
+    cls = _algo_class(algo)
+    # schedules are only needed to train; constants avoid unpickling closures at inference
+    custom = {"learning_rate": 0.0, "lr_schedule": lambda _: 0.0, "clip_range": lambda _: 0.0}
+    try:
+        model = cls.load(str(path), device=device, custom_objects=custom)
+    except Exception as exc:  # SB3 raises many kinds on a foreign file
+        raise ValueError(
+            f"cannot load {path} as a {algo.upper()} model ({type(exc).__name__}: {exc}); was it "
+            "trained with another algorithm?"
+        ) from exc
+    table = _check_spaces(model, env, path)
+    normalizer = _load_normalizer(path, model.observation_space)
+    return LearnedAgent(model, algo, path, normalizer, model.observation_space, table)

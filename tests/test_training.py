@@ -1,0 +1,404 @@
+"""train.py and agents.training / agents.learned: tiny runs of every algorithm, resume, Ctrl-C,
+config validation, and learned agents behind the shared predict() interface."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import pickle
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import yaml
+
+pytest.importorskip("stable_baselines3")
+
+import agents
+from agents import training as tr
+from agents.learned import LearnedAgent
+
+ROOT = Path(__file__).resolve().parents[1]
+TRAIN = ROOT / "train.py"
+EVALUATE = ROOT / "evaluate.py"
+ENV_ID = "DebrisGym/Rendezvous2D-v0"
+
+TINY = [
+    "--no-progress", "--n-envs", "2", "--timesteps", "256",
+    "--set", "eval.freq=128", "--set", "eval.n_episodes=2", "--set", "eval.n_envs=2",
+    "--set", "checkpoint.freq=128", "--set", "env_kwargs.max_episode_steps=40",
+    "--set", "env_kwargs.n_obstacles=5",
+]  # fmt: skip
+OFF_POLICY = ["buffer_size=2000", "learning_starts=32", "batch_size=32", "gradient_steps=1"]
+ALGO_SETS = {
+    "ppo": ["n_steps=32", "batch_size=32", "n_epochs=1"],
+    "sac": OFF_POLICY,
+    "td3": OFF_POLICY,
+    "dqn": [*OFF_POLICY, "target_update_interval=64"],
+}
+SUBPROCESS_ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
+
+
+def tiny_args(algo: str) -> list[str]:
+    args = ["--algo", algo, *TINY]
+    for item in ALGO_SETS[algo]:
+        args += ["--set", f"algo_kwargs.{item}"]
+    return args
+
+
+def run_train(args: list[str], timeout: float = 120) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, str(TRAIN), *args],
+        cwd=ROOT, capture_output=True, text=True, timeout=timeout, env=SUBPROCESS_ENV,
+    )  # fmt: skip
+
+
+def load_script(name: str, path: Path):
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def train_cli():
+    return load_script("debris_train_cli", TRAIN)
+
+
+@pytest.fixture(scope="module")
+def evaluate_cli():
+    return load_script("debris_evaluate_cli_t", EVALUATE)
+
+
+_SCRIPT_RUNS: dict[str, Path] = {}
+_LIBRARY_RUNS: dict[str, Path] = {}
+
+
+@pytest.fixture(scope="module")
+def trained_by_script(tmp_path_factory):
+    """algo → run directory of a tiny ``python train.py`` run (once per module and worker)."""
+
+    def get(algo: str) -> Path:
+        if algo not in _SCRIPT_RUNS:
+            out = tmp_path_factory.mktemp(f"script_{algo}") / "run"
+            proc = run_train([*tiny_args(algo), "--out", str(out), "--seed", "3"])
+            assert proc.returncode == 0, proc.stdout + proc.stderr
+            _SCRIPT_RUNS[algo] = out
+        return _SCRIPT_RUNS[algo]
+
+    return get
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    """algo → run directory of a tiny in-process ``agents.training.train`` run."""
+
+    def get(algo: str) -> Path:
+        if algo not in _LIBRARY_RUNS:
+            out = tmp_path_factory.mktemp(f"lib_{algo}") / "run"
+            args = tiny_args(algo)
+            overrides = [args[i + 1] for i, a in enumerate(args) if a == "--set"]
+            result = tr.train(
+                tr.TrainOptions(
+                    out=out, algo=algo, overrides=overrides, timesteps=256, n_envs=2, seed=3,
+                    progress=False, argv=["test"],
+                )
+            )  # fmt: skip
+            assert result.status == "completed"
+            _LIBRARY_RUNS[algo] = out
+        return _LIBRARY_RUNS[algo]
+
+    return get
+
+
+# --- train.py end to end ------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("algo", ["ppo", "sac", "td3", "dqn"])
+def test_train_writes_a_run_that_evaluate_py_flies(
+    algo, trained_by_script, evaluate_cli, tmp_path, capsys
+):
+    out = trained_by_script(algo)
+    for name in ("model.zip", "config.yaml", "learning_curve.png", "train_log.json",
+                 "evaluations.npz", "best_model.zip", "train_episodes.csv"):  # fmt: skip
+        assert (out / name).is_file(), name
+    assert (out / "vecnormalize.pkl").is_file()  # every checked-in config normalises obs
+    assert (out / "learning_curve.png").read_bytes().startswith(b"\x89PNG")
+    assert tr.model_timesteps(out / "model.zip") >= 256
+    assert list((out / "checkpoints").glob("rl_model_*_steps.zip"))
+
+    config = yaml.safe_load((out / "config.yaml").read_text())
+    assert config["algo"] == algo and config["env_id"] == ENV_ID and config["version"] >= 1
+    assert config["run"]["seed"] == 3 and "train.py" in config["run"]["command"]
+    assert config["run"]["versions"]["debris_gym"]
+    assert (config["env_kwargs"].get("action") == "discrete") == (algo == "dqn")
+    log = json.loads((out / "train_log.json").read_text())
+    assert log["status"] == "completed" and log["env_steps_per_s"] > 0
+    with np.load(out / "evaluations.npz") as data:
+        assert data["timesteps"][-1] == tr.model_timesteps(out / "model.zip")
+        assert data["results"].shape[1] == 2 and "successes" in data
+
+    args = [
+        "--agents", f"{algo}={out / 'model.zip'}", "--episodes", "2", "--max-steps", "20",
+        "--no-progress", "--plots", "0", "--out", str(tmp_path / "eval"),
+    ]  # fmt: skip
+    if algo == "ppo":  # the documented command, as a subprocess
+        proc = subprocess.run(
+            [sys.executable, str(EVALUATE), *args],
+            cwd=ROOT, capture_output=True, text=True, timeout=120,
+        )  # fmt: skip
+        assert proc.returncode == 0, proc.stderr
+        stdout = proc.stdout
+    else:  # the same script in-process (saves a torch import per algorithm)
+        assert evaluate_cli.main(args) == 0
+        stdout = capsys.readouterr().out
+    assert f"| {algo} |" in stdout
+    summary = json.loads((tmp_path / "eval" / "summary.json").read_text())
+    assert summary["agents"][algo]["decision_ms_p50"] > 0
+
+
+def test_resume_adds_timesteps(trained_by_script, train_cli, tmp_path, capsys):
+    out = tmp_path / "run"
+    shutil.copytree(trained_by_script("ppo"), out)
+    before = tr.model_timesteps(out / "model.zip")
+    for argv, message in (
+        (["--resume", str(out)], "pass --timesteps N to train N more"),  # budget reached
+        (["--resume", str(out), "--seed", "1"], "--seed cannot be combined with --resume"),
+        (["--out", str(out)], "already holds a run"),
+    ):
+        with pytest.raises(SystemExit) as exc:
+            train_cli.main(argv)
+        assert exc.value.code == 2 and message in capsys.readouterr().err
+
+    proc = run_train(["--resume", str(out), "--timesteps", "128", "--no-progress"])
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    after = tr.model_timesteps(out / "model.zip")
+    assert after >= before + 128
+    log = json.loads((out / "train_log.json").read_text())
+    assert [s["start_timesteps"] for s in log["segments"]] == [0, before]
+    assert log["segments"][1]["env_seed"] != log["segments"][0]["env_seed"]
+    config = yaml.safe_load((out / "config.yaml").read_text())
+    assert len(config["run"]["resumes"]) == 1 and config["timesteps"] == after
+    with np.load(out / "evaluations.npz") as data:  # the earlier evaluations are kept
+        steps = list(data["timesteps"])
+    assert steps == sorted(steps) and steps[0] < before < steps[-1] == after
+
+
+def test_ctrl_c_leaves_a_checkpoint_that_resumes(tmp_path):
+    out = tmp_path / "run"
+    args = [a if a != "256" else "10000000" for a in tiny_args("ppo")]  # far too long to finish
+    with open(tmp_path / "stdout", "w") as so, open(tmp_path / "stderr", "w") as se:
+        proc = subprocess.Popen(
+            [sys.executable, str(TRAIN), *args, "--out", str(out)],
+            cwd=ROOT, stdout=so, stderr=se, env=SUBPROCESS_ENV,
+        )  # fmt: skip
+        try:
+            deadline = time.monotonic() + 60
+            while not (out / "train_episodes.csv").exists():  # created when learning starts
+                assert proc.poll() is None, (tmp_path / "stderr").read_text()
+                assert time.monotonic() < deadline, "training did not start"
+                time.sleep(0.1)
+            time.sleep(1.0)
+            proc.send_signal(signal.SIGINT)
+            code = proc.wait(timeout=60)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+    stderr = (tmp_path / "stderr").read_text()
+    assert code == 130, stderr
+    assert f"--resume {out}" in stderr
+    interrupted = out / "checkpoints" / "interrupted.zip"
+    assert (
+        interrupted.is_file() and (out / "checkpoints" / "interrupted_vecnormalize.pkl").is_file()
+    )
+    assert not (out / "model.zip").exists()
+    steps = tr.model_timesteps(interrupted)
+    assert steps > 0 and tr.find_latest_checkpoint(out) == interrupted
+    log = json.loads((out / "train_log.json").read_text())
+    assert log["status"] == "interrupted"
+
+    proc2 = run_train(["--resume", str(out), "--timesteps", "64", "--no-progress"])
+    assert proc2.returncode == 0, proc2.stdout + proc2.stderr
+    assert tr.model_timesteps(out / "model.zip") >= steps + 64
+
+
+# --- config validation --------------------------------------------------------------------------
+
+
+def base_config(algo: str = "ppo") -> dict:
+    data, _ = tr.load_config_file(tr.default_config_path(ENV_ID, algo))
+    return data
+
+
+def test_checked_in_configs_are_valid():
+    names = tr.available_configs()
+    for required in ("rendezvous2d_ppo", "rendezvous2d_sac", "rendezvous2d_td3",
+                     "rendezvous2d_dqn", "rendezvous3d_ppo", "paperfield2d_ppo"):  # fmt: skip
+        assert required in names
+    for name in names:
+        path = tr.CONFIG_DIR / f"{name}.yaml"
+        data, _ = tr.load_config_file(path)
+        config = tr.TrainConfig.from_dict(data, str(path))
+        assert tr.default_config_path(config.env_id, config.algo) == path
+        assert config.version >= 1
+        if config.algo == "ppo":  # gamma matches the env's shaping_gamma (0.99 by default)
+            assert config.gamma == 0.99 and config.normalize.enabled
+
+
+@pytest.mark.parametrize(
+    "change, match",
+    [
+        (
+            {"algo_kwargs": {"n_step": 64}},
+            r"'algo_kwargs.n_step' is unknown \(did you mean 'n_steps'",
+        ),
+        ({"normalise": {}}, r"'normalise' is unknown \(did you mean 'normalize'"),
+        ({"eval": {"n_episodes": 0}}, r"'eval.n_episodes' must be >= 1"),
+        ({"n_envs": "many"}, r"'n_envs' must be an integer"),
+        ({"env_kwargs": {"n_obstacle": 3}}, r"'env_kwargs' is invalid: unknown config key"),
+        ({"algo_kwargs": {"seed": 1}}, r"'algo_kwargs.seed' is not set here; use train.py --seed"),
+        ({"policy_kwargs": {"activation_fn": "sigmoidish"}}, r"activation_fn' must be one of"),
+        ({"algo": "a2c"}, r"'algo' must be one of ppo, sac, td3, dqn"),
+        ({"checkpoint": {"replay_buffer": "sometimes"}}, r"'checkpoint.replay_buffer'"),
+    ],
+)
+def test_config_errors_name_the_key(change, match):
+    data = base_config()
+    for key, value in change.items():
+        data[key] = {**data[key], **value} if isinstance(value, dict) and key in data else value
+    with pytest.raises(ValueError, match=match):
+        tr.TrainConfig.from_dict(data, "test.yaml")
+
+
+def test_config_algorithm_must_fit_the_action_space():
+    data = base_config("dqn")
+    data["env_kwargs"] = {}
+    with pytest.raises(ValueError, match=r"env_kwargs.action' must be 'discrete' for dqn"):
+        tr.TrainConfig.from_dict(data, "dqn.yaml")
+
+
+def test_overrides_and_numbers():
+    data = tr.apply_overrides(
+        base_config(),
+        ["algo_kwargs.learning_rate=3e-4", "normalize.enabled=false", "env_kwargs.dim=3"],
+    )
+    config = tr.TrainConfig.from_dict(data)
+    assert config.algo_kwargs["learning_rate"] == 3e-4  # YAML reads "3e-4" as a string
+    assert config.normalize.enabled is False and config.env_kwargs["dim"] == 3
+    with pytest.raises(ValueError, match="KEY=VALUE"):
+        tr.apply_overrides({}, ["novalue"])
+
+
+def test_sidecar_names():
+    assert tr.sidecar_path("d/model.zip", "vecnormalize") == Path("d/vecnormalize.pkl")
+    assert tr.sidecar_path("d/best_model.zip", "vecnormalize") == Path(
+        "d/best_model_vecnormalize.pkl"
+    )
+    assert tr.sidecar_path("d/rl_model_1024_steps.zip", "replay_buffer") == Path(
+        "d/rl_model_replay_buffer_1024_steps.pkl"
+    )
+
+
+# --- load_agent ---------------------------------------------------------------------------------
+
+
+def test_load_agent_applies_frozen_vecnormalize_stats(trained):
+    out = trained("ppo")
+    env = gym.make(ENV_ID)
+    agent = agents.load_agent(f"ppo:{out / 'model.zip'}", env)
+    assert isinstance(agent, LearnedAgent) and agent.obs_normalizer is not None
+    with open(out / "vecnormalize.pkl", "rb") as fh:
+        stats = pickle.load(fh)
+    mean, var = stats.obs_rms.mean.copy(), stats.obs_rms.var.copy()
+    obs, _ = env.reset(seed=0)
+    expected = np.clip((obs - mean) / np.sqrt(var + stats.epsilon), -stats.clip_obs, stats.clip_obs)
+    np.testing.assert_allclose(agent.normalize(obs), expected, rtol=1e-5, atol=1e-6)
+    action, state = agent.predict(obs)
+    model_action, _ = agent.model.predict(expected.astype(np.float32), deterministic=True)
+    np.testing.assert_allclose(action, model_action, rtol=1e-5, atol=1e-6)
+    assert state is None
+    for _ in range(5):
+        agent.predict(env.step(action)[0])
+    np.testing.assert_array_equal(agent.obs_normalizer.obs_rms.mean, mean)  # never updated
+    # the same model without its statistics is refused (the run's config says it normalised)
+    bare = out.parent / "bare"
+    bare.mkdir(exist_ok=True)
+    shutil.copy(out / "model.zip", bare / "model.zip")
+    shutil.copy(out / "config.yaml", bare / "config.yaml")
+    with pytest.raises(FileNotFoundError, match=r"vecnormalize\.pkl"):
+        agents.load_agent(f"ppo={bare / 'model.zip'}", env)
+    env.close()
+
+
+def test_load_agent_single_and_batch_shapes(trained):
+    out = trained("ppo")
+    env = gym.make(ENV_ID)
+    agent = agents.load_agent(f"ppo={out / 'model.zip'}", env)  # '=' as evaluate.py writes it
+    obs = np.stack([env.reset(seed=s)[0] for s in range(3)])
+    single, _ = agent.predict(obs[0])
+    batch, _ = agent.predict(obs, episode_start=np.ones(3, dtype=bool))
+    assert single.shape == (2,) and batch.shape == (3, 2)
+    np.testing.assert_allclose(batch[0], single, rtol=1e-5, atol=1e-6)
+    with pytest.raises(ValueError, match="neither"):
+        agent.predict(np.zeros(5, dtype=np.float32))
+    env.close()
+
+
+def test_load_agent_checks_spaces(trained):
+    model = trained("ppo") / "model.zip"
+    for kwargs, match in (({"obs_obstacles": 4}, "observes"), ({"action": "discrete"}, "acts in")):
+        env = gym.make(ENV_ID, **kwargs)
+        with pytest.raises(ValueError, match=match):
+            agents.load_agent(f"ppo:{model}", env)
+        env.close()
+    env3 = gym.make("DebrisGym/Rendezvous3D-v0")
+    with pytest.raises(ValueError, match="observes"):
+        agents.load_agent(f"ppo:{model}", env3)
+    env3.close()
+
+
+def test_load_agent_errors(trained, tmp_path):
+    env = gym.make(ENV_ID)
+    with pytest.raises(ValueError, match="unknown learning algorithm 'a2c'"):
+        agents.load_agent("a2c:model.zip", env)
+    with pytest.raises(ValueError, match="ALGO:PATH"):
+        agents.load_agent("model.zip", env)
+    with pytest.raises(FileNotFoundError, match="not found"):
+        agents.load_agent(f"ppo:{tmp_path / 'missing.zip'}", env)
+    with pytest.raises(ValueError, match="another algorithm"):
+        agents.load_agent(f"sac:{trained('ppo') / 'model.zip'}", env)
+    paper = gym.make("DebrisGym/PaperField2D-v0")
+    with pytest.raises(ValueError, match="no pretrained policy for DebrisGym/PaperField2D-v0"):
+        agents.load_agent("pretrained", paper)
+    paper.close()
+    from agents.learned import PRETRAINED_DIR
+
+    if not (PRETRAINED_DIR / "rendezvous2d_ppo.zip").is_file():
+        with pytest.raises(FileNotFoundError, match="no pretrained policy for " + ENV_ID):
+            agents.load_agent("pretrained", env)
+    env.close()
+
+
+def test_dqn_policy_flies_discrete_and_continuous_envs(trained):
+    model = trained("dqn") / "model.zip"
+    discrete = gym.make(ENV_ID, action="discrete")
+    obs, _ = discrete.reset(seed=0)
+    action, _ = agents.load_agent(f"dqn:{model}", discrete).predict(obs)
+    assert discrete.action_space.contains(action)
+    continuous = gym.make(ENV_ID)
+    agent = agents.load_agent(f"dqn:{model}", continuous)
+    obs2, _ = continuous.reset(seed=0)
+    thrust, _ = agent.predict(obs2)
+    from debris_gym.envs.common import discrete_action_table
+
+    np.testing.assert_array_equal(thrust, discrete_action_table(2)[int(action)])
+    assert continuous.action_space.contains(thrust)
+    discrete.close()
+    continuous.close()

@@ -1,0 +1,164 @@
+"""Train an SB3 agent (PPO, SAC, TD3, DQN) on a DebrisGym env from a versioned config file.
+
+Hyper-parameters come from agents/configs/<env>_<algo>.yaml (or --config FILE), with --set
+overrides. Outputs in --out DIR: model.zip (+ vecnormalize.pkl), config.yaml (the resolved config
+and this command line), learning_curve.png, train_log.json (wall time, env-steps/s),
+evaluations.npz and best_model.zip (held-out seeds >= 1,000,000), checkpoints/, tb/ (TensorBoard).
+Ctrl-C saves DIR/checkpoints/interrupted.zip; --resume DIR continues from the latest checkpoint.
+The library is agents/training.py; docs/training.md explains the configs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+from pathlib import Path
+
+EXAMPLES = """\
+examples:
+  python train.py --algo ppo --timesteps 4096 --n-envs 2 --out /tmp/t1     # a quick check
+  python train.py --env DebrisGym/Rendezvous2D-v0 --algo ppo --out runs/ppo  # the full recipe
+  python train.py --algo sac --out runs/sac --set algo_kwargs.batch_size=512
+  python train.py --resume runs/ppo                                          # after Ctrl-C
+  python train.py --resume runs/ppo --timesteps 1000000                      # 1M steps more
+  python evaluate.py --agents apf,ppo=runs/ppo/model.zip
+"""
+
+
+def _int(text: str, low: int) -> int:
+    try:
+        value = int(float(text)) if "e" in text.lower() else int(text.replace("_", ""))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
+    if value < low:
+        raise argparse.ArgumentTypeError(f"must be >= {low}, got {value}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from agents.training import ALGOS, available_configs
+
+    parser = argparse.ArgumentParser(
+        prog="train.py",
+        description=__doc__,
+        epilog=EXAMPLES + "\nchecked-in configs: " + ", ".join(available_configs()),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument(
+        "--env", metavar="ID", help="environment ID (default: DebrisGym/Rendezvous2D-v0)"
+    )
+    parser.add_argument("--algo", choices=ALGOS, help="algorithm (default: ppo)")
+    parser.add_argument(
+        "--timesteps",
+        type=lambda t: _int(t, 1),
+        metavar="N",
+        help="training budget in env steps (default: the config's); with --resume: steps to add "
+        "(default: finish the run's budget)",
+    )
+    parser.add_argument(
+        "--n-envs", type=lambda t: _int(t, 1), metavar="N", help="training envs (default: config)"
+    )
+    parser.add_argument(
+        "--seed",
+        type=lambda t: _int(t, 0),
+        metavar="S",
+        help="base seed; training sub-env i is seeded with S + i (default: 0)",
+    )
+    parser.add_argument("--out", type=Path, metavar="DIR", help="run directory (created)")
+    parser.add_argument(
+        "--config",
+        type=Path,
+        metavar="FILE",
+        help="config YAML (default: agents/configs/<env>_<algo>.yaml)",
+    )
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a config key (dotted, value parsed as YAML), e.g. "
+        "--set algo_kwargs.batch_size=512 --set normalize.enabled=false; repeatable",
+    )
+    parser.add_argument(
+        "--resume",
+        type=Path,
+        metavar="DIR",
+        help="continue the run in DIR from its latest checkpoint, with its own config",
+    )
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--threads",
+        type=lambda t: _int(t, 1),
+        default=1,
+        metavar="N",
+        help="torch CPU threads (default: 1; on a shared 2-core machine 2 threads made PPO "
+        "6-9x slower, see docs/training.md)",
+    )
+    parser.add_argument("--device", default="cpu", help="torch device (default: cpu)")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.out is None and args.resume is None:
+        parser.error("give --out DIR (a new run) or --resume DIR")
+    # Ctrl-C must reach Python even when the parent ignores SIGINT; SIGTERM is treated alike.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, signal.default_int_handler)
+
+    from agents.training import TrainOptions, train
+
+    options = TrainOptions(
+        out=args.out,
+        env_id=args.env,
+        algo=args.algo,
+        config=args.config,
+        overrides=args.overrides,
+        timesteps=args.timesteps,
+        n_envs=args.n_envs,
+        seed=args.seed,
+        resume=args.resume,
+        progress=not args.no_progress,
+        threads=args.threads,
+        device=args.device,
+        argv=[Path(sys.argv[0]).name, *(sys.argv[1:] if argv is None else argv)],
+    )
+    try:
+        result = train(options)
+    except (FileNotFoundError, FileExistsError, ValueError) as exc:
+        parser.error(str(exc))
+    except KeyboardInterrupt:  # before learning started: nothing to save
+        print("\ninterrupted before training started; nothing saved", file=sys.stderr)
+        return 130
+    out = result.out
+    if result.status == "interrupted":
+        print(
+            f"\ninterrupted at {result.num_timesteps:,} steps; checkpoint {result.model_path}\n"
+            f"resume with: python train.py --resume {out}",
+            file=sys.stderr,
+        )
+        return 130
+    print(
+        f"done: {result.num_timesteps:,} steps in {result.wall_time_s:.1f} s "
+        f"({result.env_steps_per_s:,.0f} env-steps/s)\n"
+        f"  {result.model_path}\n  {out / 'config.yaml'}\n  {out / 'learning_curve.png'}\n"
+        f"  {out / 'train_log.json'}\n"
+        f"evaluate with: python evaluate.py --agents apf,{_algo(out)}={result.model_path}"
+    )
+    return 0
+
+
+def _algo(out: Path) -> str:
+    import yaml
+
+    try:
+        return str(yaml.safe_load((out / "config.yaml").read_text())["algo"])
+    except (OSError, KeyError, TypeError):
+        return "ppo"
+
+
+if __name__ == "__main__":
+    sys.exit(main())
