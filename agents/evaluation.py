@@ -837,14 +837,13 @@ def plot_episode(results: EvaluationResults, episode: int) -> bytes:
     from matplotlib.patches import Circle, Patch, Polygon
 
     from debris_gym.envs.rendering import (
-        AXIS_LABELS,
         DEBRIS_EDGE,
         DEBRIS_FACE,
         DOCK,
-        PANEL_TITLES,
         TARGET_EDGE,
         TARGET_OPEN,
         VIEWS,
+        style_field_axes,
     )
 
     scenario = results.scenarios[episode]
@@ -856,17 +855,7 @@ def plot_episode(results: EvaluationResults, episode: int) -> bytes:
     axes = fig.subplots(1, n, squeeze=False)[0]
     handles: list[Any] = []
     for k, ((h, v), ax) in enumerate(zip(views, axes, strict=True)):
-        ax.set_xlim(*scenario.bounds[h])
-        ax.set_ylim(*scenario.bounds[v])
-        ax.set_aspect("equal", adjustable="box")
-        ax.set_xlabel(AXIS_LABELS[h], fontsize=9)
-        ax.set_ylabel(AXIS_LABELS[v], fontsize=9)
-        ax.tick_params(labelsize=8)
-        ax.grid(True, color="#e4e4e4", linewidth=0.6)
-        ax.set_axisbelow(True)
-        ax.set_facecolor("#fbfbfd")
-        if n > 1:
-            ax.set_title(PANEL_TITLES[(h, v)], fontsize=9)
+        style_field_axes(ax, scenario, h, v, title=n > 1)
         patches = []
         for body in scenario.obstacles:
             if body.vertices is not None:

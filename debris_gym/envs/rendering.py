@@ -55,6 +55,21 @@ STATUS_FIELDS = (
 STATUS_FONTSIZE = 9.5
 
 
+def style_field_axes(ax: Any, scenario: Any, h: int, v: int, title: bool) -> None:
+    """Limits, equal aspect, axis labels and grid of one field panel (axis h right, v up)."""
+    ax.set_xlim(*scenario.bounds[h])
+    ax.set_ylim(*scenario.bounds[v])
+    ax.set_aspect("equal", adjustable="box")
+    ax.set_xlabel(AXIS_LABELS[h], fontsize=9)
+    ax.set_ylabel(AXIS_LABELS[v], fontsize=9)
+    ax.tick_params(labelsize=8)
+    ax.grid(True, color="#e4e4e4", linewidth=0.6)
+    ax.set_axisbelow(True)
+    ax.set_facecolor("#fbfbfd")
+    if title:
+        ax.set_title(PANEL_TITLES[(h, v)], fontsize=9, pad=4)
+
+
 def _import_matplotlib() -> Any:
     try:
         import matplotlib
@@ -257,17 +272,7 @@ class Renderer:
         for k, (h, v) in enumerate(views):
             x0 = left + k * (PANEL_PX + gap)
             ax = fig.add_axes((x0 / width, bottom / height, PANEL_PX / width, PANEL_PX / height))
-            ax.set_xlim(*scenario.bounds[h])
-            ax.set_ylim(*scenario.bounds[v])
-            ax.set_aspect("equal", adjustable="box")
-            ax.set_xlabel(AXIS_LABELS[h], fontsize=9)
-            ax.set_ylabel(AXIS_LABELS[v], fontsize=9)
-            ax.tick_params(labelsize=8)
-            ax.grid(True, color="#e4e4e4", linewidth=0.6)
-            ax.set_axisbelow(True)
-            ax.set_facecolor("#fbfbfd")
-            if n > 1:
-                ax.set_title(PANEL_TITLES[(h, v)], fontsize=9, pad=4)
+            style_field_axes(ax, scenario, h, v, title=n > 1)
             panel = _Panel(ax, h, v)
             panel.trail = ax.add_line(
                 Line2D([], [], color=TRAIL, linewidth=1.3, alpha=0.9, zorder=5, animated=True)
