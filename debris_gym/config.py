@@ -109,6 +109,11 @@ OPTIONS: dict[str, Option] = {
     "reward_out_of_bounds": Option("", 0.0, None, doc="penalty for leaving the world bounds"),
     "reward_time": Option("", 0.0, None, doc="penalty per step"),
     "shaping_gamma": Option("", 0.0, 1.0, doc="γ of the shaping term F = γΦ(s′) − Φ(s)"),
+    "shaping_terminal": Option(
+        choices=("zero", "hold"),
+        doc="Φ after termination: 'zero' (policy-invariant) or 'hold' (a failure forfeits the "
+        "progress still to make)",
+    ),
 }
 
 
@@ -153,6 +158,7 @@ class EnvConfig:
     reward_out_of_bounds: float = 50.0
     reward_time: float = 0.01
     shaping_gamma: float = 0.99
+    shaping_terminal: str = "zero"
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):

@@ -325,6 +325,28 @@ def test_progress_shaping_telescopes_to_potential_difference():
     assert total == pytest.approx(discount * phi_end - phi0, rel=1e-9, abs=1e-9)
 
 
+@pytest.mark.parametrize("gamma", [0.9, 1.0])
+def test_held_terminal_potential_telescopes_to_progress_made(gamma):
+    """shaping_terminal='hold': no refund at termination, Σ γ^t F_t = γ^T Φ(s_T) − Φ(s_0)."""
+    env = DebrisFieldEnv(
+        shaping_gamma=gamma, shaping_terminal="hold", reward_progress=1.0, delta_v_budget=None
+    )
+    env.reset(seed=4)
+    phi0 = env._potential
+    total, discount = 0.0, 1.0
+    rng = np.random.default_rng(0)
+    terminated = False
+    for _ in range(200):
+        _, _, terminated, _, info = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
+        total += discount * info["reward_terms"]["progress"]
+        discount *= gamma
+        if terminated:
+            break
+    assert terminated  # random thrust ends the episode (a crash or leaving the bounds)
+    assert env._potential < -0.5  # far from done: the refund would have been large
+    assert total == pytest.approx(discount * env._potential - phi0, rel=1e-9, abs=1e-9)
+
+
 def test_observation_is_normalised_and_named():
     env = DebrisFieldEnv()
     obs, _ = env.reset(seed=0)

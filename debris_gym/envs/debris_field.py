@@ -238,7 +238,7 @@ class DebrisFieldEnv(gym.Env):
         new_captures = self._update_mission(touched)
         terms = self._reward_terms(new_captures, dv)
         terminated = self._success or self._collision or self._out_of_bounds or self._budget_spent()
-        if terminated:
+        if terminated and self.config.shaping_terminal == "zero":
             terms["progress"] -= (
                 self.config.reward_progress * self.config.shaping_gamma * (self._potential)
             )  # Φ(terminal) = 0

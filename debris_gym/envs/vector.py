@@ -272,7 +272,7 @@ class DebrisFieldVectorEnv(VectorEnv):
         spent = np.zeros(n, dtype=bool) if budget is None else self._delta_v >= budget
         terminated = (self._success | self._collision | self._out_of_bounds | spent) & live
         terms["progress"] = np.where(
-            terminated,
+            terminated & (cfg.shaping_terminal == "zero"),
             terms["progress"] - cfg.reward_progress * cfg.shaping_gamma * self._potential,
             terms["progress"],
         )
