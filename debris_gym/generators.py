@@ -2,20 +2,28 @@
 
 Every generator takes a :class:`numpy.random.Generator` and returns a :class:`Scenario` that is
 guaranteed to be usable: bodies do not overlap (their bounding circles / spheres are at least
-``min_gap`` apart), the dock and every target's capture zone are kept free, and a collision-free
-route from the dock to every target is verified on an occupancy grid (:func:`is_solvable`), not
-assumed. A draw that fails the check is thrown away and drawn again.
+``min_gap`` apart, and ``target_clearance`` more around targets), bodies keep ``min_gap`` to the
+bounds, the dock and every target's capture zone are kept free (``dock_clearance``,
+``min_target_distance``), and a collision-free route from the dock to every target is verified
+(:func:`is_solvable`), not assumed. A draw that fails is thrown away and drawn again.
+
+Random fields are drawn in batches (:func:`random_fields`, one generator per field, the work in
+array operations across the batch); :func:`random_field` is the same code for one field. Each draw
+takes a fixed block of uniform numbers from its field's generator, so a field depends only on its
+own generator, whichever other fields are drawn beside it.
 """
 
 from __future__ import annotations
 
+import functools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.ndimage
 
-from debris_gym.geometry import FieldGeometry
+from debris_gym.geometry import FieldGeometry, distance
 from debris_gym.scenario import Body, Scenario
 
 
@@ -52,21 +60,108 @@ class FieldSpec:
     chaser_radius: float = 1.0
 
 
-def _random_convex_polygon(rng: np.random.Generator, radius: float) -> np.ndarray:
-    """CCW convex polygon (3-7 vertices) with circumradius ``radius`` about the origin (m)."""
-    while True:
-        k = int(rng.integers(3, 8))
-        angles = np.sort(rng.uniform(0.0, 2.0 * np.pi, size=k))
-        gaps = np.diff(np.concatenate([angles, angles[:1] + 2.0 * np.pi]))
-        if gaps.max() < 0.8 * np.pi and gaps.min() > 0.15:
-            break
-    pts = np.stack([np.cos(angles), np.sin(angles)], axis=1)
-    pts[:, 0] *= rng.uniform(0.5, 1.0)  # an affine squash keeps it convex and counter-clockwise
-    rot = rng.uniform(0.0, 2.0 * np.pi)
-    c, s = math.cos(rot), math.sin(rot)
-    pts = pts @ np.array([[c, s], [-s, c]])
-    pts *= radius / np.linalg.norm(pts, axis=1).max()
-    return pts
+MAX_POLYGON_VERTICES = 7
+"""Most vertices of a generated polygon (they have 3 to 7)."""
+
+MIN_CANDIDATES = 32
+"""Fewest candidate positions per body in one draw (crowded fields get more: :func:`candidates`)."""
+
+MAX_CANDIDATES = 256
+"""Most candidate positions per body in one draw."""
+
+ANGLE_JITTER = 0.3
+"""Polygon vertex angles deviate from even spacing by at most ± half this share of the spacing."""
+
+_POLYGON_DRAWS = 3 + MAX_POLYGON_VERTICES
+"""Uniform numbers per polygon: vertex count, one angle jitter per vertex, squash, rotation."""
+
+
+@dataclass(frozen=True)
+class FieldArrays:
+    """K random fields as arrays, one row per field (what :func:`random_fields` returns).
+
+    Bodies are ordered targets first, then obstacles, as :attr:`Scenario.bodies`. The world of
+    every field is the square / cube ``(-half_size, half_size)`` per axis with the dock at the
+    origin.
+
+    Attributes:
+        dim: 2 or 3.
+        half_size: half the world edge (m).
+        n_targets: targets per field T.
+        centers: (K, B, dim) body centres (m).
+        radii: (K, B) radii (m); a polygon's circumradius.
+        vertices: (K, O, V, 2) polygon vertices of the O obstacles relative to their centres (m),
+            counter-clockwise, padded with the first vertex; V is
+            :data:`MAX_POLYGON_VERTICES` in 2D and 0 in 3D.
+        n_vertices: (K, O) vertex count of each obstacle, 0 for a circle / sphere.
+    """
+
+    dim: int
+    half_size: float
+    n_targets: int
+    centers: np.ndarray
+    radii: np.ndarray
+    vertices: np.ndarray
+    n_vertices: np.ndarray
+
+    def __len__(self) -> int:
+        return self.centers.shape[0]
+
+    @property
+    def bounds(self) -> tuple[tuple[float, float], ...]:
+        """Per-axis ``(low, high)`` world limits (m), the same for every field."""
+        return ((-self.half_size, self.half_size),) * self.dim
+
+    def scenario(self, k: int, *, mean_motion: float, dt: float, max_accel: float) -> Scenario:
+        """Field ``k`` as a :class:`Scenario` with the given physical parameters."""
+        return scenario_from_arrays(
+            self.centers[k], self.radii[k], self.vertices[k], self.n_vertices[k],
+            self.n_targets, self.bounds, mean_motion=mean_motion, dt=dt, max_accel=max_accel,
+        )  # fmt: skip
+
+
+def scenario_from_arrays(
+    centers: np.ndarray,
+    radii: np.ndarray,
+    vertices: np.ndarray,
+    n_vertices: np.ndarray,
+    n_targets: int,
+    bounds: tuple[tuple[float, float], ...],
+    *,
+    mean_motion: float,
+    dt: float,
+    max_accel: float,
+) -> Scenario:
+    """One random field's arrays (one row of :class:`FieldArrays`) as a :class:`Scenario`.
+
+    Args:
+        centers: (B, dim) body centres (m), targets first.
+        radii: (B,) radii (m).
+        vertices: (O, V, 2) obstacle polygon vertices relative to their centres (m).
+        n_vertices: (O,) vertex counts, 0 for a circle / sphere.
+        n_targets: number of targets T (the first T bodies).
+        bounds: per-axis ``(low, high)`` world limits (m); the dock is at the origin.
+        mean_motion, dt, max_accel: the scenario's physical parameters.
+    """
+    dim = centers.shape[1]
+    zero = (0.0,) * dim
+    counts = n_vertices.tolist()
+    bodies = []
+    for b, (position, radius) in enumerate(zip(centers.tolist(), radii.tolist())):
+        m = counts[b - n_targets] if b >= n_targets else 0
+        verts = tuple(map(tuple, vertices[b - n_targets, :m].tolist())) if m else None
+        bodies.append(Body(position=tuple(position), radius=radius, velocity=zero, vertices=verts))
+    return Scenario(
+        dim=dim,
+        bounds=bounds,
+        dock=zero,
+        targets=tuple(bodies[:n_targets]),
+        obstacles=tuple(bodies[n_targets:]),
+        mean_motion=mean_motion,
+        dt=dt,
+        max_accel=max_accel,
+        name=f"random{dim}d",
+    )
 
 
 def random_field(
@@ -81,78 +176,395 @@ def random_field(
 ) -> Scenario:
     """Draw a solvable random field (2D or 3D) centred on the dock at the LVLH origin.
 
-    The dock sits at the origin, the one point at rest under CWH. Raises ``ValueError`` naming the
-    setting to change if no valid field is found in ``max_tries`` draws.
+    :func:`random_fields` for one generator: the same ``rng`` state gives the same field as row
+    ``k`` of a batch whose ``k``-th generator is in that state. The dock sits at the origin, the
+    one point at rest under CWH. Raises ``ValueError`` naming the setting to change if no valid
+    field is found in ``max_tries`` draws.
     """
+    fields = random_fields([rng], spec, capture_radius=capture_radius, max_tries=max_tries)
+    return fields.scenario(0, mean_motion=mean_motion, dt=dt, max_accel=max_accel)
+
+
+def draw_size(spec: FieldSpec) -> int:
+    """Uniform numbers one draw of one field consumes from its generator (a fixed block)."""
+    bodies = spec.n_targets + spec.n_obstacles
+    polygons = spec.n_obstacles * (1 + _POLYGON_DRAWS) if spec.dim == 2 else 0
+    return bodies + polygons + bodies * candidates(spec) * spec.dim
+
+
+def candidates(spec: FieldSpec) -> int:
+    """Candidate positions per body in one draw: enough that the last, largest body of a field
+    still finds a free spot in about 10 candidates' worth of the free share of the field.
+
+    The free share is estimated as exp(-excluded / available) (randomly placed exclusion zones
+    overlap): ``available`` is the box of possible centres, ``excluded`` the zones that every
+    other body (its mean radius + the largest obstacle radius + ``min_gap`` + its margin) and the
+    dock keep free of a new body's centre. Between :data:`MIN_CANDIDATES` and
+    :data:`MAX_CANDIDATES`; a fixed number per spec, so a draw's block has a fixed size.
+    """
+    d = spec.dim
+    r_new = max(spec.obstacle_radius[1], spec.target_radius[1])
+    t_mean, o_mean = sum(spec.target_radius) / 2.0, sum(spec.obstacle_radius) / 2.0
+    side = spec.field_size - 2.0 * (spec.min_gap + min(spec.obstacle_radius[0], t_mean))
+    ball = math.pi if d == 2 else 4.0 * math.pi / 3.0
+    zones = [
+        (spec.n_targets, t_mean + r_new + spec.min_gap + spec.target_clearance),
+        (spec.n_obstacles, o_mean + r_new + spec.min_gap),
+        (1, max(spec.dock_clearance, spec.min_target_distance) + r_new),
+    ]
+    excluded = sum(count * ball * radius**d for count, radius in zones)
+    free = math.exp(-excluded / max(side, 1e-9) ** d)
+    wanted = 10.0 / max(free, 1e-9)
+    return int(min(max(math.ceil(wanted / 32.0) * 32, MIN_CANDIDATES), MAX_CANDIDATES))
+
+
+_CHUNK = 64
+"""Most fields :func:`random_fields` draws in one set of array operations."""
+
+_ARRAY_FIELDS = ("centers", "radii", "vertices", "n_vertices")
+
+
+def random_fields(
+    rngs: Sequence[np.random.Generator],
+    spec: FieldSpec,
+    *,
+    capture_radius: float,
+    max_tries: int = 50,
+) -> FieldArrays:
+    """Draw one solvable random field per generator, all at once.
+
+    Each draw of a field takes a fixed block of :func:`draw_size` uniform numbers from that
+    field's own generator (one ``rng.random`` call), so a field depends only on its generator's
+    state, never on which other fields are drawn in the same batch. The block sets the radii,
+    the polygon shapes and :func:`candidates` candidate positions per body; bodies are placed in
+    order (targets first), each at its first candidate that keeps the gaps of the module
+    docstring to every body placed before it, with every field of the batch handled in the same
+    array operations. A field where some body has no valid candidate, or that fails
+    :func:`is_solvable`, is drawn again from the next block of its generator.
+
+    Args:
+        rngs: one generator per field (K of them).
+        spec: the field parameters.
+        capture_radius: capture depth (m) the route check must reach around each target.
+        max_tries: draws per field before giving up.
+
+    Raises:
+        ValueError: some field found no valid draw in ``max_tries``; names the settings to change.
+    """
+    rngs = list(rngs)
+    if len(rngs) > _CHUNK:  # bounded temporaries: a big batch goes in chunks (same fields)
+        parts = [
+            random_fields(rngs[i : i + _CHUNK], spec, capture_radius=capture_radius,
+                          max_tries=max_tries)
+            for i in range(0, len(rngs), _CHUNK)
+        ]  # fmt: skip
+        return FieldArrays(
+            parts[0].dim, parts[0].half_size, parts[0].n_targets,
+            *(np.concatenate([getattr(p, k) for p in parts]) for k in _ARRAY_FIELDS),
+        )  # fmt: skip
+    num, dim = len(rngs), spec.dim
+    t, o = spec.n_targets, spec.n_obstacles
     half = spec.field_size / 2.0
-    bounds = tuple((-half, half) for _ in range(spec.dim))
-    for _ in range(max_tries):
-        scenario = _draw_field(rng, spec, bounds, mean_motion, dt, max_accel)
-        if scenario is not None and is_solvable(scenario, spec.chaser_radius, capture_radius):
-            return scenario
-    raise ValueError(
-        f"could not place n_targets={spec.n_targets} and n_obstacles={spec.n_obstacles} "
-        f"in field_size={spec.field_size} m with min_gap={spec.min_gap} m after {max_tries} "
-        "draws; lower n_obstacles or the obstacle radius range, or raise field_size"
-    )
-
-
-def _draw_field(rng, spec: FieldSpec, bounds, mean_motion, dt, max_accel) -> Scenario | None:
-    dim = spec.dim
-    half = spec.field_size / 2.0
-    centers: list[np.ndarray] = []
-    radii: list[float] = []
-    keep_out: list[float] = []  # extra free margin each placed body demands around itself
-
-    def place(radius: float, margin: float, min_dock: float) -> np.ndarray | None:
-        lim = half - radius - spec.min_gap
-        if lim <= 0:
-            return None
-        for _ in range(200):
-            p = rng.uniform(-lim, lim, size=dim)
-            if np.linalg.norm(p) < min_dock + radius:
-                continue
-            if centers:
-                gaps = np.linalg.norm(np.asarray(centers) - p, axis=1) - np.asarray(radii) - radius
-                need = spec.min_gap + np.maximum(np.asarray(keep_out), margin)
-                if np.any(gaps < need):
-                    continue
-            centers.append(p)
-            radii.append(radius)
-            keep_out.append(margin)
-            return p
-        return None
-
-    targets = []
-    for _ in range(spec.n_targets):
-        r = float(rng.uniform(*spec.target_radius))
-        p = place(r, spec.target_clearance, max(spec.min_target_distance, spec.dock_clearance))
-        if p is None:
-            return None
-        targets.append(Body(position=tuple(p), radius=r, velocity=(0.0,) * dim))
-    obstacles = []
-    for _ in range(spec.n_obstacles):
-        r = float(rng.uniform(*spec.obstacle_radius))
-        polygon = dim == 2 and rng.uniform() < spec.polygon_fraction
-        verts = _random_convex_polygon(rng, r) if polygon else None
-        p = place(r, 0.0, spec.dock_clearance)
-        if p is None:
-            return None
-        vertices = None if verts is None else tuple((float(x), float(y)) for x, y in verts)
-        obstacles.append(
-            Body(position=tuple(p), radius=r, velocity=(0.0,) * dim, vertices=vertices)
-        )
-    return Scenario(
+    v = MAX_POLYGON_VERTICES if dim == 2 else 0
+    out = FieldArrays(
         dim=dim,
-        bounds=bounds,
-        dock=(0.0,) * dim,
-        targets=tuple(targets),
-        obstacles=tuple(obstacles),
-        mean_motion=mean_motion,
-        dt=dt,
-        max_accel=max_accel,
-        name=f"random{dim}d",
+        half_size=half,
+        n_targets=t,
+        centers=np.zeros((num, t + o, dim)),
+        radii=np.zeros((num, t + o)),
+        vertices=np.zeros((num, o, v, 2)),
+        n_vertices=np.zeros((num, o), dtype=np.int64),
     )
+    low, high = np.full(dim, -half), np.full(dim, half)
+    by_construction = route_by_construction(spec, capture_radius)
+    pending = np.arange(num)
+    block = np.empty((num, draw_size(spec)))
+    for _ in range(max_tries):
+        if pending.size == 0:
+            break
+        u = block[: pending.size]
+        for row, i in zip(u, pending):
+            rngs[i].random(out=row)
+        centers, radii, vertices, n_vertices, placed = _draw_fields(u, spec)
+        ok = placed.copy()
+        if ok.any() and not by_construction:
+            ok[ok] = _route_proof(
+                centers[ok], radii[ok], t, low, high, np.zeros(dim), spec.chaser_radius,
+                capture_radius,
+            )  # fmt: skip
+        for j in np.flatnonzero(placed & ~ok):  # the proof does not apply: search a grid (rare)
+            draw = FieldArrays(dim, half, t, centers, radii, vertices, n_vertices)
+            scenario = draw.scenario(int(j), mean_motion=0.0, dt=1.0, max_accel=1.0)
+            ok[j] = is_solvable(scenario, spec.chaser_radius, capture_radius)
+        if ok.all() and pending.size == num:  # everything on the first draw (the usual case)
+            return FieldArrays(dim, half, t, centers, radii, vertices, n_vertices)
+        done = pending[ok]
+        out.centers[done] = centers[ok]
+        out.radii[done] = radii[ok]
+        out.vertices[done] = vertices[ok]
+        out.n_vertices[done] = n_vertices[ok]
+        pending = pending[~ok]
+    if pending.size:
+        raise ValueError(
+            f"could not place n_targets={spec.n_targets} and n_obstacles={spec.n_obstacles} "
+            f"in field_size={spec.field_size} m with min_gap={spec.min_gap} m after {max_tries} "
+            "draws; lower n_obstacles or the obstacle radius range, or raise field_size"
+        )
+    return out
+
+
+def route_by_construction(spec: FieldSpec, capture_radius: float) -> bool:
+    """True if every field the placement accepts passes :func:`is_solvable`'s proof by itself.
+
+    The placement keeps bounding balls ``min_gap`` apart (``target_clearance`` more around
+    targets), ``min_gap`` from the bounds and ``dock_clearance`` (or more) from the dock. With
+    the chaser (radius ``chaser_radius``) and a capture point at ``0.5 · capture_radius`` from
+    a target's surface, the disjoint-balls proof then holds for every such field when
+
+    * ``min_gap > 2 · chaser_radius`` (inflated balls disjoint, and inside the bounds),
+    * ``dock_clearance > chaser_radius`` (the dock is free),
+    * ``min_gap + target_clearance > 2 · chaser_radius + 0.5 · capture_radius`` (every capture
+      point is clear of the other bodies),
+    * ``chaser_radius + 0.5 · capture_radius < min_gap`` (every capture point is inside the
+      bounds), and ``capture_radius > 0`` (capture points are off the target),
+
+    each with a margin far above rounding. Otherwise the proof is checked field by field.
+    """
+    slack = 1e-9 * spec.field_size
+    half_capture = 0.5 * capture_radius
+    cr = spec.chaser_radius
+    return (
+        half_capture > slack
+        and spec.min_gap - 2.0 * cr > slack
+        and spec.dock_clearance - cr > slack
+        and spec.min_gap + spec.target_clearance - 2.0 * cr - half_capture > slack
+        and spec.min_gap - cr - half_capture > slack
+    )
+
+
+def _draw_fields(u: np.ndarray, spec: FieldSpec):
+    """Place the bodies of K fields from their blocks ``u`` (K, :func:`draw_size`).
+
+    Returns:
+        ``(centers (K, B, dim), radii (K, B), vertices (K, O, V, 2), n_vertices (K, O),
+        placed (K,))``; ``placed`` is False where some body found no valid candidate (the rest
+        of that row is then meaningless).
+    """
+    num, dim = u.shape[0], spec.dim
+    t, o = spec.n_targets, spec.n_obstacles
+    b_all = t + o
+    radii = np.empty((num, b_all))
+    (lo, hi), (olo, ohi) = spec.target_radius, spec.obstacle_radius
+    radii[:, :t] = lo + (hi - lo) * u[:, :t]
+    radii[:, t:] = olo + (ohi - olo) * u[:, t:b_all]
+    k = b_all
+    if dim == 2:
+        polygon = u[:, k : k + o] < spec.polygon_fraction
+        k += o
+        shape = u[:, k : k + o * _POLYGON_DRAWS].reshape(num, o, _POLYGON_DRAWS)
+        k += o * _POLYGON_DRAWS
+        vertices, n_vertices = _convex_polygons(shape, radii[:, t:])
+        n_vertices[~polygon] = 0
+        vertices[~polygon] = 0.0
+    else:
+        vertices = np.zeros((num, o, 0, 2))
+        n_vertices = np.zeros((num, o), dtype=np.int64)
+
+    # candidates uniform in the box that keeps min_gap to the bounds
+    lim = spec.field_size / 2.0 - radii - spec.min_gap  # (K, B)
+    cand = u[:, k:].reshape(num, b_all, -1, dim) * 2.0 - 1.0
+    cand *= lim[:, :, None, None]
+    spacing = np.full(b_all, float(spec.min_gap))  # free gap each body demands around itself
+    spacing[:t] += spec.target_clearance
+    min_dock = np.full(b_all, spec.dock_clearance)
+    min_dock[:t] = max(spec.min_target_distance, spec.dock_clearance)
+    reach = min_dock + radii
+    valid = np.einsum("kbcd,kbcd->kbc", cand, cand) >= (reach * reach)[:, :, None]
+    valid &= (lim > 0.0)[:, :, None]
+    centers, placed = _place(cand, valid, radii, spacing)
+    return centers, radii, vertices, n_vertices, placed
+
+
+_WINDOW = 4
+"""Candidates per body tested first (the rest only where none of these is valid)."""
+
+_ROUNDS = 4
+"""Most simultaneous rounds of :func:`_place` before it finishes one body after another."""
+
+
+def _place(
+    cand: np.ndarray, valid: np.ndarray, radii: np.ndarray, spacing: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Put every body at its first candidate that is valid against the bodies before it.
+
+    Body b's choice depends only on the final positions of bodies 0 … b-1. So first, for a few
+    rounds, every body chooses at once (among its first :data:`_WINDOW` candidates) against the
+    others' current choices; a body is final once every body before it is final and was
+    unchanged by the round. Sparse fields are done in 1-3 rounds, each one set of array
+    operations for the whole batch. Fields left unfinished are completed one body at a time from
+    their first non-final body. The result is the one-after-another placement either way.
+
+    Args:
+        cand: (K, B, C, dim) candidate centres (m).
+        valid: (K, B, C) candidates that pass the checks not involving other bodies.
+        radii: (K, B) body radii (m).
+        spacing: (B,) free gap each body demands (m); two bodies' centres must be at least
+            their radii plus the larger of their spacings apart.
+
+    Returns:
+        ``(centers (K, B, dim), placed (K,))``; ``placed`` is False where some body has no valid
+        candidate.
+    """
+    num, n_bodies, n_cand, dim = cand.shape
+    bodies = np.arange(n_bodies)
+    choice = np.zeros((num, n_bodies), dtype=np.intp)
+    final = np.zeros(num, dtype=np.intp)  # bodies 0 … final-1 are placed for good
+    rows = np.arange(num)
+    s = min(_WINDOW, n_cand)
+
+    def need2(idx: np.ndarray, b: int) -> np.ndarray:  # (R, b): body b to bodies 0 … b-1
+        need = radii[idx, b, None] + radii[idx, :b] + np.maximum(spacing[b], spacing[:b])
+        return need * need
+
+    rounds = _ROUNDS if n_bodies <= 64 else 0
+    if rounds:  # (K, B, B); only bodies placed before b constrain b (a zero need never binds)
+        need_all = radii[:, :, None] + radii[:, None, :] + np.maximum.outer(spacing, spacing)
+        need_all *= need_all * np.tri(n_bodies, k=-1)
+    for _ in range(rounds):
+        pos = cand[rows[:, None], bodies, choice[rows]]  # (R, B, dim)
+        ok = valid[rows, :, :s] & _clear(
+            cand[rows, :, :s], pos[:, None], need_all[rows]
+        )  # (R, B, S)
+        found = ok.any(axis=2)
+        new = ok.argmax(axis=2)
+        # final: up to the first body without a valid candidate in the window (unknown yet),
+        # or up to and including the first body whose choice changed
+        unsettled = bodies >= final[rows, None]
+        first_miss = np.where(~found & unsettled, bodies, n_bodies).min(axis=1)
+        changed = np.where((new != choice[rows]) & unsettled, bodies + 1, n_bodies).min(axis=1)
+        final[rows] = np.minimum(first_miss, changed)
+        choice[rows] = np.where(found, new, choice[rows])
+        rows = rows[final[rows] < n_bodies]
+        if rows.size == 0:
+            break
+    centers = cand[np.arange(num)[:, None], bodies, choice]
+    placed = np.ones(num, dtype=bool)
+    for b in range(int(final.min()), n_bodies):
+        idx = np.flatnonzero(placed & (final <= b))
+        if idx.size == 0:
+            continue
+        need = need2(idx, b)
+        ok = valid[idx, b, :s] & _clear(cand[idx, b, :s], centers[idx, :b], need)
+        found = ok.any(axis=1)
+        first = ok.argmax(axis=1)
+        miss = np.flatnonzero(~found)
+        if miss.size:  # no valid candidate in the window: test them all
+            m = idx[miss]
+            ok = valid[m, b] & _clear(cand[m, b], centers[m, :b], need[miss])
+            found[miss] = ok.any(axis=1)
+            first[miss] = ok.argmax(axis=1)
+        centers[idx, b] = cand[idx, b, first]
+        placed[idx[~found]] = False
+    return centers, placed
+
+
+def _clear(points: np.ndarray, centres: np.ndarray, need2: np.ndarray) -> np.ndarray:
+    """True where a point keeps its squared distance ``need2`` to every centre, (…, S).
+
+    Args:
+        points: (…, S, dim) candidate points.
+        centres: (…, J, dim) placed centres.
+        need2: (…, J) squared smallest distance to each centre (0: no constraint).
+    """
+    dist2 = 0.0
+    for axis in range(points.shape[-1]):
+        delta = points[..., :, None, axis] - centres[..., None, :, axis]
+        dist2 = dist2 + delta * delta
+    return ~(dist2 < need2[..., None, :]).any(axis=-1)
+
+
+def _convex_polygons(shape: np.ndarray, radius: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """CCW convex polygons from uniform numbers, no rejection: (…, V, 2) vertices and counts.
+
+    Per polygon, ``shape[..., 0]`` picks 3 to 7 vertices; they sit on the unit circle at evenly
+    spaced angles, each moved by at most ± ``ANGLE_JITTER`` / 2 of the spacing
+    (``shape[..., 1:8]``), so consecutive angles stay strictly increasing and every gap is below
+    1.3 · 2π/3 < π: the polygon is strictly convex, counter-clockwise, and holds the centre
+    strictly inside. An affine squash of x into [0.5, 1) (``shape[..., 8]``) and a rotation
+    (``shape[..., 9]``) keep all of that; the result is scaled so its largest vertex distance
+    (circumradius) is ``radius``. Unused vertex slots repeat the first vertex.
+    """
+    v = MAX_POLYGON_VERTICES
+    count = 3 + np.minimum((shape[..., 0] * (v - 2)).astype(np.int64), v - 3)
+    spacing = 2.0 * np.pi / count
+    j = np.arange(v)
+    angles = (j + ANGLE_JITTER * (shape[..., 1 : 1 + v] - 0.5)) * spacing[..., None]
+    angles = np.where(j < count[..., None], angles, angles[..., :1])
+    squash = 0.5 + 0.5 * shape[..., 1 + v]
+    rot = 2.0 * np.pi * shape[..., 2 + v]
+    x = np.cos(angles) * squash[..., None]
+    y = np.sin(angles)
+    c, s = np.cos(rot)[..., None], np.sin(rot)[..., None]
+    px, py = x * c - y * s, x * s + y * c
+    scale = radius / np.sqrt(px * px + py * py).max(axis=-1)
+    vertices = np.stack([px, py], axis=-1) * scale[..., None, None]
+    return vertices, count
+
+
+@functools.cache
+def _capture_directions(dim: int) -> np.ndarray:
+    """Unit directions (16 in 2D, 26 in 3D) of the candidate capture points around a target."""
+    if dim == 2:
+        ang = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
+        dirs = np.stack([np.cos(ang), np.sin(ang)], axis=1)
+    else:
+        grid = np.array(np.meshgrid(*[[-1, 0, 1]] * 3, indexing="ij")).reshape(3, -1).T
+        grid = grid[np.any(grid != 0, axis=1)]
+        dirs = grid / np.linalg.norm(grid, axis=1, keepdims=True)
+    dirs.setflags(write=False)
+    return dirs
+
+
+def _route_proof(
+    centers: np.ndarray,
+    radii: np.ndarray,
+    n_targets: int,
+    low: np.ndarray,
+    high: np.ndarray,
+    dock: np.ndarray,
+    chaser_radius: float,
+    capture_radius: float,
+) -> np.ndarray:
+    """The disjoint-balls proof of :func:`is_solvable` for K fields at once, shape (K,).
+
+    True where the bounding balls inflated by ``chaser_radius`` are pairwise disjoint and
+    strictly inside the bounds, the dock is free, and each target has a free capture point.
+    """
+    num, n_bodies, dim = centers.shape
+    reach = radii + chaser_radius
+
+    def inside(points: np.ndarray, margin) -> np.ndarray:  # (K, P, dim) -> (K, P)
+        ok = None
+        for axis in range(dim):
+            x = points[..., axis]
+            axis_ok = (x - margin > low[axis]) & (x + margin < high[axis])
+            ok = axis_ok if ok is None else ok & axis_ok
+        return ok
+
+    def free(points: np.ndarray) -> np.ndarray:  # (K, P, dim) -> (K, P)
+        dist = distance(points[:, :, None, :], centers[:, None]) - reach[:, None]
+        return inside(points, 0.0) & (dist > 0.0).all(axis=2)
+
+    gaps = distance(centers[:, :, None], centers[:, None]) - reach[:, :, None] - reach[:, None]
+    gaps[:, np.arange(n_bodies), np.arange(n_bodies)] = np.inf
+    ok = inside(centers, reach).all(axis=1) & (gaps > 0.0).all(axis=(1, 2))
+    ok &= free(np.broadcast_to(dock, (num, 1, dim)))[:, 0]
+    dirs = _capture_directions(dim)
+    t = n_targets
+    depth = radii[:, :t] + chaser_radius + 0.5 * capture_radius
+    points = centers[:, :t, None, :] + depth[..., None, None] * dirs  # (K, T, D, dim)
+    ok &= free(points.reshape(num, -1, dim)).reshape(num, t, -1).any(axis=2).all(axis=1)
+    return ok
 
 
 def occupancy_grid(
@@ -194,42 +606,15 @@ def is_solvable(
     return grid_route_exists(scenario, chaser_radius, capture_radius, cell)
 
 
-def _capture_points(scenario: Scenario, chaser_radius: float, capture_radius: float):
-    """Candidate chaser positions inside each target's capture zone (16 / 26 directions)."""
-    dim = scenario.dim
-    if dim == 2:
-        ang = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
-        dirs = np.stack([np.cos(ang), np.sin(ang)], axis=1)
-    else:
-        grid = np.array(np.meshgrid(*[[-1, 0, 1]] * 3, indexing="ij")).reshape(3, -1).T
-        grid = grid[np.any(grid != 0, axis=1)]
-        dirs = grid / np.linalg.norm(grid, axis=1, keepdims=True)
-    for t in scenario.targets:
-        reach = t.radius + chaser_radius + 0.5 * capture_radius
-        yield np.asarray(t.position) + reach * dirs
-
-
 def _disjoint_balls_route(scenario: Scenario, chaser_radius: float, capture_radius: float) -> bool:
-    centres = scenario.body_positions(0.0)
-    reach = np.array([b.radius for b in scenario.bodies]) + chaser_radius
-    low, high = scenario.low, scenario.high
-    if np.any(centres - reach[:, None] <= low) or np.any(centres + reach[:, None] >= high):
-        return False
-    gaps = np.linalg.norm(centres[:, None] - centres[None], axis=-1) - reach[:, None] - reach[None]
-    np.fill_diagonal(gaps, np.inf)
-    if np.any(gaps <= 0.0):
-        return False
-
-    def free(points: np.ndarray) -> np.ndarray:
-        inside = np.all((points > low) & (points < high), axis=-1)
-        dist = np.linalg.norm(points[:, None] - centres[None], axis=-1) - reach[None]
-        return inside & np.all(dist > 0.0, axis=1)
-
-    if not free(np.asarray(scenario.dock, dtype=float)[None])[0]:
-        return False
-    return all(
-        free(points).any() for points in _capture_points(scenario, chaser_radius, capture_radius)
-    )
+    radii = np.array([b.radius for b in scenario.bodies])
+    return bool(
+        _route_proof(
+            scenario.body_positions(0.0)[None], radii[None], len(scenario.targets),
+            scenario.low, scenario.high, np.asarray(scenario.dock, dtype=float),
+            chaser_radius, capture_radius,
+        )[0]
+    )  # fmt: skip
 
 
 def grid_route_exists(

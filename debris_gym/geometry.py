@@ -81,10 +81,12 @@ class FieldGeometry:
             if polys
             else np.zeros(0, dtype=int)
         )
+        # (the same arrays and formulas as debris_gym.batch_geometry.FieldBatch)
         self._edge_start = verts.reshape(-1, 2)[keep].T.copy()  # (2, E)
         self._edge_vec = self.poly_edges.reshape(-1, 2)[keep].T.copy()
-        self._edge_inv_len2 = 1.0 / self.poly_edge_len2.reshape(-1)[keep]
-        self._edge_normal = normals.reshape(-1, 2)[keep].T.copy()
+        ex, ey = self._edge_vec
+        self._edge_inv_len2 = 1.0 / (ex * ex + ey * ey)
+        self._edge_inv_len = np.sqrt(self._edge_inv_len2)
         self._edge_first = np.cumsum([0, *counts[:-1]]).astype(np.intp)
 
     @property
@@ -159,15 +161,18 @@ class FieldGeometry:
             dx = point[0] - self._edge_start[0]
             dy = point[1] - self._edge_start[1]
             ex, ey = self._edge_vec
-            t = (dx * ex + dy * ey) * self._edge_inv_len2
-            np.maximum(t, 0.0, out=t)
-            np.minimum(t, 1.0, out=t)
+            t = dx * ex
+            t += dy * ey
+            t *= self._edge_inv_len2
+            np.clip(t, 0.0, 1.0, out=t)
             cx = dx - t * ex
             cy = dy - t * ey
             edge = np.sqrt(np.minimum.reduceat(cx * cx + cy * cy, self._edge_first))
-            depth = np.maximum.reduceat(
-                dx * self._edge_normal[0] + dy * self._edge_normal[1], self._edge_first
-            )
+            # depth behind each edge line: (d × e) / |e| = d · outward unit normal
+            plane = dx * ey
+            plane -= dy * ex
+            plane *= self._edge_inv_len
+            depth = np.maximum.reduceat(plane, self._edge_first)
             # outside (depth > 0): distance to the nearest edge; inside: minus the depth
             out[self.polygon_idx] = (
                 edge if (depth > 0.0).all() else np.where(depth > 0.0, edge, depth)
@@ -326,6 +331,20 @@ class FieldGeometry:
         inside = perp2 <= self.radii[None, :] ** 2
         entry = np.where(inside & (proj + half >= 0.0), np.maximum(entry, 0.0), np.inf)
         return np.minimum(entry.min(axis=1), max_range)
+
+
+def distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Euclidean distance over the last axis of two broadcastable arrays (m).
+
+    One array operation per axis instead of a reduction over a short last axis (which numpy does
+    slowly): ``sqrt((a₀ − b₀)² + (a₁ − b₁)² [+ (a₂ − b₂)²])``, summed in that order.
+    """
+    sq = None
+    for axis in range(a.shape[-1]):
+        delta = a[..., axis] - b[..., axis]
+        delta *= delta
+        sq = delta if sq is None else np.add(sq, delta, out=sq)
+    return np.sqrt(sq, out=sq)
 
 
 def lidar_directions(dim: int, n_rays: int) -> np.ndarray:

@@ -175,7 +175,8 @@ def test_memory_child_counts_every_array(bench):
     assert out["num_envs"] == 2 and out["n_bodies"] >= 21
     obs = [a for a in out["arrays"] if a["observation_buffer"]]
     assert [a["name"] for a in obs] == ["_obs"]
-    assert all(a["shape"][0] == 2 for a in out["arrays"] if a["owner"] == "field")
+    # every field array is per sub-env (FieldBatch.edges keeps its vertex axes in front)
+    assert all(2 in a["shape"] for a in out["arrays"] if a["owner"] == "field")
     assert out["rss_after_reset"] > 0
 
 

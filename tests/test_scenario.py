@@ -11,12 +11,17 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from debris_gym import generators
 from debris_gym.generators import (
+    MAX_POLYGON_VERTICES,
     FieldSpec,
+    draw_size,
     grid_route_exists,
     is_solvable,
     paper_field,
     random_field,
+    random_fields,
+    route_by_construction,
 )
 from debris_gym.geometry import FieldGeometry
 from debris_gym.scenario import Body, Scenario, as_scenario
@@ -169,6 +174,163 @@ def test_polygons_are_convex_ccw_with_circumradius():
         e = np.roll(v, -1, axis=0) - v
         cross = e[:, 0] * np.roll(e, -1, axis=0)[:, 1] - e[:, 1] * np.roll(e, -1, axis=0)[:, 0]
         assert np.all(cross > 0)
+
+
+# --- the batched generator ------------------------------------------------------------------
+
+
+def tight_spec_strategy(dim: int):
+    """Specs where the proof does not follow from the placement (small gaps, big chaser)."""
+    return st.builds(
+        FieldSpec,
+        dim=st.just(dim),
+        n_targets=st.integers(1, 4),
+        n_obstacles=st.integers(0, 25),
+        field_size=st.floats(600.0, 1000.0),
+        polygon_fraction=st.floats(0.0, 1.0),
+        min_gap=st.floats(0.0, 4.0),
+        target_clearance=st.floats(0.0, 4.0),
+        chaser_radius=st.floats(1.0, 3.0),
+    )
+
+
+@settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(spec=tight_spec_strategy(2), seed=st.integers(0, 2**32 - 1))
+def test_fields_are_solvable_when_the_proof_is_checked_per_field(spec, seed):
+    check_field(spec, seed, capture_radius=5.0)
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    spec=st.one_of(spec_strategy(2, (600.0, 1500.0)), spec_strategy(3, (600.0, 900.0))),
+    seeds=st.lists(st.integers(0, 2**32 - 1), min_size=1, max_size=6),
+)
+def test_batch_equals_single_draws_and_every_field_is_valid(spec, seeds):
+    """Row k of a batch is the field random_field draws from generator k alone."""
+    kwargs = dict(mean_motion=1.1e-3, dt=10.0, max_accel=0.05)
+    batch = random_fields([np.random.default_rng(s) for s in seeds], spec, capture_radius=5.0)
+    for k, seed in enumerate(seeds):
+        single = random_field(np.random.default_rng(seed), spec, capture_radius=5.0, **kwargs)
+        scen = batch.scenario(k, **kwargs)
+        assert scen == single
+        assert is_solvable(scen, spec.chaser_radius, 5.0)
+        for body in scen.obstacles:
+            if body.is_polygon:
+                assert 3 <= len(body.vertices) <= MAX_POLYGON_VERTICES
+    for k, seed in enumerate(seeds):  # the batch's order does not matter either
+        again = random_fields([np.random.default_rng(seed)], spec, capture_radius=5.0)
+        np.testing.assert_array_equal(again.centers[0], batch.centers[k])
+
+
+def test_big_batches_and_many_bodies_equal_single_draws():
+    """Batches over the chunk size, and fields too big for the simultaneous rounds."""
+    kwargs = dict(mean_motion=0.0, dt=10.0, max_accel=0.05, capture_radius=5.0)
+    for spec, n in (
+        (FieldSpec(n_obstacles=5), 70),
+        (FieldSpec(n_obstacles=80, field_size=2500), 3),
+    ):
+        batch = random_fields(
+            [np.random.default_rng(i) for i in range(n)], spec, capture_radius=5.0
+        )
+        for k in (0, n // 2, n - 1):
+            single = random_field(np.random.default_rng(k), spec, **kwargs)
+            assert batch.scenario(k, mean_motion=0.0, dt=10.0, max_accel=0.05) == single
+
+
+def sequential_placement(cand, valid, radii, spacing):
+    """Reference: place bodies one after another, each at its first valid candidate."""
+    num, n_bodies, n_cand, dim = cand.shape
+    centers = np.zeros((num, n_bodies, dim))
+    placed = np.ones(num, dtype=bool)
+    for k in range(num):
+        for b in range(n_bodies):
+            for c in range(n_cand):
+                need = radii[k, b] + radii[k, :b] + np.maximum(spacing[b], spacing[:b])
+                dist = np.sqrt(((cand[k, b, c] - centers[k, :b]) ** 2).sum(axis=1))
+                if valid[k, b, c] and np.all(dist >= need):
+                    centers[k, b] = cand[k, b, c]
+                    break
+            else:
+                placed[k] = False
+                break
+    return centers, placed
+
+
+@pytest.mark.parametrize(
+    "spec",
+    [
+        FieldSpec(),
+        FieldSpec(dim=3, n_obstacles=30),
+        FieldSpec(n_targets=6, n_obstacles=40, field_size=600.0, min_gap=30.0),  # crowded
+        FieldSpec(n_targets=6, n_obstacles=40, field_size=500.0, min_gap=30.0),  # too crowded
+        FieldSpec(n_obstacles=70, field_size=1500.0),  # one body after another only
+    ],
+)
+def test_simultaneous_placement_equals_one_body_after_another(spec, monkeypatch):
+    seen = {}
+    place = generators._place
+
+    def spy(cand, valid, radii, spacing):
+        seen["args"] = (cand, valid, radii, spacing)
+        return place(cand, valid, radii, spacing)
+
+    monkeypatch.setattr(generators, "_place", spy)
+    u = np.random.default_rng(0).random((24, draw_size(spec)))
+    centers, _, _, _, placed = generators._draw_fields(u, spec)
+    ref_centers, ref_placed = sequential_placement(*seen["args"])
+    np.testing.assert_array_equal(placed, ref_placed)
+    np.testing.assert_array_equal(centers[placed], ref_centers[placed])
+
+
+def test_a_draw_takes_one_fixed_block_from_its_generator():
+    spec = FieldSpec()
+    rng = np.random.default_rng(4)
+    random_fields([rng], spec, capture_radius=5.0)  # this seed's field comes on the first draw
+    ref = np.random.default_rng(4)
+    ref.random(draw_size(spec))
+    assert rng.random() == ref.random()
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    shape=st.lists(
+        st.floats(0.0, 1.0, exclude_max=True), min_size=3 + MAX_POLYGON_VERTICES,
+        max_size=3 + MAX_POLYGON_VERTICES,
+    ),
+    radius=st.floats(0.5, 50.0),
+)  # fmt: skip
+def test_generated_polygons_are_convex_ccw_and_hold_their_centre(shape, radius):
+    vertices, count = generators._convex_polygons(np.array([shape]), np.array([radius]))
+    m = int(count[0])
+    assert 3 <= m <= MAX_POLYGON_VERTICES
+    v = vertices[0, :m]
+    np.testing.assert_array_equal(vertices[0, m:], np.broadcast_to(v[0], (len(shape) - 3 - m, 2)))
+    assert np.max(np.linalg.norm(v, axis=1)) == pytest.approx(radius)
+    e = np.roll(v, -1, axis=0) - v
+    cross = e[:, 0] * np.roll(e, -1, axis=0)[:, 1] - e[:, 1] * np.roll(e, -1, axis=0)[:, 0]
+    assert np.all(cross > 0)  # strictly convex, counter-clockwise
+    centre_side = e[:, 0] * (0.0 - v[:, 1]) - e[:, 1] * (0.0 - v[:, 0])
+    assert np.all(centre_side > 0)  # the centre is strictly inside
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    spec=st.one_of(spec_strategy(2, (600.0, 1500.0)), spec_strategy(3, (600.0, 900.0))),
+    capture_radius=st.floats(0.5, 20.0),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_the_proof_holds_by_construction_where_claimed(spec, capture_radius, seed):
+    if not route_by_construction(spec, capture_radius):
+        return
+    u = np.random.default_rng(seed).random((16, draw_size(spec)))
+    centers, radii, _, _, placed = generators._draw_fields(u, spec)
+    half = spec.field_size / 2.0
+    low, high = np.full(spec.dim, -half), np.full(spec.dim, half)
+    proof = generators._route_proof(
+        centers, radii, spec.n_targets, low, high, np.zeros(spec.dim), spec.chaser_radius,
+        capture_radius,
+    )  # fmt: skip
+    assert np.all(proof[placed])
 
 
 def test_json_round_trip(tmp_path):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -12,6 +14,7 @@ from debris_gym.batch_geometry import FieldBatch
 from debris_gym.envs.vector import DebrisFieldVectorEnv
 from debris_gym.generators import FieldSpec, random_field
 from debris_gym.geometry import FieldGeometry, lidar_directions
+from debris_gym.scenario import Body, Scenario
 from tests.test_env import simple_scenario
 
 INFO_KEYS = ["chaser_state", "time", "delta_v", "targets_captured", "min_clearance", "collision"]
@@ -161,6 +164,85 @@ def test_pinned_scenario_and_chaser_state():
         env.reset(options={"scenario": scen, "chaser_state": [200.0, 0.0, 0.0, 0.0]})
 
 
+def test_pinned_scenario_must_match_the_batch():
+    """Regression: a field with the same number of bodies but other targets was accepted (and
+    then read with the wrong target count)."""
+    env = DebrisFieldVectorEnv(num_envs=2)
+    env.reset(seed=0)
+    scen = env.scenarios[0]
+    last = scen.targets[-1]
+    moved = Scenario(
+        dim=2,
+        bounds=scen.bounds,
+        dock=scen.dock,
+        targets=scen.targets[:-1],
+        obstacles=(Body(position=last.position, radius=last.radius), *scen.obstacles),
+        mean_motion=scen.mean_motion,
+        dt=scen.dt,
+        max_accel=scen.max_accel,
+    )
+    assert len(moved.bodies) == len(scen.bodies)
+    with pytest.raises(ValueError, match="numbers of targets and bodies"):
+        env.reset(options={"scenario": moved})
+
+
+def test_pinned_polygons_with_many_vertices_load():
+    """Regression: the batch held at most 8 polygon vertices; it now grows for a pinned field."""
+    angles = np.linspace(0, 2 * math.pi, 12, endpoint=False)
+    ring = tuple((30.0 * math.cos(a), 30.0 * math.sin(a)) for a in angles)
+    scen = simple_scenario(
+        obstacles=(
+            Body(position=(200.0, 0.0), radius=30.0, vertices=ring),
+            Body(position=(-200.0, 50.0), radius=20.0),
+        )
+    )
+    kwargs = dict(n_targets=1, n_obstacles=2, mean_motion=0.0)
+    env = DebrisFieldVectorEnv(num_envs=2, **kwargs)
+    states = [[150.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]]
+    env.reset(options={"scenario": scen, "chaser_state": states})
+    assert env.scenarios[1] == scen
+    single = FieldGeometry(scen)
+    for point in ([150.0, 0.0], [200.0, 10.0], [-100.0, 40.0]):
+        pts = np.array([point, point])
+        expected = np.stack([single.point_gaps(pts[0])] * 2)
+        np.testing.assert_array_equal(env._field.gaps(pts), expected)
+    # later random fields (at most 7 vertices) still load and read back exactly
+    env.reset(seed=3)
+    single_env = gym.make("DebrisGym/Rendezvous2D-v0", **kwargs)
+    single_env.reset(seed=4)
+    assert env.scenarios[1] == single_env.unwrapped.scenario
+
+
+def test_scenarios_view_follows_autoresets():
+    """``env.scenarios`` is built from the arrays on access; after an autoreset sub-env i holds
+    the field the single env draws on its second reset from the same seed."""
+    env = DebrisFieldVectorEnv(num_envs=3, max_episode_steps=2)
+    env.reset(seed=10)
+    assert len(env.scenarios) == 3
+    assert env.scenarios[-1] == env.scenarios[2]
+    assert env.scenarios[1:] == [env.scenarios[1], env.scenarios[2]]
+    with pytest.raises(IndexError):
+        env.scenarios[3]
+    for _ in range(3):  # two steps end the episodes, the third resets them
+        env.step(np.zeros((3, 2), dtype=np.float32))
+    single = gym.make("DebrisGym/Rendezvous2D-v0")
+    single.reset(seed=11)
+    single.reset()
+    assert env.scenarios[1] == single.unwrapped.scenario
+    assert DebrisFieldVectorEnv(num_envs=2).scenarios[0] is None  # before the first reset
+
+
+def test_field_arrays_stay_within_10_kib_per_sub_env():
+    """The default 2D field (23 bodies): arrays held by the env and its batch, observation
+    buffer excluded (as bench/run.py's memory section counts them)."""
+    env = DebrisFieldVectorEnv(num_envs=8)
+    env.reset(seed=0)
+    owners = (vars(env), vars(env._field))
+    arrays = [v for owner in owners for v in owner.values() if isinstance(v, np.ndarray)]
+    per_env = sum(a.nbytes for a in arrays if a is not env._obs) / env.num_envs
+    assert per_env <= 10 * 1024
+
+
 def random_fields(n: int, dim: int, seed: int = 0):
     spec = FieldSpec(dim=dim, n_obstacles=30)
     return [
@@ -173,11 +255,17 @@ def random_fields(n: int, dim: int, seed: int = 0):
 
 
 @pytest.mark.parametrize("dim", [2, 3])
-def test_batch_geometry_matches_single_geometry(dim):
-    """Clearance, swept contacts and lidar of FieldBatch equal FieldGeometry's (pymunk in 2D)."""
+@pytest.mark.parametrize("compact", [False, True])
+def test_batch_geometry_matches_single_geometry(dim, compact):
+    """Clearance, swept contacts and lidar of FieldBatch equal FieldGeometry's (pymunk in 2D).
+
+    Clearance is the same formula operation for operation, so it is bit-identical. ``compact``:
+    polygon storage for the obstacles only, as the vector env keeps it.
+    """
     n = 12
     fields = random_fields(n, dim, seed=10 * dim)
-    batch = FieldBatch(n, len(fields[0].bodies), dim)
+    start = len(fields[0].targets) if compact else 0
+    batch = FieldBatch(n, len(fields[0].bodies), dim, polygon_start=start)
     for i, f in enumerate(fields):
         batch.load(i, f)
     singles = [FieldGeometry(f, inflate=1.0) for f in fields]
@@ -193,7 +281,7 @@ def test_batch_geometry_matches_single_geometry(dim):
         paths = a[:, None, :] * (1 - t) + b[:, None, :] * t
         gaps = batch.gaps(paths[:, 0])
         ref = np.stack([g.point_gaps(paths[i, 0]) for i, g in enumerate(singles)])
-        np.testing.assert_allclose(gaps, ref, rtol=1e-12, atol=1e-9)
+        np.testing.assert_array_equal(gaps, ref)
         touched = batch.touched(paths, gaps, 1.0)
         for i, g in enumerate(singles):
             assert list(np.flatnonzero(touched[i])) == g.touched(paths[i], ref[i])

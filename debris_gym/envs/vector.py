@@ -9,13 +9,19 @@ against N single envs): the propagation uses the same cached CWH matrices from
 
 Autoreset follows Gymnasium 1.x's default *next-step* mode: the step after a sub-env terminates or
 truncates resets it (its action is ignored) and returns the first observation of the new episode
-with reward 0. Field generation on reset is per sub-env (each keeps its own seeded generator);
-everything in ``step`` is batched, with no Python loop over envs or debris.
+with reward 0. Each sub-env keeps its own seeded generator; the sub-envs that reset on a step
+draw their fields together (:func:`debris_gym.generators.random_fields`, one fixed block of
+random numbers per sub-env and draw, so a field never depends on which other sub-envs reset with
+it) and the fields go into the batch as arrays; :attr:`DebrisFieldVectorEnv.scenarios` builds a
+sub-env's :class:`Scenario` only when read. Everything in ``step`` is batched, with no Python loop
+over envs or debris.
 """
 
 from __future__ import annotations
 
 import math
+import operator
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -30,12 +36,17 @@ from debris_gym.envs.common import (
     OBS_LIMIT,
     discrete_action_table,
     field_spec,
-    new_scenario,
     observation_names,
     registered_horizon,
     single_spaces,
 )
-from debris_gym.geometry import lidar_directions
+from debris_gym.generators import (
+    MAX_POLYGON_VERTICES,
+    paper_field,
+    random_fields,
+    scenario_from_arrays,
+)
+from debris_gym.geometry import distance, lidar_directions
 from debris_gym.rewards import REWARD_TERMS, reward_terms
 from debris_gym.scenario import Scenario, as_scenario
 from debris_gym.thrust import commanded_accel, delta_v_rate
@@ -92,49 +103,108 @@ class DebrisFieldVectorEnv(VectorEnv):
         self._lidar_dirs = lidar_directions(d, cfg.lidar_rays) if lidar else None
         self._field_spec = field_spec(cfg)
         self._rngs: list[np.random.Generator] = [np.random.default_rng() for _ in range(n)]
-        self.scenarios: list[Scenario | None] = [None] * n
+        self._pinned: list[Scenario | None] = [None] * n  # fields not drawn by the env
+        self._paper: Scenario | None = None
         self._physics: tuple[float, float, float] | None = None
         self._field: FieldBatch | None = None
         self._autoreset = np.zeros(n, dtype=bool)
 
     # --- fields -------------------------------------------------------------------------------
 
-    def _load(self, i: int, scenario: Scenario) -> None:
-        """Install ``scenario`` in sub-env ``i`` (allocating the batch on first use)."""
+    @property
+    def scenarios(self) -> Sequence[Scenario | None]:
+        """The current field of every sub-env (None before the first reset).
+
+        A read-only sequence; a random field is stored as arrays and turned into its
+        :class:`Scenario` when accessed (the same ``Scenario`` the single env builds).
+        """
+        return _ScenarioList(self)
+
+    def _scenario(self, i: int) -> Scenario | None:
+        if self._field is None:
+            return None
+        pinned = self._pinned[i]
+        if pinned is not None:
+            return pinned
+        cfg, field = self.config, self._field
+        vertices, counts = field.vertex_arrays(i)
+        half = self._field_spec.field_size / 2.0
+        return scenario_from_arrays(
+            field.centers[i], field.radii[i], vertices, counts, self._n_targets,
+            ((-half, half),) * self.dim, mean_motion=cfg.n, dt=cfg.dt, max_accel=cfg.max_accel,
+        )  # fmt: skip
+
+    def _load_new(self, rows: np.ndarray) -> None:
+        """Give the sub-envs ``rows`` the field a reset draws (each from its own generator)."""
+        cfg = self.config
+        if cfg.scenario == "paper":
+            if self._paper is None:
+                self._paper = paper_field(dt=cfg.dt, max_accel=cfg.max_accel)
+            self._load_scenario(rows, self._paper)
+            return
+        fields = random_fields(
+            [self._rngs[i] for i in rows], self._field_spec, capture_radius=cfg.capture_radius
+        )
+        self._fit((cfg.n, cfg.dt, cfg.max_accel), fields.n_targets, fields.centers.shape[1])
+        self._field.load_arrays(
+            rows, fields.centers, fields.radii, fields.vertices, fields.n_vertices
+        )
+        for i in rows.tolist():
+            self._pinned[i] = None
+        half = fields.half_size
+        self._dock[rows] = 0.0
+        self._low[rows] = -half
+        self._high[rows] = half
+        self._length_scale[rows] = (half - -half) / 2.0  # as Scenario.size / 2
+        self._speed_scale[rows] = math.sqrt(cfg.max_accel * self._length_scale[rows[0]])
+
+    def _load_scenario(self, rows: np.ndarray, scenario: Scenario) -> None:
+        """Install ``scenario`` in the sub-envs ``rows``."""
         if scenario.dim != self.dim:
             raise ValueError(f"scenario has dim={scenario.dim} but the env has dim={self.dim}")
         physics = (scenario.mean_motion, scenario.dt, scenario.max_accel)
-        if self._physics is None or self._field is None:
-            self._allocate(scenario)
-        elif physics != self._physics or len(scenario.bodies) != self._field.n_bodies:
+        self._fit(physics, len(scenario.targets), len(scenario.bodies))
+        self._field.load_scenario(rows, scenario)
+        for i in rows.tolist():
+            self._pinned[i] = scenario
+        self._dock[rows] = scenario.dock
+        self._low[rows] = scenario.low
+        self._high[rows] = scenario.high
+        self._length_scale[rows] = scenario.size / 2.0
+        self._speed_scale[rows] = math.sqrt(scenario.max_accel * (scenario.size / 2.0))
+
+    def _fit(self, physics: tuple[float, float, float], n_targets: int, n_bodies: int) -> None:
+        """Allocate the batch on first use; afterwards check a field fits it."""
+        if self._field is None:
+            self._allocate(physics, n_targets, n_bodies)
+        elif (physics, n_targets, n_bodies) != (
+            self._physics,
+            self._n_targets,
+            self._field.n_bodies,
+        ):
             raise ValueError(
                 "all sub-envs of a vector env must share mean_motion, dt, max_accel and the "
-                f"number of bodies; got {physics} with {len(scenario.bodies)} bodies, expected "
-                f"{self._physics} with {self._field.n_bodies}"
+                f"numbers of targets and bodies; got {physics} with {n_targets} targets of "
+                f"{n_bodies} bodies, expected {self._physics} with {self._n_targets} of "
+                f"{self._field.n_bodies}"
             )
-        self._field.load(i, scenario)
-        self.scenarios[i] = scenario
-        self._dock[i] = scenario.dock
-        self._low[i] = scenario.low
-        self._high[i] = scenario.high
-        self._length_scale[i] = scenario.size / 2.0
-        self._speed_scale[i] = math.sqrt(scenario.max_accel * self._length_scale[i])
 
-    def _allocate(self, scenario: Scenario) -> None:
+    def _allocate(self, physics: tuple[float, float, float], t: int, n_bodies: int) -> None:
         n, d, cfg = self.num_envs, self.dim, self.config
-        self._physics = (scenario.mean_motion, scenario.dt, scenario.max_accel)
-        self._n_targets = t = len(scenario.targets)
+        mean_motion, dt, max_accel = physics
+        self._physics = physics
+        self._n_targets = t
         # exact polygon gaps are needed for the obstacle slots and the smallest clearance only
         self._cull = (
             (max(cfg.obs_obstacles, 1), t) if cfg.observation == "kinematics" else (None, 0)
         )
-        self._field = FieldBatch(n, len(scenario.bodies), d)
-        model = discretize(scenario.mean_motion, scenario.dt, d)
-        sub = substep_position_matrix(scenario.mean_motion, scenario.dt, d, cfg.collision_substeps)
+        self._field = FieldBatch(n, n_bodies, d, MAX_POLYGON_VERTICES, polygon_start=t)
+        model = discretize(mean_motion, dt, d)
+        sub = substep_position_matrix(mean_motion, dt, d, cfg.collision_substeps)
         end_velocity = np.hstack([model.ad[d:], model.bd[d:]])
         self._step_matrix_t = np.ascontiguousarray(np.vstack([sub, end_velocity]).T)
-        self._dt = scenario.dt
-        self._max_accel = scenario.max_accel
+        self._dt = dt
+        self._max_accel = max_accel
         self._dock = np.zeros((n, d))
         self._low = np.zeros((n, d))
         self._high = np.zeros((n, d))
@@ -152,7 +222,8 @@ class DebrisFieldVectorEnv(VectorEnv):
         self._min_clearance = np.full(n, math.inf)
         self._potential = np.zeros(n)
         self._accel = np.zeros((n, d))
-        self._obs = np.zeros((n, len(self._obs_names)))
+        self._obs = np.zeros((n, len(self._obs_names)), dtype=np.float32)
+        self._row_base = np.arange(n)[:, None] * n_bodies  # row offsets into flattened (N, B)
 
     # --- gymnasium API ------------------------------------------------------------------------
 
@@ -194,15 +265,16 @@ class DebrisFieldVectorEnv(VectorEnv):
         for i in range(n):
             if seeds[i] is not None:  # like the single env: no seed continues the generator
                 self._rngs[i], _ = seeding.np_random(seeds[i])
-            self._load(i, pinned if pinned is not None else self._draw(i))
+        rows = np.arange(n)
+        if pinned is not None:
+            self._load_scenario(rows, pinned)
+        else:
+            self._load_new(rows)
         mask = np.ones(n, dtype=bool)
         self._start_episodes(mask, states)
         self._autoreset[:] = False
         terms = {k: np.zeros(n) for k in REWARD_TERMS}
         return self._observe(), self._info(terms)
-
-    def _draw(self, i: int) -> Scenario:
-        return new_scenario(self.config, self._field_spec, self._rngs[i])
 
     def _start_episodes(self, mask: np.ndarray, states: np.ndarray | None = None) -> None:
         """Initialise the episode state of the sub-envs in ``mask`` (fields already loaded)."""
@@ -221,12 +293,16 @@ class DebrisFieldVectorEnv(VectorEnv):
         self._success[mask] = False
         self._accel[mask] = 0.0
         rows = np.flatnonzero(mask)
-        self._gaps[rows] = self._field.gaps(self._state[rows, :d], rows, *self._cull)
-        obstacle_gaps = self._gaps[mask, self._n_targets :]
-        self._min_clearance[mask] = (
+        if rows.size == self.num_envs:  # a full reset: no copies of the batch
+            rows = slice(None)
+            self._gaps = self._field.gaps(self._state[:, :d], None, *self._cull)
+        else:
+            self._gaps[rows] = self._field.gaps(self._state[rows, :d], rows, *self._cull)
+        obstacle_gaps = self._gaps[rows, self._n_targets :]
+        self._min_clearance[rows] = (
             obstacle_gaps.min(axis=1) if obstacle_gaps.shape[1] else math.inf
         )
-        self._potential[mask] = self._potential_now()[mask]
+        self._potential[rows] = self._potential_now(rows)
 
     def _validated_states(self, states: np.ndarray, rows: np.ndarray) -> np.ndarray:
         d = self.dim
@@ -304,8 +380,7 @@ class DebrisFieldVectorEnv(VectorEnv):
 
     def _restart(self, mask: np.ndarray, terms: dict[str, np.ndarray]) -> None:
         """Draw new fields for the sub-envs in ``mask`` and start their episodes."""
-        for i in np.flatnonzero(mask):
-            self._load(i, self._draw(i))
+        self._load_new(np.flatnonzero(mask))
         self._start_episodes(mask)
         for term in terms.values():
             term[mask] = 0.0
@@ -350,35 +425,39 @@ class DebrisFieldVectorEnv(VectorEnv):
         pos, vel = self._state[:, :d], self._state[:, d:]
         self._gaps = gaps = self._field.gaps(pos, None, *self._cull)
         if gaps.shape[1] > t:
-            self._min_clearance = np.where(
-                live, np.minimum(self._min_clearance, gaps[:, t:].min(axis=1)), self._min_clearance
-            )
-        speed = np.sqrt((vel * vel).sum(axis=1))
+            clearance = np.minimum(self._min_clearance, gaps[:, t:].min(axis=1))
+            self._min_clearance = np.where(live, clearance, self._min_clearance)
+        speed = distance(vel, np.zeros(d))
         slow = speed <= cfg.capture_speed
         reach = cfg.capture_radius + cfg.chaser_radius
-        capturable = self._eligible() & (gaps[:, :t] <= reach) & (slow & live)[:, None]
+        capturable = self._eligible(self._captured) & (gaps[:, :t] <= reach)
+        capturable &= (slow & live)[:, None]
         new = capturable.sum(axis=1)
         self._captured |= capturable
-        hit_debris = touched[:, t:].any(axis=1)
-        # a target touched too fast counts unless the chaser leaves it at both step ends
-        centres = self._field.centers[:, :t]
-        closing = ((centres - start[:, None, :d]) * start[:, None, d:]).sum(axis=2) > 0.0
-        closing |= ((centres - pos[:, None, :]) * vel[:, None, :]).sum(axis=2) > 0.0
-        hit_target = (touched[:, :t] & closing).any(axis=1)
-        self._collision |= live & (hit_debris | (hit_target & ~slow))
-        oob = np.any(pos <= self._low, axis=1) | np.any(pos >= self._high, axis=1)
+        hit = live & touched[:, t:].any(axis=1)
+        fast_contact = touched[:, :t] & ~slow[:, None]
+        if fast_contact.any():
+            # a target touched too fast counts unless the chaser leaves it at both step ends
+            r, c = np.nonzero(fast_contact)
+            centres = self._field.centers[r, c]
+            p0, v0 = start[r, :d], start[r, d:]
+            closing = ((centres - p0) * v0).sum(axis=1) > 0.0
+            closing |= ((centres - pos[r]) * vel[r]).sum(axis=1) > 0.0
+            hit[r[closing & live[r]]] = True
+        self._collision |= hit
+        oob = np.zeros_like(live)
+        for axis in range(d):
+            oob |= (pos[:, axis] <= self._low[:, axis]) | (pos[:, axis] >= self._high[:, axis])
         self._out_of_bounds = np.where(live, oob, self._out_of_bounds)
         done = self._captured.all(axis=1) & ~self._collision & live
         if cfg.return_to_dock:
-            off = pos - self._dock
-            home = np.sqrt((off * off).sum(axis=1)) <= cfg.capture_radius
-            done &= home & slow
+            done &= (distance(pos, self._dock) <= cfg.capture_radius) & slow
         self._success |= done
         return new
 
-    def _eligible(self) -> np.ndarray:
-        """(N, T) mask of targets that can be captured now."""
-        remaining = ~self._captured
+    def _eligible(self, captured: np.ndarray) -> np.ndarray:
+        """(R, T) mask of targets that can be captured now, given the capture flags (R, T)."""
+        remaining = ~captured
         if self.config.target_order == "queued":
             first = np.zeros_like(remaining)
             has = remaining.any(axis=1)
@@ -386,18 +465,22 @@ class DebrisFieldVectorEnv(VectorEnv):
             return first
         return remaining
 
-    def _potential_now(self) -> np.ndarray:
+    def _potential_now(self, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
+        """Shaping potential Φ of the sub-envs ``rows`` (all by default)."""
         cfg, d, t = self.config, self.dim, self._n_targets
-        eligible = self._eligible()
+        captured = self._captured[rows]
+        eligible = self._eligible(captured)
         has_target = eligible.any(axis=1)
-        gap = np.where(eligible, self._gaps[:, :t], np.inf).min(axis=1) - cfg.chaser_radius
+        gap = np.where(eligible, self._gaps[rows, :t], np.inf).min(axis=1) - cfg.chaser_radius
         dock_goal = 1 if cfg.return_to_dock else 0
-        left = t - self._captured.sum(axis=1)
-        off = self._state[:, :d] - self._dock
-        dock_dist = np.sqrt((off * off).sum(axis=1)) if dock_goal else np.zeros(self.num_envs)
+        left = t - captured.sum(axis=1)
+        if dock_goal:
+            dock_dist = distance(self._state[rows, :d], self._dock[rows])
+        else:
+            dock_dist = np.zeros(len(has_target))
         goal_gap = np.where(has_target, np.maximum(gap, 0.0), dock_dist)
         after = np.where(has_target, left - 1 + dock_goal, 0)
-        return -(goal_gap / self._length_scale + after)
+        return -(goal_gap / self._length_scale[rows] + after)
 
     def _reward_terms(self, new_captures: np.ndarray, dv: np.ndarray) -> dict[str, np.ndarray]:
         cfg = self.config
@@ -416,9 +499,12 @@ class DebrisFieldVectorEnv(VectorEnv):
 
     def _observe(self) -> np.ndarray:
         cfg, d, n, t = self.config, self.dim, self.num_envs, self._n_targets
+        field = self._field
         L = self._length_scale[:, None]
         V = self._speed_scale[:, None]
         pos, vel = self._state[:, :d], self._state[:, d:]
+        # built in float32 directly: each value is rounded once from the same float64 value the
+        # single env computes, and clipping commutes with that rounding (±OBS_LIMIT is exact)
         obs = self._obs
         obs[:, :d] = pos / L
         obs[:, d : 2 * d] = vel / V
@@ -426,8 +512,6 @@ class DebrisFieldVectorEnv(VectorEnv):
         slot = 2 * d + 2
         width = cfg.obs_targets * slot
         targets = obs[:, k : k + width].reshape(n, cfg.obs_targets, slot)
-        targets[:] = 0.0
-        targets[:, :, -1] = 1.0
         # uncaptured first (nearest first, or queue order), then captured, in index order
         key = (
             self._gaps[:, :t]
@@ -437,13 +521,16 @@ class DebrisFieldVectorEnv(VectorEnv):
         key = np.where(self._captured, np.inf, key)
         order = np.lexsort((np.arange(t)[None].repeat(n, 0), key, self._captured))
         m = min(cfg.obs_targets, t)
-        order = order[:, :m]
-        rows = np.arange(n)[:, None]
-        centres = self._field.centers[rows, order]  # (n, m, d)
-        targets[:, :m, :d] = (centres - pos[:, None, :]) / L[:, :, None]
+        flat = order[:, :m] + self._row_base  # body index in the flattened (N, B) arrays
+        centres = field.centers.reshape(-1, d).take(flat, axis=0)  # (n, m, d)
+        centres -= pos[:, None, :]
+        centres /= L[:, :, None]
+        targets[:, :m, :d] = centres
         targets[:, :m, d : 2 * d] = (-vel / V)[:, None, :]
-        targets[:, :m, 2 * d] = self._field.radii[rows, order] / L
-        targets[:, :m, 2 * d + 1] = self._captured[rows, order]
+        targets[:, :m, 2 * d] = field.radii.take(flat) / L
+        targets[:, :m, 2 * d + 1] = np.take_along_axis(self._captured, order[:, :m], 1)
+        targets[:, m:] = 0.0
+        targets[:, m:, -1] = 1.0  # empty slots read as "captured"
         k += width
         obs[:, k : k + d] = (self._dock - pos) / L
         k += d
@@ -451,27 +538,28 @@ class DebrisFieldVectorEnv(VectorEnv):
             slot = d + 2
             width = cfg.obs_obstacles * slot
             slots = obs[:, k : k + width].reshape(n, cfg.obs_obstacles, slot)
-            slots[:] = 0.0
-            slots[:, :, -1] = 1.0
             gaps = self._gaps[:, t:]
             m = min(cfg.obs_obstacles, gaps.shape[1])
             if m:
-                if gaps.shape[1] > m:
+                if gaps.shape[1] > max(m, 64):
                     nearest = np.argpartition(gaps, m - 1, axis=1)[:, :m]
                     nearest = np.take_along_axis(
                         nearest, np.argsort(np.take_along_axis(gaps, nearest, 1), axis=1), 1
                     )
                 else:
-                    nearest = np.argsort(gaps, axis=1)
-                body = nearest + t
-                slots[:, :m, :d] = (self._field.centers[rows, body] - pos[:, None, :]) / L[
-                    :, :, None
-                ]
-                slots[:, :m, d] = self._field.radii[rows, body] / L
-                slots[:, :m, d + 1] = np.take_along_axis(gaps, nearest, 1) / L
+                    nearest = np.argsort(gaps, axis=1)[:, :m]
+                flat = nearest + (self._row_base + t)
+                centres = field.centers.reshape(-1, d).take(flat, axis=0)
+                centres -= pos[:, None, :]
+                centres /= L[:, :, None]
+                slots[:, :m, :d] = centres
+                slots[:, :m, d] = field.radii.take(flat) / L
+                slots[:, :m, d + 1] = self._gaps.take(flat) / L
+            slots[:, m:] = 0.0
+            slots[:, m:, -1] = 1.0
         else:
             width = cfg.lidar_rays
-            ranges = self._field.lidar(pos, self._lidar_dirs, cfg.lidar_range)
+            ranges = field.lidar(pos, self._lidar_dirs, cfg.lidar_range)
             obs[:, k : k + width] = ranges / cfg.lidar_range
         k += width
         budget = cfg.delta_v_budget
@@ -479,7 +567,7 @@ class DebrisFieldVectorEnv(VectorEnv):
         horizon = registered_horizon(self.spec)
         obs[:, k + 1] = np.maximum(horizon - self._steps, 0) / horizon
         np.clip(obs, -OBS_LIMIT, OBS_LIMIT, out=obs)
-        return obs.astype(np.float32)
+        return obs.copy()
 
     def _info(self, terms: dict[str, np.ndarray], mask: np.ndarray | None = None) -> dict[str, Any]:
         n = self.num_envs
@@ -507,3 +595,23 @@ class DebrisFieldVectorEnv(VectorEnv):
     def observation_names(self) -> list[str]:
         """Name of every observation element, in order (as the single env)."""
         return list(self._obs_names)
+
+
+class _ScenarioList(Sequence):
+    """Read-only view of a vector env's fields: item i is sub-env i's :class:`Scenario`."""
+
+    def __init__(self, env: DebrisFieldVectorEnv) -> None:
+        self._env = env
+
+    def __len__(self) -> int:
+        return self._env.num_envs
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            return [self._env._scenario(i) for i in range(len(self))[index]]
+        i = operator.index(index)
+        if i < 0:
+            i += len(self)
+        if not 0 <= i < len(self):
+            raise IndexError(f"sub-env index {index} out of range for {len(self)} sub-envs")
+        return self._env._scenario(i)
