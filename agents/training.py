@@ -908,17 +908,30 @@ def _make_callbacks(
             self.eval_env.seed(EVAL_SEED)
             self._targets_buffer = []
             start = time.perf_counter()
-            result = super()._on_step()
+            # EvalCallback writes its log in place (a Ctrl-C mid-write would leave it cut): let
+            # it write to a scratch name, and write the real file below, atomically
+            log_path = self.log_path
+            if log_path is not None:
+                self.log_path = str(Path(log_path).with_name(".evaluations_scratch"))
+            try:
+                result = super()._on_step()
+            finally:
+                if log_path is not None:
+                    with contextlib.suppress(FileNotFoundError):
+                        Path(self.log_path + ".npz").unlink()
+                self.log_path = log_path
             self.evaluations_targets.append(self._targets_buffer)
+            if len(self.evaluations_successes) < len(self.evaluations_timesteps):
+                self.evaluations_successes.append([np.nan])  # no episode reported is_success
             if self.log_path is not None:  # EvalCallback's file, plus targets captured
-                np.savez(
-                    self.log_path,
+                arrays = dict(
                     timesteps=self.evaluations_timesteps,
                     results=self.evaluations_results,
                     ep_lengths=self.evaluations_length,
                     successes=self.evaluations_successes,
                     targets_captured=self.evaluations_targets,
                 )
+                _atomic(Path(self.log_path + ".npz"), lambda tmp: np.savez(tmp, **arrays))
             self.seconds += time.perf_counter() - start
             returns = self.evaluations_results[-1] if self.evaluations_results else [np.nan]
             success = self.evaluations_successes[-1] if self.evaluations_successes else [np.nan]
@@ -950,7 +963,12 @@ def _make_callbacks(
 
         def _preload(self, path: Path, until: int) -> None:
             with np.load(path, allow_pickle=True) as data:
-                keep = [i for i, t in enumerate(data["timesteps"]) if t <= until]
+                # every evaluation has an entry in each array; a run cut mid-write can leave
+                # some arrays shorter, so keep only the evaluations that every array holds
+                names = ("timesteps", "results", "ep_lengths", "successes", "targets_captured")
+                present = [data[k] for k in names if k in data]
+                n = min(len(a) for a in present)
+                keep = [i for i in range(n) if data["timesteps"][i] <= until]
                 self.evaluations_timesteps = [int(data["timesteps"][i]) for i in keep]
                 self.evaluations_results = [list(data["results"][i]) for i in keep]
                 self.evaluations_length = [list(data["ep_lengths"][i]) for i in keep]

@@ -823,7 +823,7 @@ def memory_child(num_envs: int, env_id: str = ID_2D) -> dict[str, Any]:
     rss_steps = _rss_bytes()
     un = env.unwrapped
     arrays = []
-    for owner, obj in (("env", un), ("field", un._field)):
+    for owner, obj in (("env", un), ("missions", un._missions), ("field", un._field)):
         for name, value in vars(obj).items():
             if isinstance(value, np.ndarray):
                 arrays.append(

@@ -1,33 +1,29 @@
-"""Geometry of many debris fields at once, as padded numpy arrays (for the native vector env).
+"""Geometry of many debris fields at once (for the native vector env), in compiled loops.
 
 :class:`FieldBatch` holds N fields with the same number of bodies B (targets first, then
-obstacles, as :attr:`Scenario.bodies`). Its queries take one point or one path per field and
-answer for every body of every field in a handful of array operations, with no Python loop over
-fields or bodies. They give the same answers as :class:`debris_gym.geometry.FieldGeometry` (numpy
-clearance with the same formulas, pymunk swept checks); ``tests/test_vector_env.py`` holds the
-two together.
+obstacles, as :attr:`Scenario.bodies`) in flat numpy arrays. Its queries take one point or one
+path per field and answer for every body of every field in one call of a numba-compiled loop
+over fields and bodies (no Python loop, no temporaries the size of the batch). They give the
+same answers as :class:`debris_gym.geometry.FieldGeometry`: clearance with the same formulas,
+operation for operation (bit-identical), swept contacts and lidar equal to pymunk's;
+``tests/test_vector_env.py`` holds the two together.
 
 Storage is compact: polygon data exists only for the bodies from ``polygon_start`` on (targets
-are never polygons), five numbers per polygon edge (the start vertex relative to the body centre,
-the edge vector, and 1 / its squared length; the outward normal is (e_y, −e_x) / |e|). Polygons
-are padded to ``max_vertices`` by repeating their first edge, which changes none of the answers.
-The edge arrays keep the vertex axis in front of the field axes, so that reductions over a
-polygon's edges run along a long leading axis (numpy is slow at reducing short trailing ones).
+are never polygons), five numbers per polygon edge: the start vertex relative to the body centre
+(x, y), the edge vector (x, y) (m), and 1 / its squared length (1/m²). The outward normal of an
+edge e of a counter-clockwise polygon is (e_y, −e_x) / |e|.
 """
 
 from __future__ import annotations
 
+import math
+
+import numba
 import numpy as np
 
-from debris_gym.geometry import distance
 from debris_gym.scenario import Scenario
 
-# components of FieldBatch.edges
-_VX, _VY, _EX, _EY, _INV = range(5)
-_N_COMPONENTS = 5
-
-_CHUNK = 64
-"""Most fields whose edge arrays are built in one set of array operations."""
+_jit = numba.njit(cache=True, nogil=True)
 
 
 class FieldBatch:
@@ -43,17 +39,16 @@ class FieldBatch:
     Attributes:
         centers: (N, B, dim) body centres (m).
         radii: (N, B) bounding radii (m).
-        inradius: (N, B) radius of a disc about the centre inside each body (m): the radius
-            for circles and spheres, a hair under the largest such disc for polygons.
-        is_polygon: (N, B) True for 2D convex polygons.
         n_vertices: (N, P) vertex counts of bodies ``polygon_start …`` (0: not a polygon).
-        edges: (5, V, N, P) per polygon edge: start vertex relative to the centre (x, y), edge
-            vector (x, y) (m), 1 / squared edge length (1/m²); zero for non-polygons.
+        vertices: (N, P, V, 2) polygon vertices relative to the body centre (m), counter-
+            clockwise; slots past a polygon's count (and non-polygons) are zero.
     """
 
     def __init__(
         self, num: int, n_bodies: int, dim: int, max_vertices: int = 7, polygon_start: int = 0
     ) -> None:
+        if dim not in (2, 3):
+            raise ValueError(f"dim must be 2 or 3, got {dim!r}")
         if not 0 <= polygon_start <= n_bodies:
             raise ValueError(f"polygon_start must be in [0, {n_bodies}], got {polygon_start}")
         self.num, self.n_bodies, self.dim = num, n_bodies, dim
@@ -62,11 +57,15 @@ class FieldBatch:
         self.max_vertices = max_vertices if dim == 2 else 0
         self.centers = np.zeros((num, n_bodies, dim))
         self.radii = np.ones((num, n_bodies))
-        self.inradius = np.ones((num, n_bodies))
-        self.is_polygon = np.zeros((num, n_bodies), dtype=bool)
-        self.n_vertices = np.zeros((num, p), dtype=np.int16)
-        self.edges = np.zeros((_N_COMPONENTS, self.max_vertices, num, p))
-        self.any_polygon = False
+        self.n_vertices = np.zeros((num, p), dtype=np.int64)
+        self.vertices = np.zeros((num, p, self.max_vertices, 2))
+
+    @property
+    def is_polygon(self) -> np.ndarray:
+        """(N, B) True for 2D convex polygons."""
+        out = np.zeros((self.num, self.n_bodies), dtype=bool)
+        out[:, self.polygon_start :] = self.n_vertices > 0
+        return out
 
     # --- loading ------------------------------------------------------------------------------
 
@@ -121,132 +120,61 @@ class FieldBatch:
                 centres (m), counter-clockwise; slots past a polygon's count are ignored.
             n_vertices: (K, P) vertex counts, 0 for circles / spheres.
         """
-        rows = np.asarray(rows)
+        rows = np.asarray(rows, dtype=np.int64)
         self.centers[rows] = centers
         self.radii[rows] = radii
-        self.inradius[rows] = radii
-        if self.dim != 2:
+        if self.dim != 2 or self.n_vertices.shape[1] == 0:
             return
-        ps = self.polygon_start
-        if vertices.shape[2] > self.max_vertices:
-            self._grow_vertices(vertices.shape[2])
-        counts = np.asarray(n_vertices)
-        poly = counts > 0
-        self.is_polygon[rows, :ps] = False
-        self.is_polygon[rows, ps:] = poly
+        counts = np.asarray(n_vertices, dtype=np.int64)
+        if counts.max(initial=0) > self.max_vertices:
+            self._grow_vertices(int(counts.max()))
         self.n_vertices[rows] = counts
-        if vertices.shape[2]:
-            for i in range(0, len(rows), _CHUNK):  # in chunks: bounded temporaries
-                part = slice(i, i + _CHUNK)
-                records, inradius = _edge_records(
-                    vertices[part], counts[part], centers[part, ps:], self.max_vertices
-                )
-                self.edges[:, :, rows[part]] = records
-                self.inradius[rows[part], ps:] = np.where(poly[part], inradius, radii[part, ps:])
-        else:
-            self.edges[:, :, rows] = 0.0
-        self.any_polygon = bool(self.is_polygon.any())
+        _load_polygons(rows, np.ascontiguousarray(vertices, dtype=float), counts, self.vertices)
 
     def _grow_vertices(self, v: int) -> None:
-        """Make room for polygons of ``v`` vertices (the new slots repeat each first edge)."""
-        old = self.edges
-        extra = np.repeat(old[:, :1], v - old.shape[1], axis=1)
-        self.edges = np.concatenate([old, extra], axis=1)
+        """Make room for polygons of ``v`` vertices."""
+        old = self.vertices
+        self.vertices = np.zeros((*old.shape[:2], v, 2))
+        self.vertices[:, :, : old.shape[2]] = old
         self.max_vertices = v
 
     def vertex_arrays(self, i: int) -> tuple[np.ndarray, np.ndarray]:
         """Field ``i``'s polygon vertices relative to their centres (P, V, 2) and counts (P,)."""
-        return self.edges[_VX : _VY + 1, :, i].transpose(2, 1, 0), self.n_vertices[i]
+        return self.vertices[i], self.n_vertices[i]
 
-    def _records(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        """Edge arrays (5, V, C) of polygons (rows, cols) with *absolute* start vertices (m).
+    # --- queries ------------------------------------------------------------------------------
 
-        The start is computed as vertex + centre, exactly as :class:`FieldGeometry` does.
-        """
-        p = self.n_bodies - self.polygon_start
-        flat = rows * p + (cols - self.polygon_start)
-        rec = self.edges.reshape(_N_COMPONENTS, self.max_vertices, -1).take(flat, axis=2)
-        centres = self.centers.reshape(-1, self.dim).take(rows * self.n_bodies + cols, axis=0)
-        rec[_VX] += centres[:, 0]
-        rec[_VY] += centres[:, 1]
-        return rec
-
-    # --- clearance ----------------------------------------------------------------------------
-
-    def gaps(
-        self,
-        points: np.ndarray,
-        rows: np.ndarray | None = None,
-        nearest: int | None = None,
-        skip: int = 0,
-    ) -> np.ndarray:
+    def gaps(self, points: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         """Signed distance (m) from each field's point to its bodies, shape (len(rows), B).
+
+        Exact for every body: circles / spheres ``|p − c| − r``; convex polygons the distance to
+        the nearest edge outside, minus the depth behind the nearest edge line inside.
 
         Args:
             points: (N, dim) one point per field, or (len(rows), dim) with ``rows``.
             rows: fields to answer for (default: all).
-            nearest: if given, polygon distances are exact only where they can matter for the
-                ``nearest`` closest bodies from index ``skip`` on (and for bodies before ``skip``);
-                elsewhere the value is a lower bound (the bounding-circle distance). Circles and
-                spheres are always exact. Bodies are culled with [lower, upper] bounds from the
-                bounding and inscribed circles, so the ``nearest`` smallest values and their order
-                are the exact ones.
-            skip: see ``nearest`` (e.g. the number of targets).
         """
-        if rows is None:
-            centers, radii, field_rows = self.centers, self.radii, None
-        else:
-            rows = np.asarray(rows)
-            centers, radii, field_rows = self.centers[rows], self.radii[rows], rows
-        dist = distance(centers, points[:, None, :])
-        out = dist - radii
-        if not self.any_polygon:
-            return out
-        poly = self.is_polygon if rows is None else self.is_polygon[rows]
-        if nearest is not None and out.shape[1] - skip > nearest:
-            inradius = self.inradius if rows is None else self.inradius[rows]
-            upper = dist[:, skip:] - inradius[:, skip:]
-            bound = np.partition(upper, nearest - 1, axis=1)[:, nearest - 1]
-            needed = out <= bound[:, None]
-            needed[:, :skip] = True
-            poly = poly & needed
-        flat = np.flatnonzero(poly)
-        if flat.size:
-            r, c = np.divmod(flat, self.n_bodies)
-            body_rows = r if field_rows is None else field_rows[r]
-            out.reshape(-1)[flat] = self._polygon_gaps(points[r], body_rows, c)
+        rows = np.arange(self.num) if rows is None else np.asarray(rows, dtype=np.int64)
+        out = np.empty((len(rows), self.n_bodies))
+        _gaps(
+            np.ascontiguousarray(points, dtype=float),
+            rows,
+            self.centers,
+            self.radii,
+            self.polygon_start,
+            self.n_vertices,
+            self.vertices,
+            out,
+        )
         return out
-
-    def _polygon_gaps(self, pts: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        """Exact signed distance of points (C, 2) to polygons (rows, cols), shape (C,).
-
-        Outside: the distance to the nearest edge; inside: minus the depth. The same formula,
-        operation for operation, as :meth:`FieldGeometry.point_gaps`.
-        """
-        rec = self._records(rows, cols)  # (5, V, C)
-        ex, ey, inv = rec[_EX], rec[_EY], rec[_INV]
-        dx = np.subtract(pts[:, 0], rec[_VX], out=rec[_VX])
-        dy = np.subtract(pts[:, 1], rec[_VY], out=rec[_VY])
-        t = dx * ex
-        t += dy * ey
-        t *= inv
-        np.clip(t, 0.0, 1.0, out=t)
-        cx = dx - t * ex
-        cy = dy - t * ey
-        cx *= cx
-        cy *= cy
-        cx += cy
-        edge_dist = np.sqrt(cx.min(axis=0))
-        depth = dx * ey
-        depth -= dy * ex
-        depth *= np.sqrt(inv)
-        depth = depth.max(axis=0)
-        return np.where(depth > 0.0, edge_dist, depth)
-
-    # --- swept collision ----------------------------------------------------------------------
 
     def touched(self, paths: np.ndarray, start_gaps: np.ndarray, inflate: float) -> np.ndarray:
         """Which bodies each field's polyline touches (inflated by ``inflate``), shape (N, B).
+
+        Broad phase: the whole path lies within R = max_k |path[k] − path[0]| of its start, so
+        only bodies whose gap at the start is at most R + ``inflate`` are tested. Narrow phase:
+        segment-to-circle / sphere distance; for polygons an end point inside, an edge crossed,
+        or a segment-to-edge distance of at most ``inflate``.
 
         Args:
             paths: (N, K+1, dim) positions along each field's step (m).
@@ -254,55 +182,18 @@ class FieldBatch:
             inflate: distance added to every body (the chaser radius, m).
         """
         out = np.zeros((self.num, self.n_bodies), dtype=bool)
-        reach = distance(paths[:, 1:], paths[:, :1]).max(axis=1) + inflate
-        rows, cols = np.nonzero(start_gaps <= reach[:, None])  # broad phase
-        if rows.size == 0:
-            return out
-        a = paths[rows, :-1]  # (C, K, dim) segment starts
-        b = paths[rows, 1:]
-        poly = self.is_polygon[rows, cols]
-        hit = np.zeros(rows.size, dtype=bool)
-        circ = ~poly
-        if circ.any():
-            centre = self.centers[rows[circ], cols[circ]][:, None, :]
-            d = _point_segment_distance(centre, a[circ], b[circ])  # (Cc, K)
-            hit[circ] = (d <= self.radii[rows[circ], cols[circ]][:, None] + inflate).any(axis=1)
-        if poly.any():
-            hit[poly] = self._segments_touch_polygons(
-                a[poly], b[poly], rows[poly], cols[poly], inflate
-            )
-        out[rows[hit], cols[hit]] = True
+        _touched(
+            np.ascontiguousarray(paths, dtype=float),
+            np.ascontiguousarray(start_gaps, dtype=float),
+            float(inflate),
+            self.centers,
+            self.radii,
+            self.polygon_start,
+            self.n_vertices,
+            self.vertices,
+            out,
+        )
         return out
-
-    def _segments_touch_polygons(self, a, b, rows, cols, inflate: float) -> np.ndarray:
-        """Does any of the K segments a→b (C, K, 2) come within ``inflate`` of its polygon?"""
-        rec = self._records(rows, cols).transpose(2, 1, 0)[:, None]  # (C, 1, V, 5)
-        start = rec[..., _VX : _VY + 1]
-        edge = rec[..., _EX : _EY + 1]
-        p, q = a[:, :, None, :], b[:, :, None, :]  # (C, K, 1, 2)
-        # an end point inside the polygon (on the inner side of every edge)
-        inside_a = _cross(p - start, edge).max(axis=2) <= 0.0
-        inside_b = _cross(q - start, edge).max(axis=2) <= 0.0
-        # the segment crosses an edge (proper or touching intersection)
-        seg = q - p
-        end = start + edge
-        d1 = _cross(seg, start - p)
-        d2 = _cross(seg, end - p)
-        d3 = _cross(edge, p - start)
-        d4 = _cross(edge, q - start)
-        crosses = ((d1 * d2 <= 0.0) & (d3 * d4 <= 0.0)).any(axis=2)
-        touching = inside_a | inside_b | crosses
-        if inflate > 0.0:
-            # distance between the segment and the edges: end points to edges, vertices to segment
-            dist = np.minimum(
-                _point_segment_distance(p, start, end).min(axis=2),
-                _point_segment_distance(q, start, end).min(axis=2),
-            )
-            dist = np.minimum(dist, _point_segment_distance(start, p, q).min(axis=2))
-            touching |= dist <= inflate
-        return touching.any(axis=1)
-
-    # --- lidar --------------------------------------------------------------------------------
 
     def lidar(self, origins: np.ndarray, directions: np.ndarray, max_range: float) -> np.ndarray:
         """Range (m) along each ray to the first surface, capped at ``max_range``, (N, R).
@@ -312,87 +203,290 @@ class FieldBatch:
             directions: (R, dim) unit ray directions.
             max_range: sensor range (m).
         """
-        rel = self.centers - origins[:, None, :]  # (N, B, dim)
-        proj = np.einsum("rd,nbd->nrb", directions, rel)  # along-ray distance of closest approach
-        perp2 = (rel * rel).sum(axis=2)[:, None, :] - proj * proj
-        r2 = (self.radii * self.radii)[:, None, :]
-        half = np.sqrt(np.maximum(r2 - perp2, 0.0))
-        entry = proj - half
-        hit = (perp2 <= r2) & (proj + half >= 0.0)
-        circle_range = np.where(hit, np.maximum(entry, 0.0), np.inf)
-        if self.any_polygon:
-            ps = self.polygon_start
-            circle_range[:, :, ps:] = np.where(
-                self.is_polygon[:, None, ps:],
-                self._lidar_polygons(origins, directions),
-                circle_range[:, :, ps:],
-            )
-        return np.minimum(circle_range.min(axis=2), max_range)
-
-    def _lidar_polygons(self, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
-        """Ray → convex polygon entry distance (0 from inside, inf if missed), (N, R, P)."""
-        rec = self.edges.transpose(2, 3, 1, 0)[:, None]  # (N, 1, P, V, 5)
-        centres = self.centers[:, None, self.polygon_start :, None, :]
-        start = rec[..., _VX : _VY + 1] + centres  # (N, 1, P, V, 2)
-        edge = rec[..., _EX : _EY + 1]
-        o = origins[:, None, None, None, :]
-        d = directions[None, :, None, None, :]  # (1, R, 1, 1, 2)
-        denom = _cross(d, edge)  # (N, R, P, V)
-        w = start - o
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = _cross(w, edge) / denom  # along the ray
-            s = _cross(w, d) / denom  # along the edge
-        valid = (denom != 0.0) & (s >= 0.0) & (s <= 1.0) & (t >= 0.0)
-        entry = np.where(valid, t, np.inf).min(axis=3)
-        inside = _cross(o - start, edge).max(axis=3) <= 0.0  # (N, 1, P)
-        return np.where(inside, 0.0, entry)
+        out = np.empty((self.num, len(directions)))
+        _lidar(
+            np.ascontiguousarray(origins, dtype=float),
+            np.ascontiguousarray(directions, dtype=float),
+            float(max_range),
+            self.centers,
+            self.radii,
+            self.polygon_start,
+            self.n_vertices,
+            self.vertices,
+            out,
+        )
+        return out
 
 
-def _edge_records(
-    vertices: np.ndarray, counts: np.ndarray, centers: np.ndarray, v_out: int
-) -> tuple[np.ndarray, np.ndarray]:
-    """Edge arrays (5, v_out, K, P) and inscribed radii (K, P) of K × P polygons.
+# --- compiled loops ---------------------------------------------------------------------------
 
-    Args:
-        vertices: (K, P, V, 2) vertices relative to the centres (m), V <= v_out.
-        counts: (K, P) vertex counts (0: not a polygon; its arrays are zero).
-        centers: (K, P, 2) centres (m).
-        v_out: vertex slots per polygon.
+
+@_jit
+def _load_polygons(rows, vertices, counts, out):
+    """Copy relative vertices (K, P, V', 2) with counts (K, P) into ``out[rows]``, zero-padded."""
+    for k in range(rows.shape[0]):
+        i = rows[k]
+        for j in range(counts.shape[1]):
+            m = counts[k, j]
+            for v in range(out.shape[2]):
+                out[i, j, v, 0] = vertices[k, j, v, 0] if v < m else 0.0
+                out[i, j, v, 1] = vertices[k, j, v, 1] if v < m else 0.0
+
+
+@_jit
+def _edge(verts, v, m, cx, cy):
+    """Edge v of a polygon: absolute start (x0, y0) and edge vector (ex, ey), computed as
+    :class:`~debris_gym.geometry.FieldGeometry` does (vertex + centre, next − this)."""
+    w = v + 1 if v + 1 < m else 0
+    x0 = verts[v, 0] + cx
+    y0 = verts[v, 1] + cy
+    return x0, y0, (verts[w, 0] + cx) - x0, (verts[w, 1] + cy) - y0
+
+
+@_jit
+def polygon_gap(px, py, cx, cy, verts, m):
+    """Signed distance of (px, py) to one convex polygon (centre cx, cy; ``m`` vertices
+    ``verts`` (V, 2) relative to it, counter-clockwise).
+
+    The formula of :meth:`FieldGeometry.point_gaps`, operation for operation: outside (the
+    point is beyond some edge line) the distance to the nearest edge, inside minus the smallest
+    depth behind an edge line, (d × e) / |e|. The sign of (d × e) alone tells outside from
+    inside, so the depths are scaled by 1 / |e| only for a point inside.
     """
-    k, p, v = vertices.shape[:3]
-    if v < v_out:
-        vertices = np.concatenate([vertices, np.zeros((k, p, v_out - v, 2))], axis=2)
-    j = np.arange(v_out)
-    real = j < counts[..., None]  # (K, P, v_out)
-    absolute = vertices + centers[:, :, None, :]  # as FieldGeometry: vertex + position
-    following = np.where(j + 1 < counts[..., None], j + 1, 0)
-    edge = np.take_along_axis(absolute, following[..., None], axis=2) - absolute
-    ex, ey = edge[..., 0], edge[..., 1]
-    with np.errstate(divide="ignore"):
-        inv_len2 = 1.0 / (ex * ex + ey * ey)
-    records = np.stack([vertices[..., 0], vertices[..., 1], ex, ey, inv_len2])  # (5, K, P, V)
-    records = np.where(real, records, records[..., :1])  # padding: the first edge again
-    records[:, counts == 0] = 0.0
-    # depth of the centre behind each edge line (the centre is inside the polygon)
-    start = records[_VX : _VY + 1].transpose(1, 2, 3, 0) + centers[:, :, None]  # (K, P, V, 2)
-    rel = centers[:, :, None, :] - start
-    depth = (rel[..., 0] * records[_EY] - rel[..., 1] * records[_EX]) * np.sqrt(records[_INV])
-    inradius = np.maximum(-depth.max(axis=-1), 0.0) * (1.0 - 1e-9)  # never above the true one
-    return records.transpose(0, 3, 1, 2), inradius
+    best = math.inf
+    outside = False
+    for v in range(m):
+        x0, y0, ex, ey = _edge(verts, v, m, cx, cy)
+        dx = px - x0
+        dy = py - y0
+        t = dx * ex
+        t += dy * ey
+        t *= 1.0 / (ex * ex + ey * ey)
+        t = min(max(t, 0.0), 1.0)
+        qx = dx - t * ex
+        qy = dy - t * ey
+        d2 = qx * qx + qy * qy
+        if d2 < best:
+            best = d2
+        plane = dx * ey
+        plane -= dy * ex
+        if plane > 0.0:
+            outside = True
+    if outside:
+        return math.sqrt(best)
+    depth = -math.inf
+    for v in range(m):
+        x0, y0, ex, ey = _edge(verts, v, m, cx, cy)
+        plane = (px - x0) * ey
+        plane -= (py - y0) * ex
+        plane *= math.sqrt(1.0 / (ex * ex + ey * ey))
+        if plane > depth:
+            depth = plane
+    return depth
 
 
-def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """z-component of the 2D cross product over the last axis."""
-    return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+@_jit
+def field_gaps(point, i, centers, radii, polygon_start, n_vertices, vertices, out):
+    """Signed distance (m) from ``point`` (dim,) to every body of field ``i``, into ``out`` (B,)."""
+    dim = centers.shape[2]
+    for b in range(centers.shape[1]):
+        s = 0.0
+        for k in range(dim):
+            d = centers[i, b, k] - point[k]
+            s += d * d
+        out[b] = math.sqrt(s) - radii[i, b]
+    if dim == 2:
+        for j in range(n_vertices.shape[1]):
+            m = n_vertices[i, j]
+            if m:
+                b = polygon_start + j
+                out[b] = polygon_gap(
+                    point[0], point[1], centers[i, b, 0], centers[i, b, 1], vertices[i, j], m
+                )
 
 
-def _point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distance from points p to segments a→b (broadcast over leading axes; last axis = dim)."""
-    ab = b - a
-    ap = p - a
-    len2 = (ab * ab).sum(-1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = np.where(len2 > 0.0, (ap * ab).sum(-1) / len2, 0.0)
-    t = np.clip(t, 0.0, 1.0)
-    gap = ap - t[..., None] * ab
-    return np.sqrt((gap * gap).sum(-1))
+@_jit
+def _gaps(points, rows, centers, radii, polygon_start, n_vertices, vertices, out):
+    for r in range(rows.shape[0]):
+        field_gaps(points[r], rows[r], centers, radii, polygon_start, n_vertices, vertices, out[r])
+
+
+@_jit
+def _point_segment_distance(p, a, b, dim):
+    """Distance from point p to segment a→b (1-D arrays of length ``dim``)."""
+    len2 = 0.0
+    dot = 0.0
+    for k in range(dim):
+        ab = b[k] - a[k]
+        len2 += ab * ab
+        dot += (p[k] - a[k]) * ab
+    t = dot / len2 if len2 > 0.0 else 0.0
+    t = min(max(t, 0.0), 1.0)
+    s = 0.0
+    for k in range(dim):
+        g = (p[k] - a[k]) - t * (b[k] - a[k])
+        s += g * g
+    return math.sqrt(s)
+
+
+@_jit
+def _segment_distance_2d(px, py, ax, ay, bx, by):
+    """Distance from (px, py) to the segment (ax, ay) → (bx, by)."""
+    abx = bx - ax
+    aby = by - ay
+    apx = px - ax
+    apy = py - ay
+    len2 = abx * abx + aby * aby
+    t = (apx * abx + apy * aby) / len2 if len2 > 0.0 else 0.0
+    t = min(max(t, 0.0), 1.0)
+    gx = apx - t * abx
+    gy = apy - t * aby
+    return math.sqrt(gx * gx + gy * gy)
+
+
+@_jit
+def _segment_touches_polygon(ax, ay, bx, by, cx, cy, verts, m, inflate):
+    """Does the segment a→b come within ``inflate`` of the convex polygon (see
+    :func:`polygon_gap` for ``cx, cy, verts, m``)?"""
+    inside_a = -math.inf
+    inside_b = -math.inf
+    sx_ = bx - ax
+    sy_ = by - ay
+    for v in range(m):
+        x0, y0, ex, ey = _edge(verts, v, m, cx, cy)
+        # end points on the inner side of every edge: inside
+        inside_a = max(inside_a, (ax - x0) * ey - (ay - y0) * ex)
+        inside_b = max(inside_b, (bx - x0) * ey - (by - y0) * ex)
+        # the segment crosses this edge (proper or touching intersection)
+        x1 = x0 + ex
+        y1 = y0 + ey
+        d1 = sx_ * (y0 - ay) - sy_ * (x0 - ax)
+        d2 = sx_ * (y1 - ay) - sy_ * (x1 - ax)
+        d3 = ex * (ay - y0) - ey * (ax - x0)
+        d4 = ex * (by - y0) - ey * (bx - x0)
+        if d1 * d2 <= 0.0 and d3 * d4 <= 0.0:
+            return True
+        if inflate > 0.0:
+            # segment-to-edge distance: end points to the edge, the edge's start to the segment
+            if (
+                _segment_distance_2d(ax, ay, x0, y0, x1, y1) <= inflate
+                or _segment_distance_2d(bx, by, x0, y0, x1, y1) <= inflate
+                or _segment_distance_2d(x0, y0, ax, ay, bx, by) <= inflate
+            ):
+                return True
+    return inside_a <= 0.0 or inside_b <= 0.0
+
+
+@_jit
+def path_touches(
+    path, start_gaps, inflate, i, centers, radii, polygon_start, n_vertices, vertices, out
+):
+    """Which bodies of field ``i`` the polyline ``path`` (K+1, dim) touches, into ``out`` (B,).
+
+    ``start_gaps`` (B,) are the gaps at ``path[0]`` (the broad phase); bodies are inflated by
+    ``inflate`` (m).
+    """
+    n_points, dim = path.shape
+    reach = 0.0
+    for k in range(1, n_points):
+        s = 0.0
+        for a in range(dim):
+            d = path[k, a] - path[0, a]
+            s += d * d
+        reach = max(reach, math.sqrt(s))
+    reach += inflate
+    for b in range(centers.shape[1]):
+        out[b] = False
+        if not start_gaps[b] <= reach:  # broad phase
+            continue
+        j = b - polygon_start
+        m = n_vertices[i, j] if dim == 2 and j >= 0 else 0
+        if m:
+            cx, cy = centers[i, b, 0], centers[i, b, 1]
+            for k in range(n_points - 1):
+                if _segment_touches_polygon(
+                    path[k, 0], path[k, 1], path[k + 1, 0], path[k + 1, 1],
+                    cx, cy, vertices[i, j], m, inflate,
+                ):  # fmt: skip
+                    out[b] = True
+                    break
+        else:
+            limit = radii[i, b] + inflate
+            for k in range(n_points - 1):
+                if _point_segment_distance(centers[i, b], path[k], path[k + 1], dim) <= limit:
+                    out[b] = True
+                    break
+
+
+@_jit
+def _touched(paths, start_gaps, inflate, centers, radii, polygon_start, n_vertices, vertices, out):
+    for i in range(paths.shape[0]):
+        path_touches(
+            paths[i], start_gaps[i], inflate, i, centers, radii, polygon_start, n_vertices,
+            vertices, out[i],
+        )  # fmt: skip
+
+
+@_jit
+def ray_ranges(
+    origin, directions, max_range, i, centers, radii, polygon_start, n_vertices, vertices, out
+):
+    """Range (m) from ``origin`` along each direction (R, dim) to field ``i``'s first surface,
+    capped at ``max_range``, into ``out`` (R,)."""
+    n_bodies, dim = centers.shape[1], centers.shape[2]
+    for r in range(directions.shape[0]):
+        best = math.inf
+        for b in range(n_bodies):
+            j = b - polygon_start
+            m = n_vertices[i, j] if dim == 2 and j >= 0 else 0
+            if m:
+                entry = _ray_polygon(
+                    origin[0], origin[1], directions[r, 0], directions[r, 1],
+                    centers[i, b, 0], centers[i, b, 1], vertices[i, j], m,
+                )  # fmt: skip
+            else:
+                proj = 0.0
+                rel2 = 0.0
+                for a in range(dim):
+                    rel = centers[i, b, a] - origin[a]
+                    proj += directions[r, a] * rel
+                    rel2 += rel * rel
+                perp2 = rel2 - proj * proj
+                r2 = radii[i, b] * radii[i, b]
+                half = math.sqrt(max(r2 - perp2, 0.0))
+                entry = math.inf
+                if perp2 <= r2 and proj + half >= 0.0:
+                    entry = max(proj - half, 0.0)
+            best = min(best, entry)
+        out[r] = min(best, max_range)
+
+
+@_jit
+def _lidar(
+    origins, directions, max_range, centers, radii, polygon_start, n_vertices, vertices, out
+):
+    for i in range(origins.shape[0]):
+        ray_ranges(
+            origins[i], directions, max_range, i, centers, radii, polygon_start, n_vertices,
+            vertices, out[i],
+        )  # fmt: skip
+
+
+@_jit
+def _ray_polygon(ox, oy, dx, dy, cx, cy, verts, m):
+    """Distance along the ray o + t·d to a convex polygon's boundary (0 from inside, inf: miss);
+    see :func:`polygon_gap` for ``cx, cy, verts, m``."""
+    entry = math.inf
+    inside = -math.inf
+    for v in range(m):
+        x0, y0, ex, ey = _edge(verts, v, m, cx, cy)
+        inside = max(inside, (ox - x0) * ey - (oy - y0) * ex)
+        denom = dx * ey - dy * ex
+        if denom != 0.0:
+            wx = x0 - ox
+            wy = y0 - oy
+            t = (wx * ey - wy * ex) / denom
+            s = (wx * dy - wy * dx) / denom
+            if s >= 0.0 and s <= 1.0 and t >= 0.0 and t < entry:
+                entry = t
+    return 0.0 if inside <= 0.0 else entry

@@ -20,6 +20,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 import scipy.ndimage
 
@@ -350,165 +351,167 @@ def _draw_fields(u: np.ndarray, spec: FieldSpec):
         placed (K,))``; ``placed`` is False where some body found no valid candidate (the rest
         of that row is then meaningless).
     """
-    num, dim = u.shape[0], spec.dim
-    t, o = spec.n_targets, spec.n_obstacles
-    b_all = t + o
-    radii = np.empty((num, b_all))
-    (lo, hi), (olo, ohi) = spec.target_radius, spec.obstacle_radius
-    radii[:, :t] = lo + (hi - lo) * u[:, :t]
-    radii[:, t:] = olo + (ohi - olo) * u[:, t:b_all]
-    k = b_all
-    if dim == 2:
-        polygon = u[:, k : k + o] < spec.polygon_fraction
-        k += o
-        shape = u[:, k : k + o * _POLYGON_DRAWS].reshape(num, o, _POLYGON_DRAWS)
-        k += o * _POLYGON_DRAWS
-        vertices, n_vertices = _convex_polygons(shape, radii[:, t:])
-        n_vertices[~polygon] = 0
-        vertices[~polygon] = 0.0
-    else:
-        vertices = np.zeros((num, o, 0, 2))
-        n_vertices = np.zeros((num, o), dtype=np.int64)
-
-    # candidates uniform in the box that keeps min_gap to the bounds
-    lim = spec.field_size / 2.0 - radii - spec.min_gap  # (K, B)
-    cand = u[:, k:].reshape(num, b_all, -1, dim) * 2.0 - 1.0
-    cand *= lim[:, :, None, None]
-    spacing = np.full(b_all, float(spec.min_gap))  # free gap each body demands around itself
-    spacing[:t] += spec.target_clearance
-    min_dock = np.full(b_all, spec.dock_clearance)
-    min_dock[:t] = max(spec.min_target_distance, spec.dock_clearance)
-    reach = min_dock + radii
-    valid = np.einsum("kbcd,kbcd->kbc", cand, cand) >= (reach * reach)[:, :, None]
-    valid &= (lim > 0.0)[:, :, None]
+    min_dock = (spec.dock_clearance, max(spec.min_target_distance, spec.dock_clearance))
+    radii, vertices, n_vertices, cand, valid, spacing = _decode(
+        np.ascontiguousarray(u), spec.dim, spec.n_targets, spec.n_obstacles,
+        *spec.target_radius, *spec.obstacle_radius, spec.polygon_fraction, spec.field_size,
+        spec.min_gap, spec.target_clearance, *min_dock,
+    )  # fmt: skip
     centers, placed = _place(cand, valid, radii, spacing)
     return centers, radii, vertices, n_vertices, placed
 
 
-_WINDOW = 4
-"""Candidates per body tested first (the rest only where none of these is valid)."""
+@numba.njit(cache=True, nogil=True)
+def _decode(
+    u, dim, t, o, target_lo, target_hi, obstacle_lo, obstacle_hi, polygon_fraction, field_size,
+    min_gap, target_clearance, obstacle_dock, target_dock,
+):  # fmt: skip
+    """Radii, polygons and candidate positions of K fields from their blocks ``u``.
 
-_ROUNDS = 4
-"""Most simultaneous rounds of :func:`_place` before it finishes one body after another."""
+    Block layout: B radii (targets first), then in 2D O polygon flags and O × 10 polygon shape
+    numbers, then B × C × dim candidate coordinates. Candidates are uniform in the box that
+    keeps ``min_gap`` to the bounds; ``valid`` marks those at least the body's dock distance
+    (``target_dock`` / ``obstacle_dock``) plus its radius from the dock at the origin.
+
+    Returns:
+        ``radii (K, B), vertices (K, O, V, 2), n_vertices (K, O), cand (K, B, C, dim),
+        valid (K, B, C), spacing (B,)`` (the free gap each body demands around itself).
+    """
+    num = u.shape[0]
+    b_all = t + o
+    radii = np.empty((num, b_all))
+    v_max = MAX_POLYGON_VERTICES if dim == 2 else 0
+    vertices = np.zeros((num, o, v_max, 2))
+    n_vertices = np.zeros((num, o), dtype=np.int64)
+    start = b_all + (o * (1 + _POLYGON_DRAWS) if dim == 2 else 0)
+    n_cand = (u.shape[1] - start) // (b_all * dim)
+    cand = np.empty((num, b_all, n_cand, dim))
+    valid = np.empty((num, b_all, n_cand), dtype=np.bool_)
+    spacing = np.full(b_all, float(min_gap))
+    for b in range(t):
+        spacing[b] += target_clearance
+    for k in range(num):
+        for b in range(b_all):
+            if b < t:
+                radii[k, b] = target_lo + (target_hi - target_lo) * u[k, b]
+            else:
+                radii[k, b] = obstacle_lo + (obstacle_hi - obstacle_lo) * u[k, b]
+        if dim == 2:
+            for j in range(o):
+                if u[k, b_all + j] < polygon_fraction:
+                    first = b_all + o + j * _POLYGON_DRAWS
+                    n_vertices[k, j] = _convex_polygon(
+                        u[k, first : first + _POLYGON_DRAWS], radii[k, t + j], vertices[k, j]
+                    )
+        for b in range(b_all):
+            lim = field_size / 2.0 - radii[k, b] - min_gap
+            reach = (target_dock if b < t else obstacle_dock) + radii[k, b]
+            for c in range(n_cand):
+                norm2 = 0.0
+                for a in range(dim):
+                    x = (u[k, start + (b * n_cand + c) * dim + a] * 2.0 - 1.0) * lim
+                    cand[k, b, c, a] = x
+                    norm2 += x * x
+                valid[k, b, c] = norm2 >= reach * reach and lim > 0.0
+    return radii, vertices, n_vertices, cand, valid, spacing
 
 
+@numba.njit(cache=True, nogil=True)
 def _place(
     cand: np.ndarray, valid: np.ndarray, radii: np.ndarray, spacing: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Put every body at its first candidate that is valid against the bodies before it.
 
-    Body b's choice depends only on the final positions of bodies 0 … b-1. So first, for a few
-    rounds, every body chooses at once (among its first :data:`_WINDOW` candidates) against the
-    others' current choices; a body is final once every body before it is final and was
-    unchanged by the round. Sparse fields are done in 1-3 rounds, each one set of array
-    operations for the whole batch. Fields left unfinished are completed one body at a time from
-    their first non-final body. The result is the one-after-another placement either way.
+    Bodies are placed one after another (a compiled loop over fields, bodies and candidates):
+    body b takes its first candidate that passes ``valid`` and keeps, to every body j < b
+    already placed, a centre distance of at least r_b + r_j + max(spacing_b, spacing_j)
+    (compared squared).
 
     Args:
         cand: (K, B, C, dim) candidate centres (m).
         valid: (K, B, C) candidates that pass the checks not involving other bodies.
         radii: (K, B) body radii (m).
-        spacing: (B,) free gap each body demands (m); two bodies' centres must be at least
-            their radii plus the larger of their spacings apart.
+        spacing: (B,) free gap each body demands (m).
 
     Returns:
         ``(centers (K, B, dim), placed (K,))``; ``placed`` is False where some body has no valid
-        candidate.
+        candidate (the rest of that row is then meaningless).
     """
     num, n_bodies, n_cand, dim = cand.shape
-    bodies = np.arange(n_bodies)
-    choice = np.zeros((num, n_bodies), dtype=np.intp)
-    final = np.zeros(num, dtype=np.intp)  # bodies 0 … final-1 are placed for good
-    rows = np.arange(num)
-    s = min(_WINDOW, n_cand)
-
-    def need2(idx: np.ndarray, b: int) -> np.ndarray:  # (R, b): body b to bodies 0 … b-1
-        need = radii[idx, b, None] + radii[idx, :b] + np.maximum(spacing[b], spacing[:b])
-        return need * need
-
-    rounds = _ROUNDS if n_bodies <= 64 else 0
-    if rounds:  # (K, B, B); only bodies placed before b constrain b (a zero need never binds)
-        need_all = radii[:, :, None] + radii[:, None, :] + np.maximum.outer(spacing, spacing)
-        need_all *= need_all * np.tri(n_bodies, k=-1)
-    for _ in range(rounds):
-        pos = cand[rows[:, None], bodies, choice[rows]]  # (R, B, dim)
-        ok = valid[rows, :, :s] & _clear(
-            cand[rows, :, :s], pos[:, None], need_all[rows]
-        )  # (R, B, S)
-        found = ok.any(axis=2)
-        new = ok.argmax(axis=2)
-        # final: up to the first body without a valid candidate in the window (unknown yet),
-        # or up to and including the first body whose choice changed
-        unsettled = bodies >= final[rows, None]
-        first_miss = np.where(~found & unsettled, bodies, n_bodies).min(axis=1)
-        changed = np.where((new != choice[rows]) & unsettled, bodies + 1, n_bodies).min(axis=1)
-        final[rows] = np.minimum(first_miss, changed)
-        choice[rows] = np.where(found, new, choice[rows])
-        rows = rows[final[rows] < n_bodies]
-        if rows.size == 0:
-            break
-    centers = cand[np.arange(num)[:, None], bodies, choice]
-    placed = np.ones(num, dtype=bool)
-    for b in range(int(final.min()), n_bodies):
-        idx = np.flatnonzero(placed & (final <= b))
-        if idx.size == 0:
-            continue
-        need = need2(idx, b)
-        ok = valid[idx, b, :s] & _clear(cand[idx, b, :s], centers[idx, :b], need)
-        found = ok.any(axis=1)
-        first = ok.argmax(axis=1)
-        miss = np.flatnonzero(~found)
-        if miss.size:  # no valid candidate in the window: test them all
-            m = idx[miss]
-            ok = valid[m, b] & _clear(cand[m, b], centers[m, :b], need[miss])
-            found[miss] = ok.any(axis=1)
-            first[miss] = ok.argmax(axis=1)
-        centers[idx, b] = cand[idx, b, first]
-        placed[idx[~found]] = False
+    centers = np.zeros((num, n_bodies, dim))
+    placed = np.ones(num, dtype=np.bool_)
+    for k in range(num):
+        for b in range(n_bodies):
+            found = False
+            for c in range(n_cand):
+                if not valid[k, b, c]:
+                    continue
+                clear = True
+                for j in range(b):
+                    need = radii[k, b] + radii[k, j] + max(spacing[b], spacing[j])
+                    dist2 = 0.0
+                    for a in range(dim):
+                        delta = cand[k, b, c, a] - centers[k, j, a]
+                        dist2 += delta * delta
+                    if dist2 < need * need:
+                        clear = False
+                        break
+                if clear:
+                    for a in range(dim):
+                        centers[k, b, a] = cand[k, b, c, a]
+                    found = True
+                    break
+            if not found:
+                placed[k] = False
+                break
     return centers, placed
 
 
-def _clear(points: np.ndarray, centres: np.ndarray, need2: np.ndarray) -> np.ndarray:
-    """True where a point keeps its squared distance ``need2`` to every centre, (…, S).
+@numba.njit(cache=True, nogil=True)
+def _convex_polygon(shape, radius, out):
+    """A CCW convex polygon from 10 uniform numbers ``shape``, no rejection; returns its count.
 
-    Args:
-        points: (…, S, dim) candidate points.
-        centres: (…, J, dim) placed centres.
-        need2: (…, J) squared smallest distance to each centre (0: no constraint).
-    """
-    dist2 = 0.0
-    for axis in range(points.shape[-1]):
-        delta = points[..., :, None, axis] - centres[..., None, :, axis]
-        dist2 = dist2 + delta * delta
-    return ~(dist2 < need2[..., None, :]).any(axis=-1)
-
-
-def _convex_polygons(shape: np.ndarray, radius: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """CCW convex polygons from uniform numbers, no rejection: (…, V, 2) vertices and counts.
-
-    Per polygon, ``shape[..., 0]`` picks 3 to 7 vertices; they sit on the unit circle at evenly
-    spaced angles, each moved by at most ± ``ANGLE_JITTER`` / 2 of the spacing
-    (``shape[..., 1:8]``), so consecutive angles stay strictly increasing and every gap is below
-    1.3 · 2π/3 < π: the polygon is strictly convex, counter-clockwise, and holds the centre
-    strictly inside. An affine squash of x into [0.5, 1) (``shape[..., 8]``) and a rotation
-    (``shape[..., 9]``) keep all of that; the result is scaled so its largest vertex distance
-    (circumradius) is ``radius``. Unused vertex slots repeat the first vertex.
+    ``shape[0]`` picks 3 to 7 vertices; they sit on the unit circle at evenly spaced angles,
+    each moved by at most ± ``ANGLE_JITTER`` / 2 of the spacing (``shape[1:8]``), so
+    consecutive angles stay strictly increasing and every gap is below 1.3 · 2π/3 < π: the
+    polygon is strictly convex, counter-clockwise, and holds the centre strictly inside. An
+    affine squash of x into [0.5, 1) (``shape[8]``) and a rotation (``shape[9]``) keep all of
+    that; the result is scaled so its largest vertex distance (circumradius) is ``radius`` (m).
+    The vertices go into ``out`` (V, 2); unused slots repeat the first vertex.
     """
     v = MAX_POLYGON_VERTICES
-    count = 3 + np.minimum((shape[..., 0] * (v - 2)).astype(np.int64), v - 3)
+    count = 3 + min(int(shape[0] * (v - 2)), v - 3)
     spacing = 2.0 * np.pi / count
-    j = np.arange(v)
-    angles = (j + ANGLE_JITTER * (shape[..., 1 : 1 + v] - 0.5)) * spacing[..., None]
-    angles = np.where(j < count[..., None], angles, angles[..., :1])
-    squash = 0.5 + 0.5 * shape[..., 1 + v]
-    rot = 2.0 * np.pi * shape[..., 2 + v]
-    x = np.cos(angles) * squash[..., None]
-    y = np.sin(angles)
-    c, s = np.cos(rot)[..., None], np.sin(rot)[..., None]
-    px, py = x * c - y * s, x * s + y * c
-    scale = radius / np.sqrt(px * px + py * py).max(axis=-1)
-    vertices = np.stack([px, py], axis=-1) * scale[..., None, None]
-    return vertices, count
+    squash = 0.5 + 0.5 * shape[1 + v]
+    rot = 2.0 * np.pi * shape[2 + v]
+    c, s = np.cos(rot), np.sin(rot)
+    far = 0.0
+    for j in range(count):
+        angle = (j + ANGLE_JITTER * (shape[1 + j] - 0.5)) * spacing
+        x = np.cos(angle) * squash
+        y = np.sin(angle)
+        out[j, 0] = x * c - y * s
+        out[j, 1] = x * s + y * c
+        far = max(far, np.sqrt(out[j, 0] * out[j, 0] + out[j, 1] * out[j, 1]))
+    scale = radius / far
+    for j in range(v):
+        if j < count:
+            out[j, 0] *= scale
+            out[j, 1] *= scale
+        else:
+            out[j, 0] = out[0, 0]
+            out[j, 1] = out[0, 1]
+    return count
+
+
+@numba.njit(cache=True, nogil=True)
+def _convex_polygons(shape, radius):
+    """:func:`_convex_polygon` for K polygons: (K, V, 2) vertices and (K,) counts."""
+    vertices = np.zeros((shape.shape[0], MAX_POLYGON_VERTICES, 2))
+    counts = np.zeros(shape.shape[0], dtype=np.int64)
+    for k in range(shape.shape[0]):
+        counts[k] = _convex_polygon(shape[k], radius[k], vertices[k])
+    return vertices, counts
 
 
 @functools.cache

@@ -1,13 +1,26 @@
 """Thrust models: from a normalised action to a commanded acceleration and the Δv it costs.
 
-Both functions work on one action (d,) or a batch (..., d); no gymnasium import.
+Both functions work on one action (d,) or a batch (..., d); no gymnasium import. The formulas
+live in the compiled row functions :func:`thrust_row` and :func:`delta_v_rate_row`, which the
+envs' compiled step (:mod:`debris_gym.mission_batch`) calls directly.
 """
 
 from __future__ import annotations
 
+import math
+
+import numba
 import numpy as np
 
 THRUST_MODELS = ("ball", "box")
+
+_jit = numba.njit(cache=True, nogil=True)
+
+
+def _is_box(model: str) -> bool:
+    if model not in THRUST_MODELS:
+        raise ValueError(f"thrust_model must be one of {THRUST_MODELS}, got {model!r}")
+    return model == "box"
 
 
 def commanded_accel(action: np.ndarray, max_accel: float, model: str) -> np.ndarray:
@@ -19,13 +32,12 @@ def commanded_accel(action: np.ndarray, max_accel: float, model: str) -> np.ndar
         max_accel: thrust limit (m/s²).
         model: "box" (independent per-axis thrusters) or "ball" (one gimballed engine).
     """
+    box = _is_box(model)
     a = np.asarray(action, dtype=float)
-    if model == "box":
-        return max_accel * np.clip(a, -1.0, 1.0)
-    if model == "ball":
-        norm = np.sqrt((a * a).sum(axis=-1, keepdims=True))
-        return max_accel * a / np.maximum(norm, 1.0)
-    raise ValueError(f"thrust_model must be one of {THRUST_MODELS}, got {model!r}")
+    rows = np.ascontiguousarray(a.reshape(-1, a.shape[-1]))
+    out = np.empty_like(rows)
+    _commanded_rows(rows, float(max_accel), box, out)
+    return out.reshape(a.shape)
 
 
 def delta_v_rate(accel: np.ndarray, model: str) -> np.ndarray:
@@ -34,9 +46,46 @@ def delta_v_rate(accel: np.ndarray, model: str) -> np.ndarray:
     "ball": ‖u‖ (one engine); "box": Σ|u_i| (each axis fires its own thruster). Multiply by the
     step length to get the Δv of a step.
     """
+    box = _is_box(model)
     u = np.asarray(accel, dtype=float)
-    if model == "box":
-        return np.abs(u).sum(axis=-1)
-    if model == "ball":
-        return np.sqrt((u * u).sum(axis=-1))
-    raise ValueError(f"thrust_model must be one of {THRUST_MODELS}, got {model!r}")
+    rows = np.ascontiguousarray(u.reshape(-1, u.shape[-1]))
+    out = np.empty(rows.shape[0])
+    _rate_rows(rows, box, out)
+    return out.reshape(u.shape[:-1])
+
+
+@_jit
+def thrust_row(action, max_accel, box, out):
+    """Commanded acceleration (m/s²) of one normalised action into ``out`` (d,)."""
+    d = action.shape[0]
+    if box:
+        for k in range(d):
+            out[k] = max_accel * min(max(action[k], -1.0), 1.0)
+        return
+    s = 0.0
+    for k in range(d):
+        s += action[k] * action[k]
+    scale = max(math.sqrt(s), 1.0)
+    for k in range(d):
+        out[k] = max_accel * action[k] / scale
+
+
+@_jit
+def delta_v_rate_row(u, box):
+    """Δv rate (m/s²) of one acceleration (d,): Σ|u_i| for "box", ‖u‖ for "ball"."""
+    s = 0.0
+    for k in range(u.shape[0]):
+        s += abs(u[k]) if box else u[k] * u[k]
+    return s if box else math.sqrt(s)
+
+
+@_jit
+def _commanded_rows(actions, max_accel, box, out):
+    for k in range(actions.shape[0]):
+        thrust_row(actions[k], max_accel, box, out[k])
+
+
+@_jit
+def _rate_rows(accels, box, out):
+    for k in range(accels.shape[0]):
+        out[k] = delta_v_rate_row(accels[k], box)

@@ -160,7 +160,7 @@ def test_memory_row(bench, all_rows):
     assert _finite_positive(row["array_bytes_per_env"])
     assert _finite_positive(row["obs_buffer_bytes_per_env"])
     names = {(a["owner"], a["name"]) for a in row["arrays"]}
-    assert {("field", "centers"), ("env", "_state"), ("env", "_obs")} <= names
+    assert {("field", "centers"), ("missions", "state"), ("env", "_obs")} <= names
     assert [a["nbytes"] for a in row["arrays"]] == sorted(
         (a["nbytes"] for a in row["arrays"]), reverse=True
     )
@@ -175,7 +175,7 @@ def test_memory_child_counts_every_array(bench):
     assert out["num_envs"] == 2 and out["n_bodies"] >= 21
     obs = [a for a in out["arrays"] if a["observation_buffer"]]
     assert [a["name"] for a in obs] == ["_obs"]
-    # every field array is per sub-env (FieldBatch.edges keeps its vertex axes in front)
+    # every field array is per sub-env
     assert all(2 in a["shape"] for a in out["arrays"] if a["owner"] == "field")
     assert out["rss_after_reset"] > 0
 

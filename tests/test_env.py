@@ -552,3 +552,36 @@ def test_leaving_a_target_after_gentle_contact_is_not_a_collision():
     env.reset(seed=0, options={"scenario": scen, "chaser_state": [30.0, 0.0, 2.0, 0.0]})
     _, _, terminated, _, info = env.step(np.zeros(2, dtype=np.float32))
     assert info["collision"] and terminated
+
+
+def test_thrusting_into_a_target_from_rest_is_a_collision():
+    """Regression: a chaser at rest in gentle contact that thrusts into the target is in a
+    collision, also when the step ends past the target's centre (it was not: the rule only
+    looked at the velocities at the two ends of the step)."""
+    scen = simple_scenario(
+        targets=(
+            Body(position=(50.0, 0.0), radius=5.0, velocity=(0.0, 0.0)),
+            Body(position=(-300.0, 0.0), radius=5.0, velocity=(0.0, 0.0)),
+        ),
+        obstacles=(),
+        max_accel=0.1,
+    )
+    env = DebrisFieldEnv(delta_v_budget=None)
+    for thrust in (0.6, 1.0):  # ends closing in at 0.6 m/s; ends past the centre at 1 m/s
+        env.reset(seed=0, options={"scenario": scen, "chaser_state": [43.5, 0.0, 0.2, 0.0]})
+        _, _, _, _, info = env.step(np.zeros(2, dtype=np.float32))  # drifts into gentle contact
+        assert info["targets_captured"] == 1 and not info["collision"]
+        _, _, _, _, info = env.step(np.array([-0.2, 0.0], dtype=np.float32))  # brakes to rest
+        assert not info["collision"] and abs(info["chaser_state"][2]) < 1e-6  # float32 action
+        _, _, terminated, _, info = env.step(np.array([thrust, 0.0], dtype=np.float32))
+        assert info["collision"] and terminated, thrust
+
+
+def test_capture_at_just_under_capture_speed():
+    """Capture needs speed <= capture_speed (0.5 m/s) — 0.48 m/s counts, 0.52 m/s does not."""
+    scen = simple_scenario()
+    for speed, captured in ((0.48, 1), (0.52, 0)):
+        env = DebrisFieldEnv(delta_v_budget=None)
+        env.reset(options={"scenario": scen, "chaser_state": [0.0, 86.0, 0.0, speed]})
+        _, _, _, _, info = env.step(np.zeros(2, dtype=np.float32))  # to ~4 m from the surface
+        assert info["targets_captured"] == captured and not info["collision"], speed

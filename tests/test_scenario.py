@@ -266,7 +266,7 @@ def sequential_placement(cand, valid, radii, spacing):
         FieldSpec(n_obstacles=70, field_size=1500.0),  # one body after another only
     ],
 )
-def test_simultaneous_placement_equals_one_body_after_another(spec, monkeypatch):
+def test_compiled_placement_equals_one_body_after_another(spec, monkeypatch):
     seen = {}
     place = generators._place
 

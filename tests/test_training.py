@@ -191,6 +191,27 @@ def test_resume_adds_timesteps(trained_by_script, train_cli, tmp_path, capsys):
     assert steps == sorted(steps) and steps[0] < before < steps[-1] == after
 
 
+def test_resume_survives_an_evaluation_log_cut_short(trained_by_script, tmp_path):
+    """Regression: a run stopped mid-evaluation left evaluations.npz with fewer ``successes``
+    than ``timesteps``, and ``--resume`` failed with an IndexError."""
+    out = tmp_path / "run"
+    shutil.copytree(trained_by_script("ppo"), out)
+    with np.load(out / "evaluations.npz", allow_pickle=True) as data:
+        arrays = {k: data[k] for k in data.files}
+    assert len(arrays["timesteps"]) >= 2
+    arrays["successes"] = arrays["successes"][:-1]
+    np.savez(out / "evaluations.npz", **arrays)
+    before = tr.model_timesteps(out / "model.zip")
+    proc = run_train(["--resume", str(out), "--timesteps", "128", "--no-progress"])
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    with np.load(out / "evaluations.npz", allow_pickle=True) as data:
+        lengths = {k: len(data[k]) for k in data.files}
+        steps = list(data["timesteps"])
+    assert len(set(lengths.values())) == 1, lengths  # every array has every evaluation
+    assert steps[-1] >= before + 128
+    assert not list(out.glob(".evaluations*"))  # no scratch or temporary files left
+
+
 def test_ctrl_c_leaves_a_checkpoint_that_resumes(tmp_path):
     out = tmp_path / "run"
     args = [a if a != "256" else "10000000" for a in tiny_args("ppo")]  # far too long to finish

@@ -1,0 +1,623 @@
+"""N rendezvous missions as arrays, stepped by compiled loops: the core of both environments.
+
+:class:`MissionBatch` holds everything that changes during an episode — chaser states, clocks,
+captures, collision / bounds / success flags, the gaps to every body, the shaping potential —
+for N missions, plus their fields (a :class:`~debris_gym.batch_geometry.FieldBatch`). Its
+:meth:`~MissionBatch.step` runs one decision step of every live mission in one numba-compiled
+loop: exact propagation with the cached CWH matrices of :mod:`debris_gym.dynamics`, the swept
+collision check along the sampled path, captures, collision and bounds, success, the shaping
+potential and the named reward terms; :meth:`~MissionBatch.observe` writes the observations.
+
+The single env (:class:`~debris_gym.envs.DebrisFieldEnv`) is a batch of one and the native
+vector env a batch of N, so both run this one implementation of the rules. The rules are those
+of ``docs/environments.md``; ``tests/test_mission_batch.py`` holds them to an independent
+reference (numpy and pymunk, one env at a time). No gymnasium import.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from debris_gym.batch_geometry import FieldBatch, path_touches, polygon_gap, ray_ranges
+from debris_gym.config import EnvConfig
+from debris_gym.dynamics import discretize, substep_position_matrix
+from debris_gym.generators import MAX_POLYGON_VERTICES
+from debris_gym.geometry import lidar_directions
+from debris_gym.rewards import REWARD_TERMS
+from debris_gym.thrust import delta_v_rate_row, thrust_row
+
+# --- packed parameters of the compiled loops ---------------------------------------------------
+
+# float parameters (MissionBatch.params)
+_DT, _CHASER_R, _CAPTURE_R, _CAPTURE_V, _BUDGET, _GAMMA = range(6)
+_W_CAPTURE, _W_SUCCESS, _W_PROGRESS, _W_DV, _W_COLLISION, _W_OOB, _W_TIME = range(6, 13)
+_LIDAR_RANGE, _MAX_ACCEL = 13, 14
+_N_PARAMS = 15
+
+# integer options (MissionBatch.options)
+_QUEUED, _RETURN, _TERMINAL_ZERO, _LIDAR, _OBS_TARGETS, _OBS_OBSTACLES, _MAX_STEPS, _BOX = range(8)
+_N_OPTIONS = 8
+
+# reward term columns, in REWARD_TERMS order
+_T_CAPTURE, _T_SUCCESS, _T_PROGRESS, _T_DV, _T_COLLISION, _T_OOB, _T_TIME = range(7)
+assert REWARD_TERMS == (
+    "capture", "success", "progress", "delta_v", "collision", "out_of_bounds", "time"
+)  # fmt: skip
+
+OBS_LIMIT = 10.0
+"""Observation values are normalised to about [−1, 1] and clipped to ±OBS_LIMIT."""
+
+_jit = numba.njit(cache=True, nogil=True)
+
+
+class MissionBatch:
+    """N missions with the same rules, physics and number of bodies.
+
+    Args:
+        cfg: the env configuration (rules, weights, observation layout).
+        num: number of missions N.
+        n_targets: targets per field T (the first T bodies).
+        n_bodies: bodies per field B (targets and obstacles).
+        mean_motion: n (rad/s), ``dt`` (s), ``max_accel`` (m/s²): the fields' physics.
+        polygon_start: first body index that may be a convex polygon (default: T).
+        max_episode_steps: truncation limit per episode, or None (the single env leaves it to
+            gymnasium's ``TimeLimit``).
+
+    Per-mission arrays (row i = mission i; SI units): ``state`` (N, 2·dim) LVLH position and
+    velocity, ``time`` (N,) s, ``steps`` (N,), ``delta_v`` (N,) m/s spent, ``captured`` (N, T),
+    ``collision`` / ``out_of_bounds`` / ``success`` (N,), ``gaps`` (N, B) signed distance from
+    the chaser's centre to every body (m), ``min_clearance`` (N,) smallest obstacle gap so far
+    (m, chaser radius not subtracted), ``potential`` (N,) Φ, ``accel`` (N, dim) last commanded
+    acceleration (m/s²); per field: ``dock``, ``low``, ``high`` (N, dim) m, ``length_scale``
+    (N,) m and ``speed_scale`` (N,) m/s (the observation's L and V).
+    """
+
+    def __init__(
+        self,
+        cfg: EnvConfig,
+        num: int,
+        n_targets: int,
+        n_bodies: int,
+        *,
+        mean_motion: float,
+        dt: float,
+        max_accel: float,
+        polygon_start: int | None = None,
+        max_episode_steps: int | None = None,
+    ) -> None:
+        n, d, t = num, cfg.dim, n_targets
+        self.config = cfg
+        self.num, self.dim, self.n_targets = n, d, t
+        self.physics = (mean_motion, dt, max_accel)
+        start = t if polygon_start is None else polygon_start
+        self.field = FieldBatch(n, n_bodies, d, MAX_POLYGON_VERTICES, polygon_start=start)
+        model = discretize(mean_motion, dt, d)
+        sub = substep_position_matrix(mean_motion, dt, d, cfg.collision_substeps)
+        # one matrix maps [x₀, u] to the sub-step positions (the last is the end position)
+        # followed by the end velocity
+        end_velocity = np.hstack([model.ad[d:], model.bd[d:]])
+        self.step_matrix_t = np.ascontiguousarray(np.vstack([sub, end_velocity]).T)
+        budget = math.inf if cfg.delta_v_budget is None else cfg.delta_v_budget
+        params = np.zeros(_N_PARAMS)
+        params[[_DT, _CHASER_R, _CAPTURE_R, _CAPTURE_V, _BUDGET, _GAMMA]] = (
+            dt, cfg.chaser_radius, cfg.capture_radius, cfg.capture_speed, budget,
+            cfg.shaping_gamma,
+        )  # fmt: skip
+        params[_W_CAPTURE : _W_TIME + 1] = [getattr(cfg, f"reward_{k}") for k in REWARD_TERMS]
+        params[_LIDAR_RANGE] = cfg.lidar_range
+        params[_MAX_ACCEL] = max_accel
+        self.params = params
+        options = np.zeros(_N_OPTIONS, dtype=np.int64)
+        options[_QUEUED] = cfg.target_order == "queued"
+        options[_RETURN] = cfg.return_to_dock
+        options[_TERMINAL_ZERO] = cfg.shaping_terminal == "zero"
+        options[_LIDAR] = cfg.observation == "lidar"
+        options[_OBS_TARGETS] = cfg.obs_targets
+        options[_OBS_OBSTACLES] = cfg.obs_obstacles
+        options[_MAX_STEPS] = -1 if max_episode_steps is None else max_episode_steps
+        options[_BOX] = cfg.thrust_model == "box"
+        self.options = options
+        lidar = cfg.observation == "lidar"
+        self.lidar_dirs = lidar_directions(d, cfg.lidar_rays) if lidar else np.zeros((1, d))
+        self.max_accel = max_accel
+        self.dt = dt
+        # per mission
+        self.state = np.zeros((n, 2 * d))
+        self.time = np.zeros(n)
+        self.steps = np.zeros(n, dtype=np.int64)
+        self.delta_v = np.zeros(n)
+        self.captured = np.zeros((n, t), dtype=bool)
+        self.collision = np.zeros(n, dtype=bool)
+        self.out_of_bounds = np.zeros(n, dtype=bool)
+        self.success = np.zeros(n, dtype=bool)
+        self.gaps = np.zeros((n, n_bodies))
+        n_near = min(cfg.obs_obstacles, n_bodies - t) if cfg.observation == "kinematics" else 0
+        self.nearest = np.zeros((n, n_near), dtype=np.int64)
+        self.min_clearance = np.full(n, math.inf)
+        self.potential = np.zeros(n)
+        self.accel = np.zeros((n, d))
+        # per field
+        self.dock = np.zeros((n, d))
+        self.low = np.zeros((n, d))
+        self.high = np.zeros((n, d))
+        self.length_scale = np.ones(n)
+        self.speed_scale = np.ones(n)
+        # step outputs (overwritten by every step)
+        self._reward = np.zeros(n)
+        self._terminated = np.zeros(n, dtype=bool)
+        self._truncated = np.zeros(n, dtype=bool)
+        self._terms = np.zeros((n, len(REWARD_TERMS)))
+        self._step_tail: tuple | None = None  # the step kernel's arguments after the actions
+
+    def set_world(self, rows: np.ndarray, dock, low, high, length_scale: float) -> None:
+        """Dock position, bounds (m) and length scale L of the fields in ``rows``."""
+        self.dock[rows] = dock
+        self.low[rows] = low
+        self.high[rows] = high
+        self.length_scale[rows] = length_scale
+        self.speed_scale[rows] = math.sqrt(self.max_accel * length_scale)
+
+    def begin(self, rows: np.ndarray, states: np.ndarray | None = None) -> None:
+        """Start new episodes in ``rows`` (fields loaded): chaser at ``states`` (R, 2·dim) or at
+        rest at the dock, clocks and flags cleared, gaps and potential computed."""
+        rows = np.asarray(rows, dtype=np.int64)
+        f = self.field
+        _begin(
+            rows, None if states is None else np.ascontiguousarray(states, dtype=float),
+            self.params, self.options, self.n_targets, self.state, self.time, self.steps,
+            self.delta_v, self.captured, self.collision, self.out_of_bounds, self.success,
+            self.gaps, self.nearest, self.min_clearance, self.potential, self.accel, f.centers,
+            f.radii, f.polygon_start, f.n_vertices, f.vertices, self.dock,
+            self.length_scale,
+        )  # fmt: skip
+
+    def step(
+        self, actions: np.ndarray, live: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """One decision step of the missions in ``live`` (the others are left as they are).
+
+        Args:
+            actions: (N, dim) normalised thrust commands (validated: finite), held over the step;
+                the thrust model turns them into accelerations, and a burn that would overspend
+                the Δv budget is cut to spend it exactly.
+            live: (N,) bool, the missions that step.
+
+        Returns:
+            ``(reward (N,), terminated (N,), truncated (N,), terms (N, 7))``, buffers that the
+            next call overwrites; rows not in ``live`` are zero / False. ``terms`` columns follow
+            :data:`debris_gym.rewards.REWARD_TERMS`.
+        """
+        tail = self._step_tail
+        if tail is None or tail[21] is not self.field.vertices:  # (re)built: vertices can grow
+            f = self.field
+            tail = self._step_tail = (
+                self.step_matrix_t, self.params, self.options, self.n_targets, self.state,
+                self.time, self.steps, self.delta_v, self.captured, self.collision,
+                self.out_of_bounds, self.success, self.gaps, self.nearest, self.min_clearance,
+                self.potential, self.accel, f.centers, f.radii, f.polygon_start, f.n_vertices,
+                f.vertices, self.dock, self.low, self.high, self.length_scale, self._terms,
+                self._reward, self._terminated, self._truncated,
+            )  # fmt: skip
+        if live.dtype != np.bool_ or actions.dtype != np.float64:
+            live, actions = live.astype(np.bool_), actions.astype(np.float64)
+        _step(live, np.ascontiguousarray(actions), *tail)
+        return self._reward, self._terminated, self._truncated, self._terms
+
+    def observe(self, out: np.ndarray, horizon: int) -> np.ndarray:
+        """Write every mission's observation into ``out`` (N, obs size) float32 and return it.
+
+        Args:
+            out: the buffer.
+            horizon: steps the ``time_remaining`` element counts down from.
+        """
+        f = self.field
+        _observe(
+            self.state, self.steps, self.delta_v, self.captured, self.gaps, self.nearest,
+            f.centers, f.radii,
+            f.polygon_start, f.n_vertices, f.vertices, self.n_targets, self.dock,
+            self.length_scale, self.speed_scale, self.params, self.options, self.lidar_dirs,
+            float(horizon), out,
+        )  # fmt: skip
+        return out
+
+
+# --- compiled loops ---------------------------------------------------------------------------
+
+
+@_jit
+def _potential(i, prm, opt, n_targets, state, captured, gaps, dock, length_scale):
+    """Φ = −(gap to the current goal / L + goals after it) of mission ``i``.
+
+    The current goal is the nearest uncaptured target (the queue head if queued), then the dock
+    (if a return is required).
+    """
+    dim = dock.shape[1]
+    dock_goal = opt[_RETURN]
+    gap = math.inf
+    left = 0
+    for j in range(n_targets):
+        if not captured[i, j]:
+            if opt[_QUEUED] == 0 or left == 0:
+                gap = min(gap, gaps[i, j])
+            left += 1
+    if left:
+        goal_gap = max(gap - prm[_CHASER_R], 0.0)
+        after = left - 1 + dock_goal
+    else:
+        goal_gap = 0.0
+        if dock_goal:
+            s = 0.0
+            for a in range(dim):
+                off = state[i, a] - dock[i, a]
+                s += off * off
+            goal_gap = math.sqrt(s)
+        after = 0
+    return -(goal_gap / length_scale[i] + after)
+
+
+@_jit
+def _mission_gaps(
+    point, i, n_targets, centers, radii, polygon_start, n_vertices, vertices, gaps, nearest,
+    fresh, best_gap, best_body, mark,
+):  # fmt: skip
+    """Gaps (m) from ``point`` to the bodies of field ``i``, into ``gaps`` (B,), and the nearest
+    obstacles, into ``nearest`` (nearest first, ties by index).
+
+    Exact for every target and for every obstacle that can be among the n nearest
+    (n = len(best_gap) = max(len(nearest), 1), so the smallest obstacle gap is always exact);
+    the other polygons keep a lower bound, their bounding-circle gap |p − c| − R. Obstacles are
+    offered to a sorted list of the n best so far, the previous nearest first (unless
+    ``fresh``: a new field), which usually are still the nearest; a polygon is computed exactly
+    only when its lower bound could still enter the list. ``best_gap``, ``best_body`` (n,) and
+    ``mark`` (B,) are work arrays (:func:`_gap_scratch`).
+    """
+    n_bodies, dim = centers.shape[1], centers.shape[2]
+    for b in range(n_bodies):
+        s = 0.0
+        for a in range(dim):
+            d = centers[i, b, a] - point[a]
+            s += d * d
+        gaps[b] = math.sqrt(s) - radii[i, b]  # exact for circles and spheres
+    n_poly = n_vertices.shape[1] if dim == 2 else 0
+    for b in range(polygon_start, min(n_targets, polygon_start + n_poly)):  # polygon targets
+        m = n_vertices[i, b - polygon_start]
+        if m:
+            gaps[b] = polygon_gap(
+                point[0], point[1], centers[i, b, 0], centers[i, b, 1],
+                vertices[i, b - polygon_start], m,
+            )  # fmt: skip
+    stamp = i + 1  # marks the bodies offered for this mission (mark starts at zero)
+    count = 0
+    if not fresh:
+        for s in range(nearest.shape[0]):
+            b = nearest[s]
+            mark[b] = stamp
+            count = _offer(
+                b, count, point, i, centers, polygon_start, n_vertices, vertices, gaps,
+                best_gap, best_body,
+            )  # fmt: skip
+    for b in range(n_targets, n_bodies):
+        if mark[b] != stamp:
+            count = _offer(
+                b, count, point, i, centers, polygon_start, n_vertices, vertices, gaps,
+                best_gap, best_body,
+            )  # fmt: skip
+    for s in range(nearest.shape[0]):
+        nearest[s] = best_body[s]
+
+
+@_jit
+def _gap_scratch(n_near, n_bodies):
+    """Work arrays of :func:`_mission_gaps` for one kernel call."""
+    n = max(n_near, 1)
+    return np.empty(n), np.empty(n, dtype=np.int64), np.zeros(n_bodies, dtype=np.int64)
+
+
+@_jit
+def _offer(
+    b, count, point, i, centers, polygon_start, n_vertices, vertices, gaps, best_gap, best_body
+):  # fmt: skip
+    """Offer obstacle b to the sorted list of the n nearest (n = len(best_gap)); returns the
+    new count. A polygon's lower bound in ``gaps[b]`` is made exact only if it could enter."""
+    n = best_gap.shape[0]
+    g = gaps[b]
+    if count == n and not _before(g, b, best_gap[n - 1], best_body[n - 1]):
+        return count
+    j = b - polygon_start
+    if j >= 0 and j < n_vertices.shape[1] and n_vertices[i, j]:
+        g = polygon_gap(
+            point[0], point[1], centers[i, b, 0], centers[i, b, 1], vertices[i, j],
+            n_vertices[i, j],
+        )  # fmt: skip
+        gaps[b] = g
+        if count == n and not _before(g, b, best_gap[n - 1], best_body[n - 1]):
+            return count
+    pos = count if count < n else n - 1
+    while pos > 0 and _before(g, b, best_gap[pos - 1], best_body[pos - 1]):
+        best_gap[pos] = best_gap[pos - 1]
+        best_body[pos] = best_body[pos - 1]
+        pos -= 1
+    best_gap[pos] = g
+    best_body[pos] = b
+    return min(count + 1, n)
+
+
+@_jit
+def _before(g, b, g2, b2):
+    """Does (gap g, body b) come before (g2, b2): a smaller gap, or the same and a lower index?"""
+    return g < g2 or (g == g2 and b < b2)
+
+
+@_jit
+def _begin(
+    rows, states, prm, opt, n_targets, state, time, steps, delta_v, captured, collision,
+    out_of_bounds, success, gaps, nearest, min_clearance, potential, accel, centers, radii,
+    polygon_start, n_vertices, vertices, dock, length_scale,
+):  # fmt: skip
+    dim = dock.shape[1]
+    n_bodies = centers.shape[1]
+    best_gap, best_body, mark = _gap_scratch(nearest.shape[1], n_bodies)
+    for r in range(rows.shape[0]):
+        i = rows[r]
+        for a in range(dim):
+            if states is None:
+                state[i, a] = dock[i, a]
+                state[i, dim + a] = 0.0
+            else:
+                state[i, a] = states[r, a]
+                state[i, dim + a] = states[r, dim + a]
+            accel[i, a] = 0.0
+        time[i] = 0.0
+        steps[i] = 0
+        delta_v[i] = 0.0
+        for j in range(n_targets):
+            captured[i, j] = False
+        collision[i] = False
+        out_of_bounds[i] = False
+        success[i] = False
+        _mission_gaps(
+            state[i, :dim], i, n_targets, centers, radii, polygon_start, n_vertices, vertices,
+            gaps[i], nearest[i], True, best_gap, best_body, mark,
+        )  # fmt: skip
+        clearance = math.inf
+        for b in range(n_targets, n_bodies):
+            clearance = min(clearance, gaps[i, b])
+        min_clearance[i] = clearance
+        potential[i] = _potential(i, prm, opt, n_targets, state, captured, gaps, dock, length_scale)
+
+
+@_jit
+def _step(
+    live, actions, matrix_t, prm, opt, n_targets, state, time, steps, delta_v, captured,
+    collision, out_of_bounds, success, gaps, nearest, min_clearance, potential, last_accel,
+    centers, radii, polygon_start, n_vertices, vertices, dock, low, high, length_scale,
+    terms, reward, terminated, truncated,
+):  # fmt: skip
+    num, n_bodies = gaps.shape
+    dim = dock.shape[1]
+    n_out = matrix_t.shape[1]
+    n_sub = (n_out - dim) // dim
+    path = np.empty((n_sub + 1, dim))
+    start = np.empty(2 * dim)
+    accel = np.empty(dim)
+    touched = np.empty(n_bodies, dtype=np.bool_)
+    best_gap, best_body, mark = _gap_scratch(nearest.shape[1], n_bodies)
+    chaser_r = prm[_CHASER_R]
+    for i in range(num):
+        if not live[i]:
+            for k in range(terms.shape[1]):
+                terms[i, k] = 0.0
+            reward[i] = 0.0
+            terminated[i] = False
+            truncated[i] = False
+            continue
+        # thrust: the commanded acceleration, cut to what the Δv budget still allows
+        thrust_row(actions[i], prm[_MAX_ACCEL], opt[_BOX], accel)
+        dv = delta_v_rate_row(accel, opt[_BOX]) * prm[_DT]
+        if dv > 0.0 and delta_v[i] + dv > prm[_BUDGET]:
+            scale = max(prm[_BUDGET] - delta_v[i], 0.0) / dv
+            for k in range(dim):
+                accel[k] = accel[k] * scale
+            dv = dv * scale
+        # simulate: [x₀, u] @ matrix_t gives every sub-step position and the end velocity
+        for k in range(2 * dim):
+            start[k] = state[i, k]
+        for a in range(dim):
+            path[0, a] = start[a]
+        for c in range(n_out):
+            s = 0.0
+            for k in range(2 * dim):
+                s += start[k] * matrix_t[k, c]
+            for k in range(dim):
+                s += accel[k] * matrix_t[2 * dim + k, c]
+            if c < n_sub * dim:
+                path[1 + c // dim, c % dim] = s
+            else:
+                state[i, dim + c - n_sub * dim] = s
+        for a in range(dim):
+            state[i, a] = path[n_sub, a]
+            last_accel[i, a] = accel[a]
+        # swept contact along the sampled path, from the gaps at its start
+        path_touches(
+            path, gaps[i], chaser_r, i, centers, radii, polygon_start, n_vertices, vertices, touched
+        )
+        time[i] += prm[_DT]
+        steps[i] += 1
+        delta_v[i] += dv
+
+        # mission: captures, collision, bounds, success
+        _mission_gaps(
+            state[i, :dim], i, n_targets, centers, radii, polygon_start, n_vertices, vertices,
+            gaps[i], nearest[i], False, best_gap, best_body, mark,
+        )  # fmt: skip
+        if n_bodies > n_targets:  # clearance to debris other than targets
+            clearance = min_clearance[i]
+            for b in range(n_targets, n_bodies):
+                clearance = min(clearance, gaps[i, b])
+            min_clearance[i] = clearance
+        s = 0.0
+        for a in range(dim):
+            s += state[i, dim + a] * state[i, dim + a]
+        slow = math.sqrt(s) <= prm[_CAPTURE_V]  # targets are at rest in LVLH (frozen field)
+        new = 0
+        reach = prm[_CAPTURE_R] + chaser_r
+        for j in range(n_targets):
+            if captured[i, j]:
+                continue
+            if slow and gaps[i, j] <= reach:
+                captured[i, j] = True
+                new += 1
+            if opt[_QUEUED]:
+                break  # only the queue head can be captured
+        hit = False
+        for b in range(n_targets, n_bodies):
+            if touched[b]:
+                hit = True  # any contact with debris that is not a target
+                break
+        if not hit and not slow:
+            # a target touched too fast is a collision unless the chaser is leaving it: moving
+            # away from its centre at both ends of the step and over the step as a whole
+            # (departing after a gentle contact is not an impact)
+            for j in range(n_targets):
+                if touched[j]:
+                    closing0 = 0.0
+                    closing1 = 0.0
+                    closing_step = 0.0
+                    for a in range(dim):
+                        toward = centers[i, j, a] - start[a]
+                        closing0 += toward * start[dim + a]
+                        closing1 += (centers[i, j, a] - state[i, a]) * state[i, dim + a]
+                        closing_step += toward * (state[i, a] - start[a])
+                    if closing0 > 0.0 or closing1 > 0.0 or closing_step > 0.0:
+                        hit = True
+        collision[i] = collision[i] or hit
+        oob = False
+        for a in range(dim):
+            if state[i, a] <= low[i, a] or state[i, a] >= high[i, a]:
+                oob = True
+        out_of_bounds[i] = oob
+        done = not collision[i]
+        for j in range(n_targets):
+            done = done and captured[i, j]
+        if done and opt[_RETURN]:
+            s = 0.0
+            for a in range(dim):
+                off = state[i, a] - dock[i, a]
+                s += off * off
+            done = math.sqrt(s) <= prm[_CAPTURE_R] and slow
+        success[i] = success[i] or done
+
+        # reward terms
+        phi = _potential(i, prm, opt, n_targets, state, captured, gaps, dock, length_scale)
+        progress = prm[_GAMMA] * phi - potential[i]
+        potential[i] = phi
+        terms[i, _T_CAPTURE] = prm[_W_CAPTURE] * new
+        terms[i, _T_SUCCESS] = prm[_W_SUCCESS] * success[i]
+        terms[i, _T_PROGRESS] = prm[_W_PROGRESS] * progress
+        terms[i, _T_DV] = -prm[_W_DV] * dv
+        terms[i, _T_COLLISION] = -prm[_W_COLLISION] * collision[i]
+        terms[i, _T_OOB] = -prm[_W_OOB] * out_of_bounds[i]
+        terms[i, _T_TIME] = -prm[_W_TIME]
+        spent = delta_v[i] >= prm[_BUDGET]
+        ended = success[i] or collision[i] or out_of_bounds[i] or spent
+        if ended and opt[_TERMINAL_ZERO]:
+            terms[i, _T_PROGRESS] -= prm[_W_PROGRESS] * prm[_GAMMA] * phi  # Φ(terminal) = 0
+        terminated[i] = ended
+        truncated[i] = opt[_MAX_STEPS] > 0 and steps[i] >= opt[_MAX_STEPS]
+        total = 0.0
+        for k in range(terms.shape[1]):
+            total += terms[i, k]
+        reward[i] = total
+
+
+@_jit
+def _put(out, i, k, value):
+    """out[i, k] = value clipped to ±OBS_LIMIT (in float64, then rounded once to float32)."""
+    out[i, k] = min(max(value, -OBS_LIMIT), OBS_LIMIT)
+    return k + 1
+
+
+@_jit
+def _observe(
+    state, steps, delta_v, captured, gaps, nearest, centers, radii, polygon_start,
+    n_vertices, vertices, n_targets, dock, length_scale, speed_scale, prm, opt, lidar_dirs,
+    horizon, out,
+):  # fmt: skip
+    num, n_bodies = gaps.shape
+    dim = dock.shape[1]
+    n_slots = opt[_OBS_TARGETS]
+    order = np.empty(n_targets, dtype=np.int64)
+    n_near = nearest.shape[1]
+    ranges = np.empty(lidar_dirs.shape[0])
+    queued = opt[_QUEUED]
+    for i in range(num):
+        L = length_scale[i]
+        V = speed_scale[i]
+        k = 0
+        for a in range(dim):
+            k = _put(out, i, k, state[i, a] / L)
+        for a in range(dim):
+            k = _put(out, i, k, state[i, dim + a] / V)
+        # target slots: uncaptured first (nearest first, or queue order), then captured, each
+        # group in index order among equals
+        for j in range(n_targets):
+            order[j] = j
+        for j in range(1, n_targets):  # insertion sort on (captured, key, index)
+            x = order[j]
+            m = j - 1
+            while m >= 0 and _target_before(x, order[m], i, captured, gaps, queued):
+                order[m + 1] = order[m]
+                m -= 1
+            order[m + 1] = x
+        m = min(n_slots, n_targets)
+        for s in range(m):
+            j = order[s]
+            for a in range(dim):
+                k = _put(out, i, k, (centers[i, j, a] - state[i, a]) / L)
+            for a in range(dim):
+                k = _put(out, i, k, -state[i, dim + a] / V)  # targets at rest: minus chaser's
+            k = _put(out, i, k, radii[i, j] / L)
+            k = _put(out, i, k, 1.0 if captured[i, j] else 0.0)
+        for _slot in range(m, n_slots):  # empty slots read as "captured"
+            for _ in range(2 * dim + 1):
+                k = _put(out, i, k, 0.0)
+            k = _put(out, i, k, 1.0)
+        for a in range(dim):
+            k = _put(out, i, k, (dock[i, a] - state[i, a]) / L)
+        if opt[_LIDAR]:
+            ray_ranges(
+                state[i, :dim], lidar_dirs, prm[_LIDAR_RANGE], i, centers, radii,
+                polygon_start, n_vertices, vertices, ranges,
+            )  # fmt: skip
+            for r in range(ranges.shape[0]):
+                k = _put(out, i, k, ranges[r] / prm[_LIDAR_RANGE])
+        else:
+            # the nearest obstacles by surface gap, nearest first (see _mission_gaps)
+            for s in range(n_near):
+                b = nearest[i, s]
+                for a in range(dim):
+                    k = _put(out, i, k, (centers[i, b, a] - state[i, a]) / L)
+                k = _put(out, i, k, radii[i, b] / L)
+                k = _put(out, i, k, gaps[i, b] / L)
+            for _slot in range(n_near, opt[_OBS_OBSTACLES]):
+                for _ in range(dim + 1):
+                    k = _put(out, i, k, 0.0)
+                k = _put(out, i, k, 1.0)
+        budget = prm[_BUDGET]
+        k = _put(out, i, k, 1.0 if budget == math.inf else max(budget - delta_v[i], 0.0) / budget)
+        k = _put(out, i, k, max(horizon - steps[i], 0.0) / horizon)
+
+
+@_jit
+def _target_before(x, y, i, captured, gaps, queued):
+    """Does target x come before target y in the observation's slot order?"""
+    cx, cy = captured[i, x], captured[i, y]
+    if cx != cy:
+        return cy  # uncaptured first
+    if not cx and not queued:
+        if gaps[i, x] != gaps[i, y]:
+            return gaps[i, x] < gaps[i, y]  # nearest first
+    return x < y

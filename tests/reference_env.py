@@ -1,0 +1,407 @@
+"""Reference implementation of the DebrisField rules (the pre-compiled single env), for tests."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from debris_gym.config import EnvConfig
+from debris_gym.dynamics import discretize, substep_position_matrix
+from debris_gym.envs.common import (
+    OBS_LIMIT,
+    discrete_action_table,
+    field_spec,
+    new_scenario,
+    observation_names,
+    registered_horizon,
+    single_spaces,
+)
+from debris_gym.geometry import FieldGeometry, lidar_directions
+from debris_gym.rewards import REWARD_TERMS, potential, reward_terms
+from debris_gym.scenario import Scenario, as_scenario
+from debris_gym.thrust import commanded_accel, delta_v_rate
+
+
+class ReferenceDebrisFieldEnv(gym.Env):
+    """The rules of docs/environments.md, one env at a time, in plain numpy and pymunk.
+
+    This was debris-gym's single env before both envs moved onto the compiled
+    :class:`debris_gym.mission_batch.MissionBatch`; it is kept here, unchanged in its rules, as
+    the independent reference the compiled step is tested against (``tests/test_mission_batch.py``).
+    Its geometry is :class:`debris_gym.geometry.FieldGeometry`: numpy clearance, pymunk swept
+    contacts and lidar.
+    """
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 15}
+
+    def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
+        self.config = EnvConfig.from_kwargs(**kwargs)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"render_mode={render_mode!r} is not supported; use one of "
+                f"{self.metadata['render_modes']} or None"
+            )
+        self.render_mode = render_mode
+        cfg = self.config
+        self.dim = d = cfg.dim
+        self.observation_space, self.action_space = single_spaces(cfg)
+        self._discrete_actions = discrete_action_table(d)
+        self._obs_names = observation_names(cfg)
+        lidar = cfg.observation == "lidar"
+        self._lidar_dirs = lidar_directions(d, cfg.lidar_rays) if lidar else None
+        self._field_spec = field_spec(cfg)
+        self.scenario: Scenario | None = None
+        self._horizon: int | None = None
+        self._renderer = None
+
+    # --- observation layout -------------------------------------------------------------------
+
+    @property
+    def chaser_state(self) -> np.ndarray:
+        """Current chaser LVLH state [position (m), velocity (m/s)] (a copy)."""
+        return self._state.copy()
+
+    @property
+    def captured(self) -> np.ndarray:
+        """Per-target capture flags (a copy), in scenario target order."""
+        return self._captured.copy()
+
+    @property
+    def elapsed(self) -> float:
+        """Simulated time since reset (s)."""
+        return self._time
+
+    @property
+    def trail(self) -> np.ndarray:
+        """Chaser positions at every step end so far, shape (steps + 1, dim) (m)."""
+        return np.asarray(self._trail)
+
+    def observation_names(self) -> list[str]:
+        """Name of every observation element, in order."""
+        return list(self._obs_names)
+
+    # --- scenario -----------------------------------------------------------------------------
+
+    def _new_scenario(self) -> Scenario:
+        return new_scenario(self.config, self._field_spec, self.np_random)
+
+    def _set_scenario(self, scenario: Scenario) -> None:
+        cfg = self.config
+        if scenario.dim != self.dim:
+            raise ValueError(f"scenario has dim={scenario.dim} but the env has dim={self.dim}")
+        self.scenario = scenario
+        self._geometry = FieldGeometry(scenario, inflate=cfg.chaser_radius)
+        model = discretize(scenario.mean_motion, scenario.dt, self.dim)
+        sub_positions = substep_position_matrix(
+            scenario.mean_motion, scenario.dt, self.dim, cfg.collision_substeps
+        )
+        # One matrix maps [x₀, u] to the K sub-step positions (the last is the end position)
+        # followed by the end velocity: a single matmul per step gives the path and the new state.
+        end_velocity = np.hstack([model.ad[self.dim :], model.bd[self.dim :]])
+        self._step_matrix = np.vstack([sub_positions, end_velocity])
+        self._n_targets = len(scenario.targets)
+        self._length_scale = scenario.size / 2.0
+        self._speed_scale = math.sqrt(scenario.max_accel * self._length_scale)
+        self._dock = np.asarray(scenario.dock, dtype=float)
+        self._low, self._high = scenario.low, scenario.high
+        self._obstacle_radii = self._geometry.radii[self._n_targets :]
+        self._obstacle_centers = self._geometry.centers[self._n_targets :]
+        self._obs_buffer = np.zeros(self.observation_space.shape[0])
+        self._target_radii = self._geometry.radii[: self._n_targets]
+
+    # --- gymnasium API ------------------------------------------------------------------------
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start an episode.
+
+        Args:
+            seed: seeds the env's generator (and so the random field).
+            options: ``{"scenario": Scenario | dict | path}`` pins the field;
+                ``{"chaser_state": array (2·dim,)}`` sets the initial LVLH state (m, m/s).
+        """
+        super().reset(seed=seed)
+        options = dict(options or {})
+        unknown = sorted(set(options) - {"scenario", "chaser_state"})
+        if unknown:
+            raise ValueError(f"unknown reset option(s) {unknown}; allowed: chaser_state, scenario")
+        if options.get("scenario") is not None:
+            self._set_scenario(as_scenario(options["scenario"]))
+        else:
+            self._set_scenario(self._new_scenario())
+        d = self.dim
+        if options.get("chaser_state") is not None:
+            state = self._validated_chaser_state(options["chaser_state"])
+        else:
+            state = np.concatenate([self._dock, np.zeros(d)])
+        self._state = state
+        self._time = 0.0
+        self._steps = 0
+        self._delta_v = 0.0
+        self._captured = np.zeros(self._n_targets, dtype=bool)
+        self._accel = np.zeros(d)
+        self._collision = False
+        self._out_of_bounds = False
+        self._success = False
+        self._path = np.empty((self.config.collision_substeps + 1, d))
+        self._gaps = self._geometry.point_gaps(state[:d])
+        obstacle_gaps = self._gaps[self._n_targets :]
+        self._min_clearance = float(obstacle_gaps.min()) if obstacle_gaps.size else math.inf
+        self._trail = [state[:d].copy()]
+        self._potential = self._potential_now()
+        terms = dict.fromkeys(REWARD_TERMS, 0.0)
+        return self._observe(), self._info(terms)
+
+    def _validated_chaser_state(self, value: Any) -> np.ndarray:
+        d = self.dim
+        state = np.array(value, dtype=float).reshape(-1)
+        if state.shape != (2 * d,):
+            raise ValueError(f"chaser_state must have shape ({2 * d},), got {np.shape(value)}")
+        if not np.all(np.isfinite(state)):
+            raise ValueError("chaser_state must be finite")
+        scen = self.scenario
+        if np.any(state[:d] <= scen.low) or np.any(state[:d] >= scen.high):
+            raise ValueError(
+                f"chaser_state position {state[:d]} is outside the bounds {scen.bounds}"
+            )
+        gap = self._geometry.signed_distance(state[:d]).min() - self.config.chaser_radius
+        if gap <= 0:
+            raise ValueError(f"chaser_state position {state[:d]} touches debris (gap {gap:.3g} m)")
+        return state
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Apply one thrust command for ``dt`` seconds.
+
+        Returns:
+            observation, reward, terminated, truncated (always False: the time limit belongs to
+            the ``TimeLimit`` wrapper), info.
+        """
+        if self.scenario is None:
+            raise RuntimeError("call reset() before step()")
+        accel, dv = self._thrust(action)
+        touched = self._simulate(accel, dv)
+        new_captures = self._update_mission(touched)
+        terms = self._reward_terms(new_captures, dv)
+        terminated = self._success or self._collision or self._out_of_bounds or self._budget_spent()
+        if terminated and self.config.shaping_terminal == "zero":
+            terms["progress"] -= (
+                self.config.reward_progress * self.config.shaping_gamma * (self._potential)
+            )  # Φ(terminal) = 0
+        reward = float(sum(terms.values()))
+        return self._observe(), reward, terminated, False, self._info(terms)
+
+    # --- step hooks ---------------------------------------------------------------------------
+
+    def _thrust(self, action: Any) -> tuple[np.ndarray, float]:
+        """Validated action → commanded acceleration (m/s²) and the Δv (m/s) it spends."""
+        cfg, scen = self.config, self.scenario
+        if cfg.action == "discrete":
+            if isinstance(action, np.ndarray):
+                if action.size != 1:
+                    raise ValueError(f"a discrete action is one integer, got shape {action.shape}")
+                action = action.reshape(()).item()
+            if isinstance(action, (bool, np.bool_)) or not float(action).is_integer():
+                raise ValueError(f"discrete action must be an integer in [0, {2 * self.dim}]")
+            index = int(action)
+            if not 0 <= index <= 2 * self.dim:
+                raise ValueError(f"discrete action {index} is outside [0, {2 * self.dim}]")
+            a = self._discrete_actions[index]
+        else:
+            a = np.asarray(action, dtype=float)
+            if a.shape != (self.dim,):
+                raise ValueError(f"action must have shape ({self.dim},), got {a.shape}")
+            if not math.isfinite(a.sum()):  # NaN or ±inf anywhere makes the sum non-finite
+                raise ValueError(f"action must be finite (no NaN or inf), got {a}")
+        accel = commanded_accel(a, scen.max_accel, cfg.thrust_model)
+        dv = float(delta_v_rate(accel, cfg.thrust_model)) * scen.dt
+        budget = cfg.delta_v_budget
+        if budget is not None and dv > 0.0 and self._delta_v + dv > budget:
+            # The last burn is cut so the total spent is exactly the budget.
+            scale = max(budget - self._delta_v, 0.0) / dv
+            accel, dv = accel * scale, dv * scale
+        return accel, dv
+
+    def _simulate(self, accel: np.ndarray, dv: float) -> list[int]:
+        """Propagate one step exactly and sweep the path; returns the bodies it touched."""
+        d = self.dim
+        self._start_state = start = self._state
+        out = self._step_matrix @ np.concatenate([start, accel])
+        path = self._path
+        path[0] = start[:d]
+        path[1:] = out[:-d].reshape(-1, d)
+        self._state = np.concatenate([path[-1], out[-d:]])
+        self._time += self.scenario.dt
+        self._steps += 1
+        self._delta_v += dv
+        self._accel = accel
+        self._trail.append(path[-1].copy())
+        return self._geometry.touched(path, self._gaps)
+
+    def _update_mission(self, touched: list[int]) -> int:
+        """Update captures, collision, bounds and success; return the number of new captures."""
+        cfg, d = self.config, self.dim
+        pos, vel = self._state[:d], self._state[d:]
+        self._gaps = gaps = self._geometry.point_gaps(pos)
+        if gaps.size > self._n_targets:  # clearance to debris other than targets
+            self._min_clearance = min(self._min_clearance, float(gaps[self._n_targets :].min()))
+        speed = math.sqrt(float(vel @ vel))  # targets are at rest in LVLH (frozen field)
+        new = 0
+        if speed <= cfg.capture_speed:
+            reach = cfg.capture_radius + cfg.chaser_radius
+            for i in self._eligible_targets():
+                if gaps[i] <= reach:
+                    self._captured[i] = True
+                    new += 1
+        if touched:
+            if touched[-1] >= self._n_targets:
+                self._collision = True  # any contact with debris that is not a target
+            elif speed > cfg.capture_speed:
+                # touching a target too fast, unless the chaser is leaving it: moving away from
+                # its centre at both ends of the step and over the step as a whole
+                centres = self._geometry.centers[touched]
+                start = self._start_state
+                toward = centres - start[:d]
+                closing = (toward @ start[d:] > 0.0) | ((centres - pos) @ vel > 0.0)
+                closing |= toward @ (pos - start[:d]) > 0.0
+                self._collision = bool(closing.any())
+        self._out_of_bounds = bool((pos <= self._low).any() or (pos >= self._high).any())
+        if not self._collision and self._captured.all():
+            if not cfg.return_to_dock:
+                self._success = True
+            else:
+                off = pos - self._dock
+                if math.sqrt(float(off @ off)) <= cfg.capture_radius and speed <= cfg.capture_speed:
+                    self._success = True
+        return new
+
+    def _eligible_targets(self) -> list[int]:
+        """Targets that can be captured now: all uncaptured, or the queue head if queued."""
+        remaining = [i for i, c in enumerate(self._captured.tolist()) if not c]
+        return remaining[:1] if self.config.target_order == "queued" else remaining
+
+    def _budget_spent(self) -> bool:
+        budget = self.config.delta_v_budget
+        return budget is not None and self._delta_v >= budget
+
+    def _current_goal(self) -> tuple[float, int]:
+        """(gap (m) to the current goal, number of goals after it)."""
+        cfg, d = self.config, self.dim
+        remaining = self._eligible_targets()
+        dock_goal = 1 if cfg.return_to_dock else 0
+        if remaining:
+            gaps = self._gaps
+            gap = min(float(gaps[i]) for i in remaining) - cfg.chaser_radius
+            left = self._n_targets - int(self._captured.sum())
+            return max(gap, 0.0), left - 1 + dock_goal
+        if dock_goal:
+            off = self._state[:d] - self._dock
+            return math.sqrt(float(off @ off)), 0
+        return 0.0, 0
+
+    def _potential_now(self) -> float:
+        gap, after = self._current_goal()
+        return potential(gap, after, self._length_scale)
+
+    def _reward_terms(self, new_captures: int, dv: float) -> dict[str, float]:
+        cfg = self.config
+        phi = self._potential_now()
+        progress = cfg.shaping_gamma * phi - self._potential
+        self._potential = phi
+        return reward_terms(
+            cfg,
+            new_captures=new_captures,
+            success=self._success,
+            progress=progress,
+            delta_v=dv,
+            collision=self._collision,
+            out_of_bounds=self._out_of_bounds,
+        )
+
+    def _observe(self) -> np.ndarray:
+        cfg, d = self.config, self.dim
+        L, V = self._length_scale, self._speed_scale
+        pos, vel = self._state[:d], self._state[d:]
+        obs = self._obs_buffer
+        obs[:d] = pos / L
+        obs[d : 2 * d] = vel / V
+        k = 2 * d
+        width = cfg.obs_targets * (2 * d + 2)
+        self._fill_target_slots(obs[k : k + width].reshape(cfg.obs_targets, 2 * d + 2), pos, vel)
+        k += width
+        obs[k : k + d] = (self._dock - pos) / L
+        k += d
+        if cfg.observation == "kinematics":
+            width = cfg.obs_obstacles * (d + 2)
+            self._fill_obstacle_slots(obs[k : k + width].reshape(cfg.obs_obstacles, d + 2), pos)
+        else:
+            width = cfg.lidar_rays
+            ranges = self._geometry.lidar(pos, self._lidar_dirs, cfg.lidar_range)
+            obs[k : k + width] = ranges / cfg.lidar_range
+        k += width
+        budget = cfg.delta_v_budget
+        obs[k] = 1.0 if budget is None else max(budget - self._delta_v, 0.0) / budget
+        horizon = self._horizon_steps()
+        obs[k + 1] = max(horizon - self._steps, 0) / horizon
+        np.minimum(obs, OBS_LIMIT, out=obs)
+        np.maximum(obs, -OBS_LIMIT, out=obs)
+        return obs.astype(np.float32)
+
+    def _horizon_steps(self) -> int:
+        if self._horizon is None:
+            self._horizon = registered_horizon(self.spec)
+        return self._horizon
+
+    def _fill_target_slots(self, slots: np.ndarray, pos: np.ndarray, vel: np.ndarray) -> None:
+        """K × (rel pos, rel vel, radius, captured): goals first (queue order or nearest)."""
+        d = self.dim
+        L, V = self._length_scale, self._speed_scale
+        captured = self._captured.tolist()
+        remaining = [i for i, c in enumerate(captured) if not c]
+        if self.config.target_order == "any" and len(remaining) > 1:
+            remaining.sort(key=self._gaps[: self._n_targets].tolist().__getitem__)
+        order = (remaining + [i for i, c in enumerate(captured) if c])[: len(slots)]
+        m = len(order)
+        slots[m:] = 0.0
+        slots[m:, -1] = 1.0  # empty slots read as "captured"
+        if m:
+            slots[:m, :d] = (self._geometry.centers[order] - pos) / L
+            slots[:m, d : 2 * d] = -vel / V  # target velocity (0, frozen) minus chaser's
+            slots[:m, 2 * d] = self._target_radii[order] / L
+            slots[:m, 2 * d + 1] = [captured[i] for i in order]
+
+    def _fill_obstacle_slots(self, slots: np.ndarray, pos: np.ndarray) -> None:
+        """M nearest obstacles × (rel pos, radius, gap); empty slots: zero offset, gap 1."""
+        d = self.dim
+        L = self._length_scale
+        gaps = self._gaps[self._n_targets :]
+        k = min(len(slots), gaps.size)
+        slots[k:] = 0.0
+        slots[k:, -1] = 1.0
+        if k:
+            if gaps.size > k:
+                nearest = np.argpartition(gaps, k - 1)[:k]
+                nearest = nearest[np.argsort(gaps[nearest])]
+            else:
+                nearest = np.argsort(gaps)
+            slots[:k, :d] = (self._obstacle_centers[nearest] - pos) / L
+            slots[:k, d] = self._obstacle_radii[nearest] / L
+            slots[:k, d + 1] = gaps[nearest] / L
+
+    def _info(self, terms: dict[str, float]) -> dict[str, Any]:
+        return {
+            "chaser_state": self._state.copy(),
+            "time": self._time,
+            "delta_v": self._delta_v,
+            "targets_captured": int(self._captured.sum()),
+            "n_targets": self._n_targets,
+            "captured": self._captured.copy(),
+            "min_clearance": self._min_clearance - self.config.chaser_radius,
+            "collision": self._collision,
+            "out_of_bounds": self._out_of_bounds,
+            "is_success": self._success,
+            "reward_terms": terms,
+        }

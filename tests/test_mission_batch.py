@@ -1,0 +1,163 @@
+"""The compiled mission step (both envs run it) against an independent reference.
+
+``tests/reference_env.py`` is the rules of docs/environments.md written one env at a time in
+numpy, with pymunk's segment queries for the swept collision check and the lidar (the single env
+before both envs moved onto :class:`debris_gym.mission_batch.MissionBatch`). The env and the
+reference fly the same fields with the same actions; observations, rewards, terminations and
+infos must agree.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from debris_gym.envs import DebrisFieldEnv
+from debris_gym.scenario import Body
+from tests.reference_env import ReferenceDebrisFieldEnv
+from tests.test_env import simple_scenario
+
+INFO_KEYS = ["chaser_state", "time", "delta_v", "targets_captured", "min_clearance", "collision"]
+INFO_KEYS += ["out_of_bounds", "is_success", "captured", "n_targets"]
+
+HORIZON = {"DebrisGym/PaperField2D-v0": 2000}
+
+
+def same(a, b, what: str) -> None:
+    a, b = np.asarray(a), np.asarray(b)
+    if a.dtype == bool or np.issubdtype(a.dtype, np.integer):
+        np.testing.assert_array_equal(a, b, err_msg=what)
+    else:
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9, err_msg=what)
+
+
+def pd_action(env, obs: np.ndarray, rng: np.random.Generator, noise: float) -> np.ndarray:
+    """Fly at the current goal (target slot 0, or the dock once all are captured) and brake:
+    a PD law on the observation, plus noise. It captures, collides and succeeds."""
+    names = env.unwrapped.observation_names()
+    axes = "xyz"[: env.unwrapped.dim]
+    goal = "target0_rel_pos" if obs[names.index("target0_captured")] < 0.5 else "dock_rel_pos"
+    rel = np.array([obs[names.index(f"{goal}_{a}")] for a in axes])
+    vel = np.array([obs[names.index(f"chaser_vel_{a}")] for a in axes])
+    action = 2.0 * rel - 4.0 * vel + rng.normal(0.0, noise, len(axes))
+    return np.clip(action, -1.0, 1.0).astype(np.float32)
+
+
+def fly_both(
+    env_id: str, episodes: int, scale: float, seed: int, pd: bool = False, **kwargs
+) -> dict[str, int]:
+    """Fly ``episodes`` episodes in both with the same actions (random ones of size ``scale``,
+    or with ``pd`` :func:`pd_action` with noise ``scale``); returns how they ended."""
+    env = gym.make(env_id, **kwargs)
+    spec = gym.spec(env_id)
+    ref = gym.wrappers.TimeLimit(
+        ReferenceDebrisFieldEnv(**{**spec.kwargs, **{k: v for k, v in kwargs.items()
+                                                     if k != "max_episode_steps"}}),
+        kwargs.get("max_episode_steps", spec.max_episode_steps),
+    )  # fmt: skip
+    ref.unwrapped._horizon = HORIZON.get(env_id, spec.max_episode_steps)
+    rng = np.random.default_rng(seed)
+    ended = {"success": 0, "collision": 0, "out_of_bounds": 0, "other": 0, "captures": 0}
+    for episode in range(episodes):
+        obs, info = env.reset(seed=seed + episode)
+        obs_r, info_r = ref.reset(seed=seed + episode)
+        assert env.unwrapped.scenario == ref.unwrapped.scenario
+        same(obs, obs_r, "reset obs")
+        done = False
+        step = 0
+        while not done:
+            if pd:
+                action = pd_action(env, obs, rng, scale)
+            elif env.unwrapped.config.action == "discrete":
+                action = int(rng.integers(env.action_space.n)) if rng.uniform() < 0.3 else 0
+            else:
+                action = (rng.uniform(-1, 1, env.unwrapped.dim) * scale).astype(np.float32)
+            out = env.step(action)
+            out_r = ref.step(action)
+            where = f"episode {episode} step {step}"
+            for name, a, b in zip(("obs", "reward", "terminated", "truncated"), out, out_r):
+                same(a, b, f"{name} at {where}")
+            for key in INFO_KEYS:
+                same(out[4][key], out_r[4][key], f"info[{key!r}] at {where}")
+            for term, value in out[4]["reward_terms"].items():
+                same(value, out_r[4]["reward_terms"][term], f"term {term} at {where}")
+            done = out[2] or out[3]
+            obs = out[0]
+            step += 1
+        info = out[4]
+        ended["captures"] += info["targets_captured"]
+        kind = next((k for k in ("collision", "out_of_bounds") if info[k]), "other")
+        ended["success" if info["is_success"] else kind] += 1
+    return ended
+
+
+@pytest.mark.parametrize(
+    "env_id, kwargs, scale",
+    [
+        ("DebrisGym/Rendezvous2D-v0", {"max_episode_steps": 150}, 0.4),
+        ("DebrisGym/Rendezvous2D-v0", {"observation": "lidar", "lidar_rays": 16}, 0.4),
+        ("DebrisGym/Rendezvous2D-v0", {"action": "discrete", "max_episode_steps": 120}, 1.0),
+        (
+            "DebrisGym/Rendezvous2D-v0",
+            {"target_order": "queued", "thrust_model": "box", "delta_v_budget": 15.0},
+            0.6,
+        ),
+        ("DebrisGym/Rendezvous2D-v0", {"shaping_terminal": "hold", "n_obstacles": 60}, 0.4),
+        ("DebrisGym/Rendezvous2D-v0", {"return_to_dock": False, "obs_obstacles": 2}, 0.4),
+        ("DebrisGym/Rendezvous3D-v0", {"max_episode_steps": 150}, 0.4),
+        ("DebrisGym/Rendezvous3D-v0", {"observation": "lidar", "lidar_rays": 12}, 0.4),
+        ("DebrisGym/PaperField2D-v0", {"max_episode_steps": 150}, 0.2),
+    ],
+)
+def test_env_equals_the_reference_on_random_flights(env_id, kwargs, scale):
+    ended = fly_both(env_id, episodes=6, scale=scale, seed=7, **kwargs)
+    assert sum(ended.values()) > 0
+
+
+@pytest.mark.parametrize(
+    "env_id, kwargs",
+    [
+        ("DebrisGym/Rendezvous2D-v0", {}),
+        ("DebrisGym/Rendezvous2D-v0", {"target_order": "queued", "shaping_terminal": "hold"}),
+        ("DebrisGym/Rendezvous3D-v0", {}),
+    ],
+)
+def test_env_equals_the_reference_on_missions_that_capture(env_id, kwargs):
+    ended = fly_both(env_id, episodes=8, scale=0.1, seed=0, pd=True, **kwargs)
+    assert ended["captures"] >= 5 and ended["success"] >= 1 and ended["collision"] >= 1, ended
+
+
+def test_env_equals_the_reference_on_captures_and_success():
+    """Hand-made flights through captures, a gentle touch, a fast touch and the return home."""
+    targets = (
+        Body(position=(0.0, 100.0), radius=5.0, velocity=(0.0, 0.0)),
+        Body(position=(60.0, 0.0), radius=4.0, velocity=(0.0, 0.0)),
+    )
+    polygon = ((10.0, 0.0), (0.0, 10.0), (-10.0, 0.0), (0.0, -10.0))
+    obstacles = (
+        Body(position=(-80.0, 0.0), radius=10.0, vertices=polygon),
+        Body(position=(0.0, -70.0), radius=6.0),
+    )
+    scen = simple_scenario(targets=targets, obstacles=obstacles)
+    for kwargs in ({}, {"target_order": "queued"}, {"delta_v_budget": None}):
+        env = DebrisFieldEnv(n_targets=2, n_obstacles=2, **kwargs)
+        ref = ReferenceDebrisFieldEnv(n_targets=2, n_obstacles=2, **kwargs)
+        for start, burns in (
+            ([0.0, 80.0, 0.0, 0.3], [(0.0, 0.0)] * 12),  # drift into target 0's capture zone
+            ([0.0, 80.0, 0.0, 2.0], [(0.0, 0.0)] * 6),  # too fast: a collision
+            ([40.0, 0.0, 0.4, 0.0], [(0.0, 0.0)] * 8 + [(-0.3, 0.0)] * 4),
+            ([-60.0, 0.0, -1.0, 0.0], [(0.0, 0.0)] * 5),  # into the polygon
+            ([0.0, -50.0, 0.0, -2.0], [(0.0, 0.0)] * 5),  # into the circle
+        ):
+            options = {"scenario": scen, "chaser_state": start}
+            same(env.reset(options=options)[0], ref.reset(options=options)[0], "reset")
+            for k, burn in enumerate(burns):
+                action = np.array(burn, dtype=np.float32)
+                out, out_r = env.step(action), ref.step(action)
+                for name, a, b in zip(("obs", "reward", "terminated"), out, out_r):
+                    same(a, b, f"{name} {start} step {k}")
+                for key in INFO_KEYS:
+                    same(out[4][key], out_r[4][key], f"{key} {start} step {k}")
+                if out[2]:
+                    break
