@@ -114,6 +114,21 @@ OPTIONS: dict[str, Option] = {
         doc="Φ after termination: 'zero' (policy-invariant) or 'hold' (a failure forfeits the "
         "progress still to make)",
     ),
+    "shaping_speed": Option(
+        "",
+        0.0,
+        None,
+        doc="weight of Φ's approach-speed term: −w·max(0, speed − allowed) / V, allowed = "
+        "capture_speed + shaping_speed_slope · gap to the goal (0 = off)",
+    ),
+    "shaping_speed_slope": Option(
+        "1/s", 0.0, None, doc="allowed approach speed per metre of gap to the goal (shaping_speed)"
+    ),
+    "obs_goal": Option(
+        choices=(False, True),
+        doc="append the current goal at a 10× finer scale: relative position / (L/10), "
+        "relative velocity / (V/10), gap / (L/10)",
+    ),
 }
 
 
@@ -159,6 +174,9 @@ class EnvConfig:
     reward_time: float = 0.01
     shaping_gamma: float = 0.99
     shaping_terminal: str = "zero"
+    shaping_speed: float = 0.0
+    shaping_speed_slope: float = 0.01
+    obs_goal: bool = False
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):

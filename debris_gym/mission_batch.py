@@ -34,12 +34,13 @@ from debris_gym.thrust import delta_v_rate_row, thrust_row
 # float parameters (MissionBatch.params)
 _DT, _CHASER_R, _CAPTURE_R, _CAPTURE_V, _BUDGET, _GAMMA = range(6)
 _W_CAPTURE, _W_SUCCESS, _W_PROGRESS, _W_DV, _W_COLLISION, _W_OOB, _W_TIME = range(6, 13)
-_LIDAR_RANGE, _MAX_ACCEL = 13, 14
-_N_PARAMS = 15
+_LIDAR_RANGE, _MAX_ACCEL, _W_SPEED, _SPEED_SLOPE = 13, 14, 15, 16
+_N_PARAMS = 17
 
 # integer options (MissionBatch.options)
 _QUEUED, _RETURN, _TERMINAL_ZERO, _LIDAR, _OBS_TARGETS, _OBS_OBSTACLES, _MAX_STEPS, _BOX = range(8)
-_N_OPTIONS = 8
+_OBS_GOAL = 8
+_N_OPTIONS = 9
 
 # reward term columns, in REWARD_TERMS order
 _T_CAPTURE, _T_SUCCESS, _T_PROGRESS, _T_DV, _T_COLLISION, _T_OOB, _T_TIME = range(7)
@@ -109,6 +110,8 @@ class MissionBatch:
         params[_W_CAPTURE : _W_TIME + 1] = [getattr(cfg, f"reward_{k}") for k in REWARD_TERMS]
         params[_LIDAR_RANGE] = cfg.lidar_range
         params[_MAX_ACCEL] = max_accel
+        params[_W_SPEED] = cfg.shaping_speed
+        params[_SPEED_SLOPE] = cfg.shaping_speed_slope
         self.params = params
         options = np.zeros(_N_OPTIONS, dtype=np.int64)
         options[_QUEUED] = cfg.target_order == "queued"
@@ -119,6 +122,7 @@ class MissionBatch:
         options[_OBS_OBSTACLES] = cfg.obs_obstacles
         options[_MAX_STEPS] = -1 if max_episode_steps is None else max_episode_steps
         options[_BOX] = cfg.thrust_model == "box"
+        options[_OBS_GOAL] = cfg.obs_goal
         self.options = options
         lidar = cfg.observation == "lidar"
         self.lidar_dirs = lidar_directions(d, cfg.lidar_rays) if lidar else np.zeros((1, d))
@@ -171,7 +175,7 @@ class MissionBatch:
             self.delta_v, self.captured, self.collision, self.out_of_bounds, self.success,
             self.gaps, self.nearest, self.min_clearance, self.potential, self.accel, f.centers,
             f.radii, f.polygon_start, f.n_vertices, f.vertices, self.dock,
-            self.length_scale,
+            self.length_scale, self.speed_scale,
         )  # fmt: skip
 
     def step(
@@ -198,7 +202,8 @@ class MissionBatch:
                 self.time, self.steps, self.delta_v, self.captured, self.collision,
                 self.out_of_bounds, self.success, self.gaps, self.nearest, self.min_clearance,
                 self.potential, self.accel, f.centers, f.radii, f.polygon_start, f.n_vertices,
-                f.vertices, self.dock, self.low, self.high, self.length_scale, self._terms,
+                f.vertices, self.dock, self.low, self.high, self.length_scale,
+                self.speed_scale, self._terms,
                 self._reward, self._terminated, self._truncated,
             )  # fmt: skip
         if live.dtype != np.bool_ or actions.dtype != np.float64:
@@ -228,34 +233,48 @@ class MissionBatch:
 
 
 @_jit
-def _potential(i, prm, opt, n_targets, state, captured, gaps, dock, length_scale):
-    """Φ = −(gap to the current goal / L + goals after it) of mission ``i``.
+def _goal(i, prm, opt, n_targets, state, captured, gaps):
+    """Mission ``i``'s current goal: ``(index, gap (m), goals after it)``.
 
-    The current goal is the nearest uncaptured target (the queue head if queued), then the dock
-    (if a return is required).
+    The goal is the nearest uncaptured target (the queue head if queued), index ≥ 0, with the
+    gap from the chaser's surface to the target's; then the dock, index −1, with the distance
+    to it (if a return is required); index −2 when nothing is left.
     """
-    dim = dock.shape[1]
-    dock_goal = opt[_RETURN]
+    goal = -2
     gap = math.inf
     left = 0
     for j in range(n_targets):
         if not captured[i, j]:
-            if opt[_QUEUED] == 0 or left == 0:
-                gap = min(gap, gaps[i, j])
+            if (opt[_QUEUED] == 0 or left == 0) and gaps[i, j] < gap:
+                gap = gaps[i, j]
+                goal = j
             left += 1
     if left:
-        goal_gap = max(gap - prm[_CHASER_R], 0.0)
-        after = left - 1 + dock_goal
-    else:
-        goal_gap = 0.0
-        if dock_goal:
-            s = 0.0
-            for a in range(dim):
-                off = state[i, a] - dock[i, a]
-                s += off * off
-            goal_gap = math.sqrt(s)
-        after = 0
-    return -(goal_gap / length_scale[i] + after)
+        return goal, gap - prm[_CHASER_R], left - 1 + opt[_RETURN]
+    return (-1 if opt[_RETURN] else -2), 0.0, 0
+
+
+@_jit
+def _potential(i, prm, opt, n_targets, state, captured, gaps, dock, length_scale, speed_scale):
+    """Φ = −(gap to the current goal / L + goals after it), minus the approach-speed term
+    ``shaping_speed`` · max(0, speed − (capture_speed + slope · gap)) / V when it is on."""
+    dim = dock.shape[1]
+    goal, gap, after = _goal(i, prm, opt, n_targets, state, captured, gaps)
+    if goal == -1:
+        s = 0.0
+        for a in range(dim):
+            off = state[i, a] - dock[i, a]
+            s += off * off
+        gap = math.sqrt(s)
+    goal_gap = max(gap, 0.0)
+    phi = -(goal_gap / length_scale[i] + after)
+    if prm[_W_SPEED] > 0.0 and goal != -2:
+        s = 0.0
+        for a in range(dim):
+            s += state[i, dim + a] * state[i, dim + a]
+        allowed = prm[_CAPTURE_V] + prm[_SPEED_SLOPE] * goal_gap
+        phi -= prm[_W_SPEED] * max(math.sqrt(s) - allowed, 0.0) / speed_scale[i]
+    return phi
 
 
 @_jit
@@ -355,7 +374,7 @@ def _before(g, b, g2, b2):
 def _begin(
     rows, states, prm, opt, n_targets, state, time, steps, delta_v, captured, collision,
     out_of_bounds, success, gaps, nearest, min_clearance, potential, accel, centers, radii,
-    polygon_start, n_vertices, vertices, dock, length_scale,
+    polygon_start, n_vertices, vertices, dock, length_scale, speed_scale,
 ):  # fmt: skip
     dim = dock.shape[1]
     n_bodies = centers.shape[1]
@@ -386,7 +405,9 @@ def _begin(
         for b in range(n_targets, n_bodies):
             clearance = min(clearance, gaps[i, b])
         min_clearance[i] = clearance
-        potential[i] = _potential(i, prm, opt, n_targets, state, captured, gaps, dock, length_scale)
+        potential[i] = _potential(
+            i, prm, opt, n_targets, state, captured, gaps, dock, length_scale, speed_scale
+        )
 
 
 @_jit
@@ -394,7 +415,7 @@ def _step(
     live, actions, matrix_t, prm, opt, n_targets, state, time, steps, delta_v, captured,
     collision, out_of_bounds, success, gaps, nearest, min_clearance, potential, last_accel,
     centers, radii, polygon_start, n_vertices, vertices, dock, low, high, length_scale,
-    terms, reward, terminated, truncated,
+    speed_scale, terms, reward, terminated, truncated,
 ):  # fmt: skip
     num, n_bodies = gaps.shape
     dim = dock.shape[1]
@@ -511,7 +532,9 @@ def _step(
         success[i] = success[i] or done
 
         # reward terms
-        phi = _potential(i, prm, opt, n_targets, state, captured, gaps, dock, length_scale)
+        phi = _potential(
+            i, prm, opt, n_targets, state, captured, gaps, dock, length_scale, speed_scale
+        )
         progress = prm[_GAMMA] * phi - potential[i]
         potential[i] = phi
         terms[i, _T_CAPTURE] = prm[_W_CAPTURE] * new
@@ -609,6 +632,24 @@ def _observe(
         budget = prm[_BUDGET]
         k = _put(out, i, k, 1.0 if budget == math.inf else max(budget - delta_v[i], 0.0) / budget)
         k = _put(out, i, k, max(horizon - steps[i], 0.0) / horizon)
+        if opt[_OBS_GOAL]:  # the current goal at a 10x finer scale
+            goal, gap, _ = _goal(i, prm, opt, n_targets, state, captured, gaps)
+            fine_l = L / 10.0
+            s = 0.0
+            for a in range(dim):
+                if goal >= 0:
+                    rel = centers[i, goal, a] - state[i, a]
+                elif goal == -1:
+                    rel = dock[i, a] - state[i, a]
+                else:
+                    rel = 0.0
+                s += rel * rel
+                k = _put(out, i, k, rel / fine_l)
+            for a in range(dim):
+                k = _put(out, i, k, 0.0 if goal == -2 else -state[i, dim + a] / (V / 10.0))
+            if goal == -1:
+                gap = math.sqrt(s)
+            k = _put(out, i, k, (gap if goal != -2 else 0.0) / fine_l)
 
 
 @_jit

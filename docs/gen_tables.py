@@ -39,6 +39,9 @@ OBS_MEANING = [
     (r"lidar(\d+)", "lidar ray {0}: range to first surface", "m", "lidar_range"),
     (r"delta_v_remaining", "Δv budget left (1 without a budget)", "", "budget"),
     (r"time_remaining", "steps left of the registered limit", "", "max_episode_steps"),
+    (r"goal_rel_pos_(\w)", "current goal − chaser position, {0} (obs_goal)", "m", "L/10"),
+    (r"goal_rel_vel_(\w)", "current goal − chaser velocity, {0} (obs_goal)", "m/s", "V/10"),
+    (r"goal_gap", "gap from the chaser's surface to the goal (obs_goal)", "m", "L/10"),
 ]
 
 

@@ -585,3 +585,51 @@ def test_capture_at_just_under_capture_speed():
         env.reset(options={"scenario": scen, "chaser_state": [0.0, 86.0, 0.0, speed]})
         _, _, _, _, info = env.step(np.zeros(2, dtype=np.float32))  # to ~4 m from the surface
         assert info["targets_captured"] == captured and not info["collision"], speed
+
+
+def test_goal_observation_at_a_fine_scale():
+    """obs_goal appends the current goal (nearest uncaptured target, then the dock) / (L/10)."""
+    env = DebrisFieldEnv(obs_goal=True, delta_v_budget=None)
+    names = env.observation_names()
+    assert names[-5:] == ["goal_rel_pos_x", "goal_rel_pos_y", "goal_rel_vel_x",
+                          "goal_rel_vel_y", "goal_gap"]  # fmt: skip
+    scen = simple_scenario()  # target at (0, 100), radius 5; L = 500 m, V = 5 m/s
+    obs, _ = env.reset(options={"scenario": scen, "chaser_state": [0.0, 80.0, 0.1, 0.2]})
+    goal = dict(zip(names[-5:], obs[-5:].tolist()))
+    assert goal["goal_rel_pos_x"] == pytest.approx(0.0, abs=1e-7)
+    assert goal["goal_rel_pos_y"] == pytest.approx(20.0 / 50.0)
+    assert goal["goal_rel_vel_x"] == pytest.approx(-0.1 / 0.5)
+    assert goal["goal_rel_vel_y"] == pytest.approx(-0.2 / 0.5)
+    assert goal["goal_gap"] == pytest.approx((20.0 - 5.0 - 1.0) / 50.0)  # surface to surface
+    # once the only target is captured, the goal is the dock
+    env.reset(options={"scenario": scen, "chaser_state": [0.0, 92.0, 0.0, 0.0]})
+    obs, _, _, _, info = env.step(np.zeros(2, dtype=np.float32))
+    assert info["targets_captured"] == 1
+    goal = dict(zip(names[-5:], obs[-5:].tolist()))
+    pos = info["chaser_state"][:2]
+    assert goal["goal_rel_pos_y"] == pytest.approx(-pos[1] / 50.0, rel=1e-6)
+    assert goal["goal_gap"] == pytest.approx(np.linalg.norm(pos) / 50.0, rel=1e-6)
+
+
+def test_approach_speed_shaping_hand_computed():
+    """Φ −= w · max(0, speed − (capture_speed + slope · gap)) / V."""
+    scen = simple_scenario()
+    kwargs = dict(delta_v_budget=None, shaping_speed=2.0, shaping_speed_slope=0.01)
+    env = DebrisFieldEnv(**kwargs)
+    env.reset(options={"scenario": scen, "chaser_state": [0.0, 80.0, 0.0, 3.0]})
+    gap = 100.0 - 80.0 - 5.0 - 1.0  # chaser surface to target surface, m
+    allowed = 0.5 + 0.01 * gap
+    expected = -(gap / 500.0 + 1.0) - 2.0 * (3.0 - allowed) / 5.0  # the dock is the goal after
+    assert env._potential == pytest.approx(expected, rel=1e-12)
+    env.reset(options={"scenario": scen, "chaser_state": [0.0, 80.0, 0.0, 0.5]})  # under it
+    assert env._potential == pytest.approx(-(gap / 500.0 + 1.0), rel=1e-12)
+    # with γ = 1 and 'hold', the progress terms still sum to Φ(end) − Φ(start)
+    env = DebrisFieldEnv(shaping_gamma=1.0, shaping_terminal="hold", **kwargs)
+    env.reset(seed=3)
+    phi0, total, rng = env._potential, 0.0, np.random.default_rng(0)
+    for _ in range(60):
+        _, _, terminated, _, info = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
+        total += info["reward_terms"]["progress"]
+        if terminated:
+            break
+    assert total == pytest.approx(env.config.reward_progress * (env._potential - phi0), rel=1e-9)

@@ -49,6 +49,9 @@ def observation_names(cfg: EnvConfig) -> list[str]:
     else:
         names += [f"lidar{k}" for k in range(cfg.lidar_rays)]
     names += ["delta_v_remaining", "time_remaining"]
+    if cfg.obs_goal:
+        names += [f"goal_rel_pos_{a}" for a in axes] + [f"goal_rel_vel_{a}" for a in axes]
+        names += ["goal_gap"]
     return names
 
 
