@@ -193,6 +193,11 @@ class TrainConfig:
         normalize: VecNormalize options.
         eval: evaluation options.
         checkpoint: checkpoint options.
+        curriculum: training stages before the final task, each ``{until: N, env_kwargs:
+            {...}}``: while fewer than N env steps are done, the training env uses
+            ``env_kwargs`` merged over the top-level ones (e.g. fewer targets); afterwards the
+            top-level ones. Observation and action spaces must not change; evaluation always
+            flies the final task.
         notes: free text (what the recipe is for, what it was tuned on).
     """
 
@@ -208,7 +213,21 @@ class TrainConfig:
     normalize: NormalizeConfig = field(default_factory=NormalizeConfig)
     eval: EvalConfig = field(default_factory=EvalConfig)
     checkpoint: CheckpointConfig = field(default_factory=CheckpointConfig)
+    curriculum: list[dict[str, Any]] = field(default_factory=list)
     notes: str = ""
+
+    def stage(self, timesteps: int) -> int:
+        """Index of the curriculum stage at ``timesteps`` (``len(curriculum)``: the final task)."""
+        for k, stage in enumerate(self.curriculum):
+            if timesteps < stage["until"]:
+                return k
+        return len(self.curriculum)
+
+    def stage_env_kwargs(self, stage: int) -> dict[str, Any]:
+        """The training env's options in curriculum stage ``stage``."""
+        if stage >= len(self.curriculum):
+            return dict(self.env_kwargs)
+        return {**self.env_kwargs, **self.curriculum[stage]["env_kwargs"]}
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], source: str = "config") -> TrainConfig:
@@ -301,6 +320,10 @@ def _typed(value: Any, kind: type, key: str, source: str, optional: bool = False
         if not isinstance(value, dict):
             raise _fail(source, key, f"must be a mapping, got {value!r}")
         return dict(value)
+    if kind is list:
+        if not isinstance(value, list):
+            raise _fail(source, key, f"must be a list, got {value!r}")
+        return list(value)
     raise TypeError(kind)  # pragma: no cover
 
 
@@ -435,6 +458,9 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
             "checkpoint.replay_buffer",
             f"must be 'auto', 'always' or 'never', got {checkpoint.replay_buffer!r}",
         )
+    curriculum = _validate_curriculum(
+        data.get("curriculum"), env_kwargs, spec.kwargs, env_config, source
+    )
     return TrainConfig(
         version=version,
         env_id=env_id,
@@ -448,8 +474,50 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
         normalize=normalize,
         eval=evaluation,
         checkpoint=checkpoint,
+        curriculum=curriculum,
         notes=notes,
     )
+
+
+def _validate_curriculum(
+    data: Any, env_kwargs: dict[str, Any], spec_kwargs: dict[str, Any], final: Any, source: str
+) -> list[dict[str, Any]]:
+    """Curriculum stages: ``until`` strictly increasing, env options valid, same spaces."""
+    from debris_gym.config import EnvConfig
+    from debris_gym.envs.common import observation_names
+
+    stages = _typed(data if data is not None else [], list, "curriculum", source)
+    out: list[dict[str, Any]] = []
+    previous = 0
+    for k, stage in enumerate(stages):
+        where = f"curriculum[{k}]"
+        stage = _check_keys(stage, ["until", "env_kwargs"], f"{where}.", source)
+        if "until" not in stage:
+            raise _fail(source, f"{where}.until", "is missing (required)")
+        until = _typed(stage["until"], int, f"{where}.until", source)
+        if until <= previous:
+            raise _fail(
+                source, f"{where}.until", f"must be > {previous} (stages in increasing order)"
+            )
+        previous = until
+        kwargs = _typed(stage.get("env_kwargs") or {}, dict, f"{where}.env_kwargs", source)
+        options = {k2: v for k2, v in {**env_kwargs, **kwargs}.items() if k2 != "max_episode_steps"}
+        try:
+            cfg = EnvConfig.from_kwargs(**{**spec_kwargs, **options})
+        except (TypeError, ValueError) as exc:
+            raise _fail(source, f"{where}.env_kwargs", f"is invalid: {exc}") from None
+        if len(observation_names(cfg)) != len(observation_names(final)) or (
+            cfg.action,
+            cfg.dim,
+        ) != (final.action, final.dim):
+            raise _fail(
+                source,
+                f"{where}.env_kwargs",
+                "changes the observation or action space (keep obs_targets, obs_obstacles, "
+                "observation, lidar_rays, obs_goal, action and dim as in env_kwargs)",
+            )
+        out.append({"until": until, "env_kwargs": kwargs})
+    return out
 
 
 def _validate_policy_kwargs(data: Any, policy_cls: type, source: str) -> dict[str, Any]:
@@ -831,10 +899,44 @@ def _callbacks_module() -> Any:
 
 
 def _make_callbacks(
-    config: TrainConfig, out: Path, eval_env: Any, resume_at: int | None
+    config: TrainConfig, out: Path, eval_env: Any, resume_at: int | None, seed: int = 0
 ) -> tuple[list[Any], Any, Any, Any]:
     """(callbacks, eval callback or None, checkpoint callback or None, episode logger)."""
     cb = _callbacks_module()
+
+    class CurriculumCallback(cb.BaseCallback):
+        """Before each rollout, give the training env the options of the current stage."""
+
+        def __init__(self) -> None:
+            super().__init__()
+            self.current: int | None = None
+
+        def _on_rollout_start(self) -> None:
+            from debris_gym.integrations.sb3 import NativeVecEnv
+
+            stage = config.stage(self.num_timesteps)
+            if stage == self.current:
+                return
+            kwargs = config.stage_env_kwargs(stage)
+            holder = self.training_env  # VecNormalize → VecMonitor → NativeVecEnv
+            while not isinstance(holder.venv, NativeVecEnv):
+                holder = holder.venv
+            holder.venv.close()
+            holder.venv = NativeVecEnv(config.env_id, config.n_envs, **kwargs)
+            self.training_env.seed(seed + stage)
+            self.model._last_obs = self.training_env.reset()
+            self.model._last_episode_starts = np.ones(config.n_envs, dtype=bool)
+            self.current = stage
+            final = stage == len(config.curriculum)
+            what = "the final task" if final else f"until {config.curriculum[stage]['until']:,}"
+            print(
+                f"curriculum: stage {stage} ({what}) from step {self.num_timesteps:,}: "
+                f"{config.curriculum[stage]['env_kwargs'] if not final else config.env_kwargs}",
+                flush=True,
+            )
+
+        def _on_step(self) -> bool:
+            return True
 
     class EpisodeLogCallback(cb.BaseCallback):
         """Append every finished training episode (VecMonitor's ``info["episode"]``) to a CSV."""
@@ -1018,6 +1120,8 @@ def _make_callbacks(
 
     episodes = EpisodeLogCallback(out / "train_episodes.csv")
     callbacks: list[Any] = [episodes]
+    if config.curriculum:
+        callbacks.insert(0, CurriculumCallback())
     n = config.n_envs
     checkpoint = None
     if config.checkpoint.freq > 0:
@@ -1377,7 +1481,7 @@ def train(options: TrainOptions) -> TrainResult:
 
     _write_config(out, config, run)  # before learning, so an interrupted run can be resumed
     callbacks, evaluation, checkpointer, episodes = _make_callbacks(
-        config, out, eval_env, start_steps if checkpoint is not None else None
+        config, out, eval_env, start_steps if checkpoint is not None else None, segment_seed
     )
     if checkpointer is not None:
         checkpointer.save_replay_buffer = _save_replay_buffer(config, model)

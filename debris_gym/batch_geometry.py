@@ -1,17 +1,20 @@
-"""Geometry of many debris fields at once (for the native vector env), in compiled loops.
+"""Geometry of many debris fields at once, in compiled loops (the envs' geometry).
 
 :class:`FieldBatch` holds N fields with the same number of bodies B (targets first, then
 obstacles, as :attr:`Scenario.bodies`) in flat numpy arrays. Its queries take one point or one
 path per field and answer for every body of every field in one call of a numba-compiled loop
-over fields and bodies (no Python loop, no temporaries the size of the batch). They give the
-same answers as :class:`debris_gym.geometry.FieldGeometry`: clearance with the same formulas,
-operation for operation (bit-identical), swept contacts and lidar equal to pymunk's;
+over fields and bodies (no Python loop, no temporaries the size of the batch); the per-field
+functions (:func:`field_gaps`, :func:`polygon_gap`, :func:`path_touches`, :func:`ray_ranges`)
+are what :mod:`debris_gym.mission_batch` calls inside its step. They give the same answers as
+:class:`debris_gym.geometry.FieldGeometry`: clearance with the same formulas, operation for
+operation (bit-identical), swept contacts and lidar equal to pymunk's;
 ``tests/test_vector_env.py`` holds the two together.
 
-Storage is compact: polygon data exists only for the bodies from ``polygon_start`` on (targets
-are never polygons), five numbers per polygon edge: the start vertex relative to the body centre
-(x, y), the edge vector (x, y) (m), and 1 / its squared length (1/m²). The outward normal of an
-edge e of a counter-clockwise polygon is (e_y, −e_x) / |e|.
+Storage is compact: polygon vertices exist only for the bodies from ``polygon_start`` on (the
+vector env keeps targets as circles), three numbers per vertex: its position relative to the
+body centre (m) and 1 / the squared length of the edge to the next vertex (1/m²); an edge is
+computed from its two vertices when it is needed. The outward normal of an edge e of
+a counter-clockwise polygon is (e_y, −e_x) / |e|.
 """
 
 from __future__ import annotations
@@ -40,8 +43,9 @@ class FieldBatch:
         centers: (N, B, dim) body centres (m).
         radii: (N, B) bounding radii (m).
         n_vertices: (N, P) vertex counts of bodies ``polygon_start …`` (0: not a polygon).
-        vertices: (N, P, V, 2) polygon vertices relative to the body centre (m), counter-
-            clockwise; slots past a polygon's count (and non-polygons) are zero.
+        vertices: (N, P, V, 3) polygon vertices relative to the body centre (m), counter-
+            clockwise, and 1 / squared length (1/m²) of the edge from each to the next; slots
+            past a polygon's count (and non-polygons) are zero.
     """
 
     def __init__(
@@ -57,8 +61,8 @@ class FieldBatch:
         self.max_vertices = max_vertices if dim == 2 else 0
         self.centers = np.zeros((num, n_bodies, dim))
         self.radii = np.ones((num, n_bodies))
-        self.n_vertices = np.zeros((num, p), dtype=np.int64)
-        self.vertices = np.zeros((num, p, self.max_vertices, 2))
+        self.n_vertices = np.zeros((num, p), dtype=np.int16)
+        self.vertices = np.zeros((num, p, self.max_vertices, 3))
 
     @property
     def is_polygon(self) -> np.ndarray:
@@ -125,22 +129,25 @@ class FieldBatch:
         self.radii[rows] = radii
         if self.dim != 2 or self.n_vertices.shape[1] == 0:
             return
-        counts = np.asarray(n_vertices, dtype=np.int64)
+        counts = np.asarray(n_vertices, dtype=np.int16)
         if counts.max(initial=0) > self.max_vertices:
             self._grow_vertices(int(counts.max()))
         self.n_vertices[rows] = counts
-        _load_polygons(rows, np.ascontiguousarray(vertices, dtype=float), counts, self.vertices)
+        _load_polygons(
+            rows, np.ascontiguousarray(vertices, dtype=float), counts, self.centers,
+            self.polygon_start, self.vertices,
+        )  # fmt: skip
 
     def _grow_vertices(self, v: int) -> None:
         """Make room for polygons of ``v`` vertices."""
         old = self.vertices
-        self.vertices = np.zeros((*old.shape[:2], v, 2))
+        self.vertices = np.zeros((*old.shape[:2], v, 3))
         self.vertices[:, :, : old.shape[2]] = old
         self.max_vertices = v
 
     def vertex_arrays(self, i: int) -> tuple[np.ndarray, np.ndarray]:
         """Field ``i``'s polygon vertices relative to their centres (P, V, 2) and counts (P,)."""
-        return self.vertices[i], self.n_vertices[i]
+        return self.vertices[i, :, :, :2], self.n_vertices[i]
 
     # --- queries ------------------------------------------------------------------------------
 
@@ -222,15 +229,23 @@ class FieldBatch:
 
 
 @_jit
-def _load_polygons(rows, vertices, counts, out):
-    """Copy relative vertices (K, P, V', 2) with counts (K, P) into ``out[rows]``, zero-padded."""
+def _load_polygons(rows, vertices, counts, centers, polygon_start, out):
+    """Copy relative vertices (K, P, V', 2) with counts (K, P) into ``out[rows]`` (zero-padded),
+    with 1 / squared length of the edge from each vertex to the next (computed from the
+    absolute vertices, as :class:`~debris_gym.geometry.FieldGeometry` does)."""
     for k in range(rows.shape[0]):
         i = rows[k]
         for j in range(counts.shape[1]):
             m = counts[k, j]
+            cx = centers[i, polygon_start + j, 0]
+            cy = centers[i, polygon_start + j, 1]
             for v in range(out.shape[2]):
                 out[i, j, v, 0] = vertices[k, j, v, 0] if v < m else 0.0
                 out[i, j, v, 1] = vertices[k, j, v, 1] if v < m else 0.0
+                out[i, j, v, 2] = 0.0
+            for v in range(m):
+                _, _, ex, ey = _edge(out[i, j], v, m, cx, cy)
+                out[i, j, v, 2] = 1.0 / (ex * ex + ey * ey)
 
 
 @_jit
@@ -246,7 +261,7 @@ def _edge(verts, v, m, cx, cy):
 @_jit
 def polygon_gap(px, py, cx, cy, verts, m):
     """Signed distance of (px, py) to one convex polygon (centre cx, cy; ``m`` vertices
-    ``verts`` (V, 2) relative to it, counter-clockwise).
+    ``verts`` (V, 3) relative to it, counter-clockwise, with 1 / |e|² of each edge).
 
     The formula of :meth:`FieldGeometry.point_gaps`, operation for operation: outside (the
     point is beyond some edge line) the distance to the nearest edge, inside minus the smallest
@@ -261,7 +276,7 @@ def polygon_gap(px, py, cx, cy, verts, m):
         dy = py - y0
         t = dx * ex
         t += dy * ey
-        t *= 1.0 / (ex * ex + ey * ey)
+        t *= verts[v, 2]  # 1 / |e|²
         t = min(max(t, 0.0), 1.0)
         qx = dx - t * ex
         qy = dy - t * ey
@@ -279,7 +294,7 @@ def polygon_gap(px, py, cx, cy, verts, m):
         x0, y0, ex, ey = _edge(verts, v, m, cx, cy)
         plane = (px - x0) * ey
         plane -= (py - y0) * ex
-        plane *= math.sqrt(1.0 / (ex * ex + ey * ey))
+        plane *= math.sqrt(verts[v, 2])
         if plane > depth:
             depth = plane
     return depth
@@ -387,14 +402,14 @@ def path_touches(
     ``inflate`` (m).
     """
     n_points, dim = path.shape
-    reach = 0.0
+    reach2 = 0.0
     for k in range(1, n_points):
         s = 0.0
         for a in range(dim):
             d = path[k, a] - path[0, a]
             s += d * d
-        reach = max(reach, math.sqrt(s))
-    reach += inflate
+        reach2 = max(reach2, s)
+    reach = math.sqrt(reach2) + inflate
     for b in range(centers.shape[1]):
         out[b] = False
         if not start_gaps[b] <= reach:  # broad phase

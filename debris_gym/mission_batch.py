@@ -21,7 +21,7 @@ import math
 import numba
 import numpy as np
 
-from debris_gym.batch_geometry import FieldBatch, path_touches, polygon_gap, ray_ranges
+from debris_gym.batch_geometry import FieldBatch, field_gaps, path_touches, ray_ranges
 from debris_gym.config import EnvConfig
 from debris_gym.dynamics import discretize, substep_position_matrix
 from debris_gym.generators import MAX_POLYGON_VERTICES
@@ -279,95 +279,28 @@ def _potential(i, prm, opt, n_targets, state, captured, gaps, dock, length_scale
 
 @_jit
 def _mission_gaps(
-    point, i, n_targets, centers, radii, polygon_start, n_vertices, vertices, gaps, nearest,
-    fresh, best_gap, best_body, mark,
-):  # fmt: skip
-    """Gaps (m) from ``point`` to the bodies of field ``i``, into ``gaps`` (B,), and the nearest
-    obstacles, into ``nearest`` (nearest first, ties by index).
+    point, i, n_targets, centers, radii, polygon_start, n_vertices, vertices, gaps, nearest
+):
+    """Gaps (m) from ``point`` to every body of field ``i``, into ``gaps`` (B,), and the nearest
+    obstacles by gap, into ``nearest`` (nearest first, ties by index).
 
-    Exact for every target and for every obstacle that can be among the n nearest
-    (n = len(best_gap) = max(len(nearest), 1), so the smallest obstacle gap is always exact);
-    the other polygons keep a lower bound, their bounding-circle gap |p − c| − R. Obstacles are
-    offered to a sorted list of the n best so far, the previous nearest first (unless
-    ``fresh``: a new field), which usually are still the nearest; a polygon is computed exactly
-    only when its lower bound could still enter the list. ``best_gap``, ``best_body`` (n,) and
-    ``mark`` (B,) are work arrays (:func:`_gap_scratch`).
+    The gaps are exact for every body: computing all of them in one tight loop costs less than
+    culling polygons with bounds (measured: the bookkeeping of a culled selection outweighs the
+    polygon edges it saves at the default 20 obstacles).
     """
-    n_bodies, dim = centers.shape[1], centers.shape[2]
-    for b in range(n_bodies):
-        s = 0.0
-        for a in range(dim):
-            d = centers[i, b, a] - point[a]
-            s += d * d
-        gaps[b] = math.sqrt(s) - radii[i, b]  # exact for circles and spheres
-    n_poly = n_vertices.shape[1] if dim == 2 else 0
-    for b in range(polygon_start, min(n_targets, polygon_start + n_poly)):  # polygon targets
-        m = n_vertices[i, b - polygon_start]
-        if m:
-            gaps[b] = polygon_gap(
-                point[0], point[1], centers[i, b, 0], centers[i, b, 1],
-                vertices[i, b - polygon_start], m,
-            )  # fmt: skip
-    stamp = i + 1  # marks the bodies offered for this mission (mark starts at zero)
+    field_gaps(point, i, centers, radii, polygon_start, n_vertices, vertices, gaps)
+    n = nearest.shape[0]
     count = 0
-    if not fresh:
-        for s in range(nearest.shape[0]):
-            b = nearest[s]
-            mark[b] = stamp
-            count = _offer(
-                b, count, point, i, centers, polygon_start, n_vertices, vertices, gaps,
-                best_gap, best_body,
-            )  # fmt: skip
-    for b in range(n_targets, n_bodies):
-        if mark[b] != stamp:
-            count = _offer(
-                b, count, point, i, centers, polygon_start, n_vertices, vertices, gaps,
-                best_gap, best_body,
-            )  # fmt: skip
-    for s in range(nearest.shape[0]):
-        nearest[s] = best_body[s]
-
-
-@_jit
-def _gap_scratch(n_near, n_bodies):
-    """Work arrays of :func:`_mission_gaps` for one kernel call."""
-    n = max(n_near, 1)
-    return np.empty(n), np.empty(n, dtype=np.int64), np.zeros(n_bodies, dtype=np.int64)
-
-
-@_jit
-def _offer(
-    b, count, point, i, centers, polygon_start, n_vertices, vertices, gaps, best_gap, best_body
-):  # fmt: skip
-    """Offer obstacle b to the sorted list of the n nearest (n = len(best_gap)); returns the
-    new count. A polygon's lower bound in ``gaps[b]`` is made exact only if it could enter."""
-    n = best_gap.shape[0]
-    g = gaps[b]
-    if count == n and not _before(g, b, best_gap[n - 1], best_body[n - 1]):
-        return count
-    j = b - polygon_start
-    if j >= 0 and j < n_vertices.shape[1] and n_vertices[i, j]:
-        g = polygon_gap(
-            point[0], point[1], centers[i, b, 0], centers[i, b, 1], vertices[i, j],
-            n_vertices[i, j],
-        )  # fmt: skip
-        gaps[b] = g
-        if count == n and not _before(g, b, best_gap[n - 1], best_body[n - 1]):
-            return count
-    pos = count if count < n else n - 1
-    while pos > 0 and _before(g, b, best_gap[pos - 1], best_body[pos - 1]):
-        best_gap[pos] = best_gap[pos - 1]
-        best_body[pos] = best_body[pos - 1]
-        pos -= 1
-    best_gap[pos] = g
-    best_body[pos] = b
-    return min(count + 1, n)
-
-
-@_jit
-def _before(g, b, g2, b2):
-    """Does (gap g, body b) come before (g2, b2): a smaller gap, or the same and a lower index?"""
-    return g < g2 or (g == g2 and b < b2)
+    for b in range(n_targets, gaps.shape[0] if n else n_targets):
+        g = gaps[b]
+        if count == n and not g < gaps[nearest[n - 1]]:
+            continue
+        pos = count if count < n else n - 1
+        while pos > 0 and g < gaps[nearest[pos - 1]]:
+            nearest[pos] = nearest[pos - 1]
+            pos -= 1
+        nearest[pos] = b
+        count = min(count + 1, n)
 
 
 @_jit
@@ -378,7 +311,6 @@ def _begin(
 ):  # fmt: skip
     dim = dock.shape[1]
     n_bodies = centers.shape[1]
-    best_gap, best_body, mark = _gap_scratch(nearest.shape[1], n_bodies)
     for r in range(rows.shape[0]):
         i = rows[r]
         for a in range(dim):
@@ -399,7 +331,7 @@ def _begin(
         success[i] = False
         _mission_gaps(
             state[i, :dim], i, n_targets, centers, radii, polygon_start, n_vertices, vertices,
-            gaps[i], nearest[i], True, best_gap, best_body, mark,
+            gaps[i], nearest[i],
         )  # fmt: skip
         clearance = math.inf
         for b in range(n_targets, n_bodies):
@@ -425,7 +357,6 @@ def _step(
     start = np.empty(2 * dim)
     accel = np.empty(dim)
     touched = np.empty(n_bodies, dtype=np.bool_)
-    best_gap, best_body, mark = _gap_scratch(nearest.shape[1], n_bodies)
     chaser_r = prm[_CHASER_R]
     for i in range(num):
         if not live[i]:
@@ -472,7 +403,7 @@ def _step(
         # mission: captures, collision, bounds, success
         _mission_gaps(
             state[i, :dim], i, n_targets, centers, radii, polygon_start, n_vertices, vertices,
-            gaps[i], nearest[i], False, best_gap, best_body, mark,
+            gaps[i], nearest[i],
         )  # fmt: skip
         if n_bodies > n_targets:  # clearance to debris other than targets
             clearance = min_clearance[i]

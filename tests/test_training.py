@@ -3,10 +3,12 @@ config validation, and learned agents behind the shared predict() interface."""
 
 from __future__ import annotations
 
+import csv
 import importlib.util
 import json
 import os
 import pickle
+import re
 import shutil
 import signal
 import subprocess
@@ -423,3 +425,40 @@ def test_dqn_policy_flies_discrete_and_continuous_envs(trained):
     assert continuous.action_space.contains(thrust)
     discrete.close()
     continuous.close()
+
+
+def test_curriculum_switches_the_training_env(train_cli, tmp_path, capsys):
+    """Stages run with their env options until their step count, then the final task."""
+    out = tmp_path / "run"
+    stages = "[{until: 128, env_kwargs: {n_targets: 1, return_to_dock: false}}]"
+    argv = [*tiny_args("ppo"), "--out", str(out), "--set", f"curriculum={stages}"]
+    argv += ["--set", "eval.freq=0"]
+    assert train_cli.main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "curriculum: stage 0 (until 128) from step 0: {'n_targets': 1" in printed
+    assert "curriculum: stage 1 (the final task) from step 128" in printed
+    with open(out / "train_episodes.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    early = [int(r["targets_captured"]) for r in rows if int(r["timesteps"]) <= 128]
+    assert all(c <= 1 for c in early)  # one target in stage 0
+    config = yaml.safe_load((out / "config.yaml").read_text())
+    assert config["curriculum"] == [
+        {"until": 128, "env_kwargs": {"n_targets": 1, "return_to_dock": False}}
+    ]
+
+
+@pytest.mark.parametrize(
+    "stages, message",
+    [
+        ("[{until: 0}]", "curriculum[0].until"),
+        ("[{until: 500}, {until: 400}]", "must be > 500"),
+        ("[{until: 10, env_kwargs: {obs_targets: 2}}]", "changes the observation"),
+        ("[{until: 10, env_kwargs: {n_targets: 0}}]", "curriculum[0].env_kwargs"),
+        ("[{until: 10, envkwargs: {}}]", "curriculum[0].envkwargs"),
+    ],
+)
+def test_bad_curricula_are_refused(stages, message):
+    data, _ = tr.load_config_file(tr.default_config_path(ENV_ID, "ppo"))
+    data = tr.apply_overrides(data, [f"curriculum={stages}"])
+    with pytest.raises(ValueError, match=re.escape(message)):
+        tr.TrainConfig.from_dict(data, "test")

@@ -123,6 +123,48 @@ def test_make_vec_returns_the_native_env_for_every_id():
         env.close()
 
 
+@pytest.mark.parametrize("action", ["continuous", "discrete"])
+def test_vector_env_api_contract(action):
+    """What gymnasium's VectorEnv API promises (it has no checker for vector envs): batched
+    spaces of the single spaces, returns of the right shapes and dtypes inside the spaces,
+    info entries with their ``_key`` masks, data not reused between steps, and a same-seed run
+    that repeats exactly."""
+    from gymnasium.vector.utils import batch_space
+
+    def run():
+        env = gym.make_vec(
+            "DebrisGym/Rendezvous2D-v0", num_envs=4, vectorization_mode="vector_entry_point",
+            action=action, max_episode_steps=30,
+        )  # fmt: skip
+        assert env.observation_space == batch_space(env.single_observation_space, 4)
+        assert env.action_space == batch_space(env.single_action_space, 4)
+        assert env.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
+        env.action_space.seed(0)
+        obs, info = env.reset(seed=5)
+        assert env.observation_space.contains(obs) and isinstance(info, dict)
+        history = []
+        for _ in range(70):
+            out = env.step(env.action_space.sample())
+            obs, reward, terminated, truncated, info = out
+            assert env.observation_space.contains(obs)
+            assert reward.shape == (4,) and reward.dtype == np.float64
+            assert terminated.dtype == bool and truncated.dtype == bool
+            for key in INFO_KEYS:
+                assert len(info[key]) == 4 and info["_" + key].dtype == bool
+            history.append([np.copy(x) for x in out[:4]] + [out])
+        for saved in history:  # earlier returns were not overwritten by later steps
+            for a, b in zip(saved[:4], saved[4][:4]):
+                np.testing.assert_array_equal(a, b)
+        env.close()
+        return [h[:4] for h in history]
+
+    first, second = run(), run()
+    assert any(np.any(h[3]) for h in first)  # the time limit was reached (and autoreset)
+    for a, b in zip(first, second):
+        for x, y in zip(a, b):
+            np.testing.assert_array_equal(x, y)
+
+
 def test_seeding_is_per_env_and_deterministic():
     a = DebrisFieldVectorEnv(num_envs=3)
     b = DebrisFieldVectorEnv(num_envs=3)

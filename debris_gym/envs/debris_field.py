@@ -284,7 +284,7 @@ class DebrisFieldEnv(gym.Env):
             "chaser_state": m.state[0].copy(),
             "time": float(m.time[0]),
             "delta_v": float(m.delta_v[0]),
-            "targets_captured": int(captured.sum()),
+            "targets_captured": int(np.count_nonzero(captured)),
             "n_targets": m.n_targets,
             "captured": captured,
             "min_clearance": float(m.min_clearance[0]) - self.config.chaser_radius,
