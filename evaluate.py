@@ -159,7 +159,7 @@ def _default_agents(
     Returns the agent names and {skipped agent: reason}.
     """
     import agents
-    from agents.evaluation import PRETRAINED, make_env
+    from agents.evaluation import PRETRAINED, agent_env_options, make_env
 
     names = list(agents.BASELINES)
     load_agent = getattr(agents, "load_agent", None)
@@ -168,7 +168,7 @@ def _default_agents(
             "learned agents arrive with the training issue (agents.load_agent does not exist yet)"
         )
     else:
-        env = make_env(env_id, env_kwargs, max_steps)
+        env = make_env(env_id, {**env_kwargs, **agent_env_options(PRETRAINED, env_id)}, max_steps)
         try:
             load_agent(PRETRAINED, env)
         except (FileNotFoundError, NotImplementedError, ValueError, KeyError) as exc:
@@ -186,7 +186,7 @@ def _usable(
 ) -> tuple:
     """Check each agent can be built: an error naming it if listed explicitly, else a note.
 
-    Learned and pretrained agents are loaded once here (``make_env()`` gives the env), so a
+    Learned and pretrained agents are loaded once here (``make_env(spec)`` gives the env), so a
     wrong file, a space mismatch or a missing pretrained policy fails before any episode runs.
     """
     from agents.evaluation import build_agent, check_agent_available
@@ -196,7 +196,7 @@ def _usable(
         try:
             check_agent_available(spec)
             if spec.kind != "baseline":
-                env = make_env()
+                env = make_env(spec)
                 try:
                     build_agent(spec, env)
                 finally:
@@ -255,8 +255,11 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         parser.error(f"argument --agents: {exc}")
     specs, skipped = _usable(
-        specs, explicit, parser, "--agents", lambda: ev.make_env(env_id, env_kwargs, args.max_steps)
-    )
+        specs, explicit, parser, "--agents",
+        lambda spec: ev.make_env(
+            env_id, {**env_kwargs, **ev.agent_env_options(spec, env_id)}, args.max_steps
+        ),
+    )  # fmt: skip
     skipped = {**unregistered, **skipped}
     if not specs:
         flag = "--paper" if args.paper else "--agents"

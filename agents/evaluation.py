@@ -226,6 +226,21 @@ def check_agent_available(spec: AgentSpec) -> None:
         )
 
 
+def agent_env_options(spec: AgentSpec | str, env_id: str) -> dict[str, Any]:
+    """Env options an agent needs beyond the evaluation's: for a learned policy, the
+    observation options it was trained with (fields, dynamics and rules stay the same)."""
+    if isinstance(spec, str):
+        spec = parse_agent_spec(spec)
+    if spec.kind == "baseline":
+        return {}
+    from agents.learned import observation_options
+
+    try:
+        return observation_options(spec.load_string, env_id)
+    except (FileNotFoundError, ValueError):
+        return {}  # load_agent reports the problem when the agent is built
+
+
 def build_agent(spec: AgentSpec | str, env: gym.Env) -> Any:
     """The policy for ``spec`` acting in ``env`` (anything with SB3's ``predict``).
 
@@ -504,7 +519,8 @@ def evaluate_agents(
     """Fly every agent on the same ``episodes`` seeded scenarios.
 
     Episode ``i`` of every agent starts with ``env.reset(seed=seed + i)``. Each agent gets its own
-    env (``gym.make(env_id, **env_kwargs)``), built once and reset per episode.
+    env (``gym.make(env_id, **env_kwargs)``), built once and reset per episode; a learned agent's
+    env also gets the observation options it was trained with (:func:`agent_env_options`).
 
     Args:
         env_id: a registered ID, e.g. ``"DebrisGym/Rendezvous2D-v0"``.
@@ -538,7 +554,8 @@ def evaluate_agents(
     )
     try:
         for spec in specs:
-            env = make_env(env_id, env_kwargs, max_episode_steps)
+            kwargs = {**env_kwargs, **agent_env_options(spec, env_id)}
+            env = make_env(env_id, kwargs, max_episode_steps)
             if env.spec is not None:
                 time_limit = env.spec.max_episode_steps
             try:

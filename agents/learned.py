@@ -27,7 +27,21 @@ from gymnasium import spaces
 
 from agents.training import ALGOS, FINAL_MODEL, load_config_file, sidecar_path
 
-__all__ = ["PRETRAINED", "PRETRAINED_DIR", "PRETRAINED_POLICIES", "LearnedAgent", "load_agent"]
+__all__ = [
+    "OBSERVATION_KEYS",
+    "PRETRAINED",
+    "PRETRAINED_DIR",
+    "PRETRAINED_POLICIES",
+    "LearnedAgent",
+    "load_agent",
+    "observation_options",
+]
+
+OBSERVATION_KEYS = (
+    "observation", "obs_targets", "obs_obstacles", "lidar_rays", "lidar_range", "obs_goal"
+)  # fmt: skip
+"""Env options that shape the observation (and nothing else): a learned policy needs the ones
+it was trained with."""
 
 PRETRAINED = "pretrained"
 
@@ -189,16 +203,15 @@ def _check_spaces(model: Any, env: Any, path: Path) -> np.ndarray | None:
 
 def _trained_with_normalization(path: Path) -> bool | None:
     """Whether the run that wrote ``path`` used VecNormalize observations (None: unknown)."""
-    for folder in (path.parent, path.parent.parent):
-        config = folder / "config.yaml"
-        if config.is_file():
-            try:
-                data, _ = load_config_file(config)
-            except (OSError, ValueError):
-                return None
-            norm = data.get("normalize") or {}
-            return bool(norm.get("enabled")) and bool(norm.get("norm_obs", True))
-    return None
+    config = run_config_path(path)
+    if config is None:
+        return None
+    try:
+        data, _ = load_config_file(config)
+    except (OSError, ValueError):
+        return None
+    norm = data.get("normalize") or {}
+    return bool(norm.get("enabled")) and bool(norm.get("norm_obs", True))
 
 
 def _load_normalizer(path: Path, observation_space: spaces.Space) -> Any:
@@ -244,14 +257,51 @@ def _parse(spec: str) -> tuple[str, Path | None]:
     return algo, Path(path)
 
 
+def run_config_path(model_path: Path) -> Path | None:
+    """The ``config.yaml`` of the run that wrote ``model_path`` (``DIR/model.zip``,
+    ``DIR/best_model.zip``, ``DIR/checkpoints/…``), or the ``.yaml`` beside a shipped policy."""
+    for candidate in (
+        model_path.with_suffix(".yaml"),
+        model_path.parent / "config.yaml",
+        model_path.parent.parent / "config.yaml",
+    ):
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def observation_options(spec: str, env_id: str) -> dict[str, Any]:
+    """The observation options (:data:`OBSERVATION_KEYS`) the policy behind ``spec`` was
+    trained with, from its run's config (empty if none is found or none were set).
+
+    ``evaluate.py`` makes a learned agent's env with them: same fields, dynamics and rules as
+    every other agent's, observed the way the policy was trained to see them.
+    """
+    algo, path = _parse(spec)
+    if algo == PRETRAINED:
+        algo, path = pretrained_path(env_id)
+    assert path is not None
+    if path.is_dir():
+        path = path / FINAL_MODEL
+    config = run_config_path(path)
+    if config is None:
+        return {}
+    try:
+        data, _ = load_config_file(config)
+    except (OSError, ValueError):
+        return {}
+    env_kwargs = data.get("env_kwargs") or {}
+    return {k: env_kwargs[k] for k in OBSERVATION_KEYS if k in env_kwargs}
+
+
 def pretrained_path(env: Any) -> tuple[str, Path]:
-    """(algorithm, file) of the shipped policy for ``env``'s ID.
+    """(algorithm, file) of the shipped policy for ``env``'s ID (an env or the ID itself).
 
     Raises:
         ValueError: no pretrained policy is planned for this env.
         FileNotFoundError: it is planned but not shipped yet.
     """
-    env_id = _env_id(env)
+    env_id = env if isinstance(env, str) else _env_id(env)
     if env_id not in PRETRAINED_POLICIES:
         known = ", ".join(PRETRAINED_POLICIES)
         raise ValueError(

@@ -462,3 +462,27 @@ def test_bad_curricula_are_refused(stages, message):
     data = tr.apply_overrides(data, [f"curriculum={stages}"])
     with pytest.raises(ValueError, match=re.escape(message)):
         tr.TrainConfig.from_dict(data, "test")
+
+
+def test_a_policy_trained_with_other_observation_options_flies_beside_the_baselines(
+    train_cli, evaluate_cli, tmp_path, capsys
+):
+    """evaluate.py gives a learned agent the observation options of its run (here obs_goal),
+    on the same fields as the baselines."""
+    out = tmp_path / "run"
+    argv = [*tiny_args("ppo"), "--out", str(out), "--set", "env_kwargs.obs_goal=true"]
+    assert train_cli.main([*argv, "--set", "eval.freq=0"]) == 0
+    capsys.readouterr()
+    args = [
+        "--agents", f"zero,ppo={out / 'model.zip'}", "--episodes", "2", "--max-steps", "10",
+        "--no-progress", "--plots", "0", "--out", str(tmp_path / "eval"),
+    ]  # fmt: skip
+    assert evaluate_cli.main(args) == 0
+    stdout = capsys.readouterr().out
+    assert "| ppo |" in stdout and "| zero |" in stdout
+    from agents.learned import observation_options
+
+    assert observation_options(f"ppo:{out / 'model.zip'}", ENV_ID) == {"obs_goal": True}
+    env = gym.make(ENV_ID)  # the default env does not fit the model
+    with pytest.raises(ValueError, match="observes"):
+        agents.load_agent(f"ppo:{out / 'model.zip'}", env)
