@@ -866,7 +866,8 @@ def _memory_row(cfg: dict[str, Any]) -> dict[str, Any]:
     Fields: ``small_envs`` / ``large_envs`` (the two instance sizes, each built in a fresh
     process), ``rss_growth`` (N → bytes of RSS growth on build + reset), ``rss_per_env``
     ((growth at large N − growth at small N) / (large − small)), ``rss_steps_per_env`` (the same
-    after 10 more steps), ``array_bytes_per_env`` (numpy arrays of the env and its FieldBatch at
+    after 10 more steps), ``array_bytes_per_env`` (numpy arrays of the env, its MissionBatch and
+    FieldBatch at
     the large N, observation buffers excluded, / N), ``obs_buffer_bytes_per_env``, ``arrays``
     (the large instance's arrays, biggest first), ``python_bytes_per_env`` (deep size of the
     ``scenarios`` and per-sub-env generators, / N) and ``error``.
@@ -1401,7 +1402,8 @@ def _memory_lines(rows: list[dict[str, Any]]) -> list[str]:
         "after a 1-env instance was built, reset and dropped (imports and one-off caches are not "
         f"counted). Bodies per field: {row['n_bodies']} (targets + debris).",
         "",
-        f"- (a) numpy arrays held by the env and its `FieldBatch` at N={large}, observation "
+        "- (a) numpy arrays held by the env, its `MissionBatch` and its `FieldBatch` at "
+        f"N={large}, observation "
         f"buffer excluded: **{a:,.0f} B per sub-env ({a / 1024:.2f} KiB)**; the observation "
         f"buffer adds {row['obs_buffer_bytes_per_env']:,.0f} B",
         f"- Python objects per sub-env (deep `sys.getsizeof`): `scenarios` "
