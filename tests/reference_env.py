@@ -20,7 +20,7 @@ from debris_gym.envs.common import (
     single_spaces,
 )
 from debris_gym.geometry import FieldGeometry, lidar_directions
-from debris_gym.rewards import REWARD_TERMS, potential, reward_terms
+from debris_gym.rewards import REWARD_TERMS
 from debris_gym.scenario import Scenario, as_scenario
 from debris_gym.thrust import commanded_accel, delta_v_rate
 
@@ -405,3 +405,47 @@ class ReferenceDebrisFieldEnv(gym.Env):
             "is_success": self._success,
             "reward_terms": terms,
         }
+
+
+def potential(goal_gap: float, goals_after: int, length_scale: float) -> float:
+    """Shaping potential Φ(s) = −(gap to the current goal / length_scale + goals after it).
+
+    Args:
+        goal_gap: distance (m) from the chaser to the current goal (a target's surface, or the
+            dock); 0 when no goal is left.
+        goals_after: number of goals still to visit after the current one (targets, plus the dock
+            if a return is required), so that completing a goal raises Φ by about 1.
+        length_scale: normalising length (m), e.g. half the field size.
+    """
+    return -(goal_gap / length_scale + goals_after)
+
+
+def reward_terms(
+    cfg: EnvConfig,
+    *,
+    new_captures: Any,
+    success: Any,
+    progress: Any,
+    delta_v: Any,
+    collision: Any,
+    out_of_bounds: Any,
+) -> dict[str, Any]:
+    """The weighted reward terms of one step, for one env (scalars) or a batch (arrays).
+
+    Args:
+        cfg: weights ``reward_<term>``.
+        new_captures: targets captured this step.
+        success, collision, out_of_bounds: this step's flags.
+        progress: γΦ(s′) − Φ(s) (before the terminal correction).
+        delta_v: Δv spent this step (m/s).
+    """
+    time = np.full(np.shape(delta_v), -cfg.reward_time) if np.ndim(delta_v) else -cfg.reward_time
+    return {
+        "capture": cfg.reward_capture * new_captures,
+        "success": cfg.reward_success * success,
+        "progress": cfg.reward_progress * progress,
+        "delta_v": -cfg.reward_delta_v * delta_v,
+        "collision": -cfg.reward_collision * collision,
+        "out_of_bounds": -cfg.reward_out_of_bounds * out_of_bounds,
+        "time": time,
+    }

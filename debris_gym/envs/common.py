@@ -9,10 +9,8 @@ from gymnasium.envs.registration import EnvSpec
 
 from debris_gym.config import EnvConfig
 from debris_gym.generators import FieldSpec, paper_field, random_field
+from debris_gym.mission_batch import OBS_LIMIT
 from debris_gym.scenario import Scenario
-
-OBS_LIMIT = 10.0
-"""Observation values are normalised to about [−1, 1] and clipped to ±OBS_LIMIT."""
 
 DEFAULT_HORIZON_STEPS = 1000
 """Steps used for the 'time remaining' observation when the env has no registered time limit."""
