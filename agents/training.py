@@ -126,6 +126,10 @@ class NormalizeConfig:
         clip_obs: clip normalised observations to ±clip_obs.
         clip_reward: clip scaled rewards to ±clip_reward.
         gamma: discount of the return whose std scales rewards; None = the algorithm's gamma.
+        epsilon: added to the running variance before dividing (VecNormalize's ``epsilon``).
+            A larger value (e.g. 0.01, a floor of 0.1 on the std) keeps an element that was
+            constant so far — an empty target slot in a curriculum stage with fewer targets —
+            from being blown up to ±clip_obs when it starts to vary.
     """
 
     enabled: bool = False
@@ -134,6 +138,7 @@ class NormalizeConfig:
     clip_obs: float = 10.0
     clip_reward: float = 10.0
     gamma: float | None = None
+    epsilon: float = 1e-8
 
 
 @dataclass(frozen=True)
@@ -415,9 +420,10 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
             "clip_obs": (float, False),
             "clip_reward": (float, False),
             "gamma": (float, True),
+            "epsilon": (float, False),
         },
     )
-    for key in ("clip_obs", "clip_reward"):
+    for key in ("clip_obs", "clip_reward", "epsilon"):
         if getattr(normalize, key) <= 0:
             raise _fail(source, f"normalize.{key}", "must be > 0")
     if normalize.gamma is not None and not 0.0 <= normalize.gamma <= 1.0:
@@ -715,6 +721,7 @@ def make_train_env(config: TrainConfig, seed: int, stats: Path | None = None) ->
                 clip_obs=norm.clip_obs,
                 clip_reward=norm.clip_reward,
                 gamma=norm.gamma if norm.gamma is not None else config.gamma,
+                epsilon=norm.epsilon,
             )
     venv.seed(seed)
     return venv
@@ -735,6 +742,7 @@ def make_eval_env(config: TrainConfig) -> Any:
             clip_obs=norm.clip_obs,
             clip_reward=norm.clip_reward,
             gamma=norm.gamma if norm.gamma is not None else config.gamma,
+            epsilon=norm.epsilon,
         )
     venv.seed(EVAL_SEED)
     return venv

@@ -290,6 +290,7 @@ def test_checked_in_configs_are_valid():
         ({"policy_kwargs": {"activation_fn": "sigmoidish"}}, r"activation_fn' must be one of"),
         ({"algo": "a2c"}, r"'algo' must be one of ppo, sac, td3, dqn"),
         ({"checkpoint": {"replay_buffer": "sometimes"}}, r"'checkpoint.replay_buffer'"),
+        ({"normalize": {"epsilon": 0.0}}, r"'normalize.epsilon' must be > 0"),
     ],
 )
 def test_config_errors_name_the_key(change, match):
