@@ -168,10 +168,19 @@ def _check_spaces(model: Any, env: Any, path: Path) -> np.ndarray | None:
     """Raise ValueError on a mismatch; return the discrete→continuous table if one is needed."""
     obs_space, act_space = _env_spaces(env)
     m_obs, m_act = model.observation_space, model.action_space
-    hint = (
-        "was it trained on another env or with other env options (dim, observation, obs_targets, "
-        "obs_obstacles, lidar_rays)? Make the env with the options in the run's config.yaml"
-    )
+    options = _run_observation_options(path)
+    if options:
+        hint = (
+            f"the run was trained with env options {options}: make the env with them, e.g. "
+            "gym.make(env_id, **agents.learned.observation_options(spec, env_id)) "
+            "(evaluate.py does this itself)"
+        )
+    else:
+        hint = (
+            "was it trained on another env or with other env options (dim, observation, "
+            "obs_targets, obs_obstacles, lidar_rays, obs_goal)? Make the env with the options in "
+            "the run's config.yaml"
+        )
     if not (isinstance(m_obs, spaces.Box) and isinstance(obs_space, spaces.Box)) or not _same_box(
         m_obs, obs_space
     ):
@@ -283,6 +292,11 @@ def observation_options(spec: str, env_id: str) -> dict[str, Any]:
     assert path is not None
     if path.is_dir():
         path = path / FINAL_MODEL
+    return _run_observation_options(path)
+
+
+def _run_observation_options(path: Path) -> dict[str, Any]:
+    """The :data:`OBSERVATION_KEYS` set in the config of the run that wrote model ``path``."""
     config = run_config_path(path)
     if config is None:
         return {}

@@ -69,6 +69,13 @@ def load_script(name: str, path: Path):
     return module
 
 
+def run_env(run: Path, **kwargs):
+    """The env a policy of ``run`` flies: the default env with the run's observation options."""
+    from agents.learned import observation_options
+
+    return gym.make(ENV_ID, **{**observation_options(f"ppo:{run / 'model.zip'}", ENV_ID), **kwargs})
+
+
 @pytest.fixture(scope="module")
 def train_cli():
     return load_script("debris_train_cli", TRAIN)
@@ -271,8 +278,11 @@ def test_checked_in_configs_are_valid():
         config = tr.TrainConfig.from_dict(data, str(path))
         assert tr.default_config_path(config.env_id, config.algo) == path
         assert config.version >= 1
-        if config.algo == "ppo":  # gamma matches the env's shaping_gamma (0.99 by default)
-            assert config.gamma == 0.99 and config.normalize.enabled
+        if config.algo == "ppo":
+            assert config.normalize.enabled
+            if config.env_kwargs.get("shaping_terminal", "zero") == "zero":
+                # policy-invariant shaping: gamma equals the env's shaping_gamma (0.99 default)
+                assert config.gamma == config.env_kwargs.get("shaping_gamma", 0.99)
 
 
 @pytest.mark.parametrize(
@@ -335,7 +345,7 @@ def test_sidecar_names():
 
 def test_load_agent_applies_frozen_vecnormalize_stats(trained):
     out = trained("ppo")
-    env = gym.make(ENV_ID)
+    env = run_env(out)
     agent = agents.load_agent(f"ppo:{out / 'model.zip'}", env)
     assert isinstance(agent, LearnedAgent) and agent.obs_normalizer is not None
     with open(out / "vecnormalize.pkl", "rb") as fh:
@@ -363,7 +373,7 @@ def test_load_agent_applies_frozen_vecnormalize_stats(trained):
 
 def test_load_agent_single_and_batch_shapes(trained):
     out = trained("ppo")
-    env = gym.make(ENV_ID)
+    env = run_env(out)
     agent = agents.load_agent(f"ppo={out / 'model.zip'}", env)  # '=' as evaluate.py writes it
     obs = np.stack([env.reset(seed=s)[0] for s in range(3)])
     single, _ = agent.predict(obs[0])
@@ -378,7 +388,7 @@ def test_load_agent_single_and_batch_shapes(trained):
 def test_load_agent_checks_spaces(trained):
     model = trained("ppo") / "model.zip"
     for kwargs, match in (({"obs_obstacles": 4}, "observes"), ({"action": "discrete"}, "acts in")):
-        env = gym.make(ENV_ID, **kwargs)
+        env = run_env(model.parent, **kwargs)
         with pytest.raises(ValueError, match=match):
             agents.load_agent(f"ppo:{model}", env)
         env.close()
@@ -389,7 +399,7 @@ def test_load_agent_checks_spaces(trained):
 
 
 def test_load_agent_errors(trained, tmp_path):
-    env = gym.make(ENV_ID)
+    env = run_env(trained("ppo"))
     with pytest.raises(ValueError, match="unknown learning algorithm 'a2c'"):
         agents.load_agent("a2c:model.zip", env)
     with pytest.raises(ValueError, match="ALGO:PATH"):
@@ -471,7 +481,8 @@ def test_a_policy_trained_with_other_observation_options_flies_beside_the_baseli
     """evaluate.py gives a learned agent the observation options of its run (here obs_goal),
     on the same fields as the baselines."""
     out = tmp_path / "run"
-    argv = [*tiny_args("ppo"), "--out", str(out), "--set", "env_kwargs.obs_goal=true"]
+    argv = [*tiny_args("ppo"), "--out", str(out), "--set", "env_kwargs.obs_goal=false"]
+    argv += ["--set", "env_kwargs.obs_targets=2"]  # neither the default env's nor the recipe's
     assert train_cli.main([*argv, "--set", "eval.freq=0"]) == 0
     capsys.readouterr()
     args = [
@@ -483,7 +494,8 @@ def test_a_policy_trained_with_other_observation_options_flies_beside_the_baseli
     assert "| ppo |" in stdout and "| zero |" in stdout
     from agents.learned import observation_options
 
-    assert observation_options(f"ppo:{out / 'model.zip'}", ENV_ID) == {"obs_goal": True}
-    env = gym.make(ENV_ID)  # the default env does not fit the model
-    with pytest.raises(ValueError, match="observes"):
+    options = {"obs_goal": False, "obs_targets": 2}
+    assert observation_options(f"ppo:{out / 'model.zip'}", ENV_ID) == options
+    env = gym.make(ENV_ID)  # the default env does not fit the model; the error names the options
+    with pytest.raises(ValueError, match=re.escape("trained with env options {'obs_targets': 2")):
         agents.load_agent(f"ppo:{out / 'model.zip'}", env)
