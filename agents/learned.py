@@ -164,29 +164,32 @@ def _same_box(a: spaces.Box, b: spaces.Box) -> bool:
     )
 
 
-def _check_spaces(model: Any, env: Any, path: Path) -> np.ndarray | None:
-    """Raise ValueError on a mismatch; return the discrete→continuous table if one is needed."""
-    obs_space, act_space = _env_spaces(env)
-    m_obs, m_act = model.observation_space, model.action_space
+def _observation_hint(path: Path) -> str:
+    """How to make an env that fits the model at ``path`` (for an observation-space mismatch)."""
     options = _run_observation_options(path)
     if options:
-        hint = (
+        return (
             f"the run was trained with env options {options}: make the env with them, e.g. "
             "gym.make(env_id, **agents.learned.observation_options(spec, env_id)) "
             "(evaluate.py does this itself)"
         )
-    else:
-        hint = (
-            "was it trained on another env or with other env options (dim, observation, "
-            "obs_targets, obs_obstacles, lidar_rays, obs_goal)? Make the env with the options in "
-            "the run's config.yaml"
-        )
+    return (
+        "was it trained on another env or with other env options (dim, observation, obs_targets, "
+        "obs_obstacles, lidar_rays, obs_goal)? Make the env with the options in the run's "
+        "config.yaml"
+    )
+
+
+def _check_spaces(model: Any, env: Any, path: Path) -> np.ndarray | None:
+    """Raise ValueError on a mismatch; return the discrete→continuous table if one is needed."""
+    obs_space, act_space = _env_spaces(env)
+    m_obs, m_act = model.observation_space, model.action_space
     if not (isinstance(m_obs, spaces.Box) and isinstance(obs_space, spaces.Box)) or not _same_box(
         m_obs, obs_space
     ):
         raise ValueError(
             f"{path}: the model observes {_describe(m_obs)} but the env gives "
-            f"{_describe(obs_space)}; {hint}"
+            f"{_describe(obs_space)}; {_observation_hint(path)}"
         )
     if isinstance(m_act, spaces.Box) and isinstance(act_space, spaces.Box):
         if _same_box(m_act, act_space):

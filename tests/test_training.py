@@ -412,12 +412,31 @@ def test_load_agent_errors(trained, tmp_path):
     with pytest.raises(ValueError, match="no pretrained policy for DebrisGym/PaperField2D-v0"):
         agents.load_agent("pretrained", paper)
     paper.close()
-    from agents.learned import PRETRAINED_DIR
-
-    if not (PRETRAINED_DIR / "rendezvous2d_ppo.zip").is_file():
-        with pytest.raises(FileNotFoundError, match="no pretrained policy for " + ENV_ID):
-            agents.load_agent("pretrained", env)
     env.close()
+
+
+def test_the_shipped_pretrained_policy_flies_its_env():
+    """agents/pretrained/rendezvous2d_ppo.zip loads with its statistics and the observation
+    options of its run, and refuses the default env with an error naming them."""
+    from agents.learned import observation_options
+
+    options = observation_options("pretrained", ENV_ID)
+    assert options == {"obs_targets": 1, "obs_goal": True}
+    env = gym.make(ENV_ID, **options)
+    agent = agents.load_agent("pretrained", env)
+    assert agent.algo == "ppo" and agent.obs_normalizer is not None
+    obs, _ = env.reset(seed=10_000_000)
+    for _ in range(20):
+        action, _ = agent.predict(obs)
+        assert env.action_space.contains(action)
+        obs, _, terminated, truncated, _ = env.step(action)
+        if terminated or truncated:
+            break
+    env.close()
+    default = gym.make(ENV_ID)
+    with pytest.raises(ValueError, match=re.escape("trained with env options {'obs_targets': 1")):
+        agents.load_agent("pretrained", default)
+    default.close()
 
 
 def test_dqn_policy_flies_discrete_and_continuous_envs(trained):
