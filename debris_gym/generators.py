@@ -20,11 +20,11 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 import scipy.ndimage
 
 from debris_gym.geometry import FieldGeometry, distance
+from debris_gym.jit import inlined, kernel
 from debris_gym.scenario import Body, Scenario
 
 
@@ -361,7 +361,7 @@ def _draw_fields(u: np.ndarray, spec: FieldSpec):
     return centers, radii, vertices, n_vertices, placed
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def _decode(
     u, dim, t, o, target_lo, target_hi, obstacle_lo, obstacle_hi, polygon_fraction, field_size,
     min_gap, target_clearance, obstacle_dock, target_dock,
@@ -416,7 +416,7 @@ def _decode(
     return radii, vertices, n_vertices, cand, valid, spacing
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def _place(
     cand: np.ndarray, valid: np.ndarray, radii: np.ndarray, spacing: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -467,7 +467,7 @@ def _place(
     return centers, placed
 
 
-@numba.njit(cache=True, nogil=True)
+@inlined
 def _convex_polygon(shape, radius, out):
     """A CCW convex polygon from 10 uniform numbers ``shape``, no rejection; returns its count.
 
@@ -504,7 +504,7 @@ def _convex_polygon(shape, radius, out):
     return count
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def _convex_polygons(shape, radius):
     """:func:`_convex_polygon` for K polygons: (K, V, 2) vertices and (K,) counts."""
     vertices = np.zeros((shape.shape[0], MAX_POLYGON_VERTICES, 2))

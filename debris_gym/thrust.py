@@ -9,12 +9,11 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
-THRUST_MODELS = ("ball", "box")
+from debris_gym.jit import inlined, kernel
 
-_jit = numba.njit(cache=True, nogil=True)
+THRUST_MODELS = ("ball", "box")
 
 
 def _is_box(model: str) -> bool:
@@ -54,7 +53,7 @@ def delta_v_rate(accel: np.ndarray, model: str) -> np.ndarray:
     return out.reshape(u.shape[:-1])
 
 
-@_jit
+@inlined
 def thrust_row(action, max_accel, box, out):
     """Commanded acceleration (m/s²) of one normalised action into ``out`` (d,)."""
     d = action.shape[0]
@@ -70,7 +69,7 @@ def thrust_row(action, max_accel, box, out):
         out[k] = max_accel * action[k] / scale
 
 
-@_jit
+@inlined
 def delta_v_rate_row(u, box):
     """Δv rate (m/s²) of one acceleration (d,): Σ|u_i| for "box", ‖u‖ for "ball"."""
     s = 0.0
@@ -79,13 +78,13 @@ def delta_v_rate_row(u, box):
     return s if box else math.sqrt(s)
 
 
-@_jit
+@kernel
 def _commanded_rows(actions, max_accel, box, out):
     for k in range(actions.shape[0]):
         thrust_row(actions[k], max_accel, box, out[k])
 
 
-@_jit
+@kernel
 def _rate_rows(accels, box, out):
     for k in range(accels.shape[0]):
         out[k] = delta_v_rate_row(accels[k], box)

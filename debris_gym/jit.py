@@ -1,0 +1,88 @@
+"""The package's numba decorators, and a compile cache that follows every compiled module.
+
+:data:`kernel` compiles a loop that Python calls; :data:`inlined` compiles a helper that the
+kernels call, inlined into them by numba (``inline="always"``): as separate functions the
+helpers cost an array-view set-up per call, which made the gaps of a field ~1.6x slower
+(measured, docs/benchmarks.md).
+
+Both cache their machine code on disk (``cache=True``), but numba keys a cached kernel only on
+its *own* source file: a kernel of ``mission_batch.py`` with a helper inlined from
+``batch_geometry.py`` would keep running the old helper after ``batch_geometry.py`` changed (an
+editable install after ``git pull``). :func:`drop_stale_cache` guards against that: on import
+it hashes the sources of :data:`COMPILED_MODULES` and, when the hash differs from the one stored
+beside numba's cache files, deletes those files so that everything compiles afresh.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import os
+import tempfile
+from pathlib import Path
+
+import numba
+
+COMPILED_MODULES = ("batch_geometry", "generators", "mission_batch", "thrust")
+"""Modules of this package with numba-compiled functions (their caches are dropped together)."""
+
+_STAMP = "numba_sources.sha256"
+
+
+def sources_digest(package_dir: Path, modules: tuple[str, ...] = COMPILED_MODULES) -> str:
+    """sha256 of the sources of ``modules`` (files ``<name>.py`` in ``package_dir``)."""
+    digest = hashlib.sha256()
+    for name in modules:
+        digest.update(name.encode())
+        digest.update((package_dir / f"{name}.py").read_bytes())
+    return digest.hexdigest()
+
+
+def drop_stale_cache(package_dir: Path, modules: tuple[str, ...] = COMPILED_MODULES) -> bool:
+    """Delete numba's in-tree cache files of ``modules`` if any of their sources changed.
+
+    The cache lives in ``package_dir/__pycache__`` (files ``<module>.<function>-<line>.*.nbi``
+    / ``.nbc``); the digest of the sources it was built from is kept there in
+    ``numba_sources.sha256``. Nothing happens when the directory cannot be written (numba then
+    caches elsewhere, keyed on fresh installs) or when the digest matches.
+
+    Returns:
+        True if stale files were deleted (or no digest was recorded yet).
+    """
+    cache_dir = package_dir / "__pycache__"
+    with contextlib.suppress(OSError):
+        cache_dir.mkdir(exist_ok=True)
+    stamp = cache_dir / _STAMP
+    digest = sources_digest(package_dir, modules)
+    try:
+        if stamp.read_text() == digest:
+            return False
+    except OSError:
+        pass
+    if not cache_dir.is_dir() or not os.access(cache_dir, os.W_OK):
+        return False
+    for name in modules:
+        for pattern in (f"{name}.*.nbi", f"{name}.*.nbc"):
+            for path in cache_dir.glob(pattern):
+                with contextlib.suppress(OSError):  # another process may delete it first
+                    path.unlink()
+    # write the digest atomically: concurrent imports (SubprocVecEnv workers) never read half
+    fd, tmp = tempfile.mkstemp(dir=cache_dir, prefix=".stamp-")
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(digest)
+        os.replace(tmp, stamp)
+    except OSError:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+    return True
+
+
+with contextlib.suppress(OSError):
+    drop_stale_cache(Path(__file__).resolve().parent)
+
+kernel = numba.njit(cache=True, nogil=True)
+"""Decorator for a compiled loop called from Python."""
+
+inlined = numba.njit(cache=True, nogil=True, inline="always")
+"""Decorator for a compiled helper that kernels call (inlined into them)."""

@@ -1,0 +1,64 @@
+"""The numba cache guard (debris_gym.jit): a changed source drops the compiled modules' caches.
+
+Regression: numba keys a cached kernel on its own file only, so after an edit of
+batch_geometry.py the cached mission_batch kernels (with the old geometry inlined) kept running
+and gave wrong gaps until their cache files were deleted by hand.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from debris_gym import jit
+
+MODULES = ("geo", "step")
+
+
+def _package(tmp_path: Path) -> Path:
+    pkg = tmp_path / "pkg"
+    (pkg / "__pycache__").mkdir(parents=True)
+    for name in MODULES:
+        (pkg / f"{name}.py").write_text(f"# {name} v1\n")
+    return pkg
+
+
+def _cache_files(pkg: Path, names=("geo.f-10.py311.nbi", "step.g-5.py311.1.nbc")) -> list[Path]:
+    paths = [pkg / "__pycache__" / n for n in names]
+    for p in paths:
+        p.write_bytes(b"compiled")
+    return paths
+
+
+def test_a_changed_helper_module_drops_every_compiled_modules_cache(tmp_path):
+    pkg = _package(tmp_path)
+    assert jit.drop_stale_cache(pkg, MODULES)  # no digest yet: start clean
+    cached = _cache_files(pkg)
+    other = pkg / "__pycache__" / "unrelated.h-1.py311.nbi"
+    other.write_bytes(b"compiled")
+    pyc = pkg / "__pycache__" / "geo.cpython-311.pyc"
+    pyc.write_bytes(b"bytecode")
+
+    assert not jit.drop_stale_cache(pkg, MODULES)  # unchanged sources: the cache stays
+    assert all(p.exists() for p in cached)
+
+    (pkg / "geo.py").write_text("# geo v2\n")  # only the helper's module changes
+    assert jit.drop_stale_cache(pkg, MODULES)
+    assert not any(p.exists() for p in cached)  # the kernel of step.py is dropped too
+    assert other.exists() and pyc.exists()  # other modules' caches and bytecode stay
+    assert (pkg / "__pycache__" / "numba_sources.sha256").read_text() == jit.sources_digest(
+        pkg, MODULES
+    )
+    assert not jit.drop_stale_cache(pkg, MODULES)
+
+
+def test_the_digest_covers_every_compiled_module_of_the_package():
+    pkg = Path(jit.__file__).resolve().parent
+    users = sorted(
+        p.stem
+        for p in pkg.rglob("*.py")
+        if p.stem != "jit" and ("@kernel" in p.read_text() or "@inlined" in p.read_text())
+    )
+    assert users == sorted(jit.COMPILED_MODULES)
+    assert "numba.njit" not in "".join(
+        p.read_text() for p in pkg.rglob("*.py") if p.stem != "jit"
+    )  # every compiled function goes through the guarded decorators
