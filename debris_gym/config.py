@@ -124,6 +124,16 @@ OPTIONS: dict[str, Option] = {
     "shaping_speed_slope": Option(
         "1/s", 0.0, None, doc="allowed approach speed per metre of gap to the goal (shaping_speed)"
     ),
+    "shaping_clearance": Option(
+        "",
+        0.0,
+        None,
+        doc="weight of Φ's clearance term: −w·max(0, 1 − c / shaping_clearance_distance)², c = "
+        "gap from the chaser's surface to the nearest debris that is not a target (0 = off)",
+    ),
+    "shaping_clearance_distance": Option(
+        "m", 1e-3, None, doc="clearance below which Φ's clearance term acts (shaping_clearance)"
+    ),
     "obs_goal": Option(
         choices=(False, True),
         doc="append the current goal at a 10× finer scale: relative position / (L/10), "
@@ -176,6 +186,8 @@ class EnvConfig:
     shaping_terminal: str = "zero"
     shaping_speed: float = 0.0
     shaping_speed_slope: float = 0.01
+    shaping_clearance: float = 0.0
+    shaping_clearance_distance: float = 50.0
     obs_goal: bool = False
 
     def __post_init__(self) -> None:

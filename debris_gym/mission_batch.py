@@ -35,7 +35,8 @@ from debris_gym.thrust import delta_v_rate_row, thrust_row
 _DT, _CHASER_R, _CAPTURE_R, _CAPTURE_V, _BUDGET, _GAMMA = range(6)
 _W_CAPTURE, _W_SUCCESS, _W_PROGRESS, _W_DV, _W_COLLISION, _W_OOB, _W_TIME = range(6, 13)
 _LIDAR_RANGE, _MAX_ACCEL, _W_SPEED, _SPEED_SLOPE = 13, 14, 15, 16
-_N_PARAMS = 17
+_W_CLEARANCE, _CLEARANCE_DIST = 17, 18
+_N_PARAMS = 19
 
 # integer options (MissionBatch.options)
 _QUEUED, _RETURN, _TERMINAL_ZERO, _LIDAR, _OBS_TARGETS, _OBS_OBSTACLES, _MAX_STEPS, _BOX = range(8)
@@ -110,6 +111,8 @@ class MissionBatch:
         params[_MAX_ACCEL] = max_accel
         params[_W_SPEED] = cfg.shaping_speed
         params[_SPEED_SLOPE] = cfg.shaping_speed_slope
+        params[_W_CLEARANCE] = cfg.shaping_clearance
+        params[_CLEARANCE_DIST] = cfg.shaping_clearance_distance
         self.params = params
         options = np.zeros(_N_OPTIONS, dtype=np.int64)
         options[_QUEUED] = cfg.target_order == "queued"
@@ -255,7 +258,9 @@ def _goal(i, prm, opt, n_targets, state, captured, gaps):
 @inlined
 def _potential(i, prm, opt, n_targets, state, captured, gaps, dock, length_scale, speed_scale):
     """Φ = −(gap to the current goal / L + goals after it), minus the approach-speed term
-    ``shaping_speed`` · max(0, speed − (capture_speed + slope · gap)) / V when it is on."""
+    ``shaping_speed`` · max(0, speed − (capture_speed + slope · gap)) / V and the clearance
+    term ``shaping_clearance`` · max(0, 1 − c / d)² (c: the chaser surface's gap to the nearest
+    obstacle) when they are on."""
     dim = dock.shape[1]
     goal, gap, after = _goal(i, prm, opt, n_targets, state, captured, gaps)
     if goal == -1:
@@ -272,6 +277,13 @@ def _potential(i, prm, opt, n_targets, state, captured, gaps, dock, length_scale
             s += state[i, dim + a] * state[i, dim + a]
         allowed = prm[_CAPTURE_V] + prm[_SPEED_SLOPE] * goal_gap
         phi -= prm[_W_SPEED] * max(math.sqrt(s) - allowed, 0.0) / speed_scale[i]
+    if prm[_W_CLEARANCE] > 0.0 and gaps.shape[1] > n_targets:
+        nearest = math.inf
+        for b in range(n_targets, gaps.shape[1]):
+            nearest = min(nearest, gaps[i, b])
+        clearance = max(nearest - prm[_CHASER_R], 0.0)
+        closeness = max(1.0 - clearance / prm[_CLEARANCE_DIST], 0.0)
+        phi -= prm[_W_CLEARANCE] * closeness * closeness
     return phi
 
 

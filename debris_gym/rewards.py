@@ -17,8 +17,10 @@ term               value per step
 =================  ===============================================================
 
 Φ(s) = −(gap to the current goal / L + goals after it), minus, when ``shaping_speed`` > 0,
-``shaping_speed`` · max(0, speed − (capture_speed + ``shaping_speed_slope`` · gap)) / V. The
-progress term is potential-based (Ng, Harada & Russell 1999), so it changes how fast an agent
+``shaping_speed`` · max(0, speed − (capture_speed + ``shaping_speed_slope`` · gap)) / V, and
+minus, when ``shaping_clearance`` > 0, ``shaping_clearance`` · max(0, 1 − c / d)², c the gap
+from the chaser's surface to the nearest obstacle (debris that is not a target) and d
+``shaping_clearance_distance`` (m). The progress term is potential-based (Ng, Harada & Russell 1999), so it changes how fast an agent
 learns but not which policy is optimal (for the same γ as the learner's, and Φ = 0 after
 termination).
 

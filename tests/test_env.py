@@ -611,6 +611,57 @@ def test_goal_observation_at_a_fine_scale():
     assert goal["goal_gap"] == pytest.approx(np.linalg.norm(pos) / 50.0, rel=1e-6)
 
 
+def test_clearance_shaping_hand_computed():
+    """Φ −= w · max(0, 1 − c / d)², c = chaser surface to the nearest obstacle's surface."""
+    scen = simple_scenario()
+    kwargs = dict(shaping_clearance=2.0, shaping_clearance_distance=50.0)
+    env = DebrisFieldEnv(**kwargs)
+    env.reset(options={"scenario": scen, "chaser_state": [150.0, 0.0, 0.0, 0.0]})
+    goal_gap = math.hypot(150.0, 100.0) - 5.0 - 1.0  # to the target, surface to surface
+    clearance = (200.0 - 150.0) - 20.0 - 1.0  # 29 m to the obstacle circle
+    expected = -(goal_gap / 500.0 + 1.0) - 2.0 * (1.0 - clearance / 50.0) ** 2
+    assert env._potential == pytest.approx(expected, rel=1e-12)
+    # beyond the distance the term is zero: Φ as without it
+    env.reset(options={"scenario": scen, "chaser_state": [0.0, 80.0, 0.0, 0.0]})
+    assert env._potential == pytest.approx(-((100.0 - 80.0 - 6.0) / 500.0 + 1.0), rel=1e-12)
+    # the nearest of several obstacles counts, polygons by their surface
+    square = ((-10.0, -10.0), (10.0, -10.0), (10.0, 10.0), (-10.0, 10.0))
+    scen = simple_scenario(
+        obstacles=(
+            Body(position=(200.0, 0.0), radius=20.0),
+            Body(position=(-100.0, 0.0), radius=math.sqrt(200.0), vertices=square),
+        )
+    )
+    env.reset(options={"scenario": scen, "chaser_state": [-70.0, 0.0, 0.0, 0.0]})
+    goal_gap = math.hypot(70.0, 100.0) - 6.0
+    clearance = (100.0 - 70.0) - 10.0 - 1.0  # 19 m to the square's right edge
+    expected = -(goal_gap / 500.0 + 1.0) - 2.0 * (1.0 - clearance / 50.0) ** 2
+    assert env._potential == pytest.approx(expected, rel=1e-12)
+    # with γ = 1 and 'hold' the progress terms still telescope to Φ(end) − Φ(start)
+    env = DebrisFieldEnv(shaping_gamma=1.0, shaping_terminal="hold", n_obstacles=60, **kwargs)
+    env.reset(seed=5)
+    phi0, total, rng = env._potential, 0.0, np.random.default_rng(1)
+    for _ in range(80):
+        _, _, terminated, _, info = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
+        total += info["reward_terms"]["progress"]
+        if terminated:
+            break
+    assert total == pytest.approx(env.config.reward_progress * (env._potential - phi0), rel=1e-9)
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"shaping_clearance": -1.0}, "shaping_clearance=-1.0 is out of range"),
+        ({"shaping_clearance_distance": 0.0}, "shaping_clearance_distance=0.0 m is out of range"),
+        ({"shaping_clearance": float("nan")}, "shaping_clearance must be finite"),
+    ],
+)
+def test_clearance_shaping_rejects_bad_values(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        DebrisFieldEnv(**kwargs)
+
+
 def test_approach_speed_shaping_hand_computed():
     """Φ −= w · max(0, speed − (capture_speed + slope · gap)) / V."""
     scen = simple_scenario()
