@@ -524,9 +524,21 @@ def vector_measurements(cfg: dict[str, Any]) -> list[VecMeasurement]:
     out.append(VecMeasurement("vector", "native", ID_3D, n))
     lidar = {"observation": "lidar"}
     out.append(VecMeasurement("vector", "native", ID_2D, n, lidar, "observation=lidar"))
+    threads = min(2, numba_threads())
+    if threads > 1:  # the same env stepped by 2 threads (CartPole and Sync use one)
+        kw = {"num_threads": threads}
+        for num in dict.fromkeys((cfg["cartpole_envs"], cfg["vector_envs"][-1])):
+            out.append(VecMeasurement("vector", "native", ID_2D, num, kw, f"num_threads={threads}"))
     out.append(VecMeasurement("vector", "sync", ID_2D, cfg["sync_envs"]))
     out += [VecMeasurement("vector", "subproc", ID_2D, n) for n in cfg["subproc_envs"]]
     return out
+
+
+def numba_threads() -> int:
+    """Threads numba may use (the ``num_threads`` limit of the native vector env)."""
+    import numba
+
+    return int(numba.config.NUMBA_NUM_THREADS)
 
 
 def scaling_measurements(cfg: dict[str, Any]) -> list[VecMeasurement]:
@@ -733,7 +745,8 @@ def _vector_rows(todo: list[VecMeasurement]) -> list[dict[str, Any]]:
             continue
         if row["level"] == "native":
             _paired(row, cartpole, "ratio_cartpole")
-        if row["env_id"] == ID_2D and not row["variant"] and row["level"] != "sync":
+        default_env = not row["variant"] or row["variant"].startswith("num_threads=")
+        if row["env_id"] == ID_2D and default_env and row["level"] != "sync":
             _paired(row, sync, "ratio_sync")
     for row in rows:
         del row["_rates"]
@@ -1342,6 +1355,32 @@ def _vector_lines(rows: list[dict[str, Any]]) -> list[str]:
                 f"- best native (N={best['num_envs']}) / SyncVectorEnv's per-env rate: "
                 f"{best['ratio_sync']:.1f}× (goal ≥ {GOAL_SYNC:.0f}×): "
                 f"{_verdict(best['ratio_sync'], GOAL_SYNC)}"
+            )
+    threaded = [
+        r for r in vec
+        if r["level"] == "native" and r["variant"].startswith("num_threads=")
+        and math.isfinite(r["env_steps_per_s"])
+    ]  # fmt: skip
+    if threaded:
+        lines += [
+            "",
+            "The same env with `num_threads=2` (two threads step the sub-envs; CartPole's "
+            "native env and SyncVectorEnv use one):",
+            "",
+        ]
+    for r in threaded:
+        if r["num_envs"] == cart_n and cart:
+            lines.append(
+                f"- native N={r['num_envs']}, {r['variant']} / CartPole native N={cart_n}: "
+                f"{r['ratio_cartpole']:.4f}× (goal ≥ {GOAL_CARTPOLE}×): "
+                f"{_verdict(r['ratio_cartpole'], GOAL_CARTPOLE)}; "
+                f"{r['env_steps_per_s']:,.0f} env-steps/s"
+            )
+        if sync and math.isfinite(r["ratio_sync"]):
+            lines.append(
+                f"- native N={r['num_envs']}, {r['variant']} / SyncVectorEnv's per-env rate: "
+                f"{r['ratio_sync']:.1f}× (goal ≥ {GOAL_SYNC:.0f}×): "
+                f"{_verdict(r['ratio_sync'], GOAL_SYNC)}"
             )
     return [*lines, ""]
 

@@ -86,3 +86,6 @@ kernel = numba.njit(cache=True, nogil=True)
 
 inlined = numba.njit(cache=True, nogil=True, inline="always")
 """Decorator for a compiled helper that kernels call (inlined into them)."""
+
+threaded = numba.njit(cache=True, nogil=True, parallel=True)
+"""Decorator for a compiled loop whose ``numba.prange`` iterations run on several threads."""

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from debris_gym.batch_geometry import FieldBatch, field_gaps, path_touches, ray_ranges
@@ -25,7 +26,7 @@ from debris_gym.config import EnvConfig
 from debris_gym.dynamics import discretize, substep_position_matrix
 from debris_gym.generators import MAX_POLYGON_VERTICES
 from debris_gym.geometry import lidar_directions
-from debris_gym.jit import inlined, kernel
+from debris_gym.jit import inlined, kernel, threaded
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.thrust import delta_v_rate_row, thrust_row
 
@@ -53,6 +54,20 @@ OBS_LIMIT = 10.0
 """Observation values are normalised to about [−1, 1] and clipped to ±OBS_LIMIT."""
 
 
+def check_threads(threads: int) -> int:
+    """``threads`` validated: a whole number from 1 to numba's thread count (the cores, or
+    ``NUMBA_NUM_THREADS``)."""
+    limit = numba.config.NUMBA_NUM_THREADS
+    if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)):
+        raise ValueError(f"num_threads must be a whole number in [1, {limit}], got {threads!r}")
+    if not 1 <= threads <= limit:
+        raise ValueError(
+            f"num_threads={threads} is out of range; allowed: [1, {limit}] (numba's thread "
+            "count: the CPU cores, or NUMBA_NUM_THREADS)"
+        )
+    return int(threads)
+
+
 class MissionBatch:
     """N missions with the same rules, physics and number of bodies.
 
@@ -65,6 +80,8 @@ class MissionBatch:
         polygon_start: first body index that may be a convex polygon (default: T).
         max_episode_steps: truncation limit per episode, or None (the single env leaves it to
             gymnasium's ``TimeLimit``).
+        threads: threads that step and observe the missions (row ranges in parallel; 1 = the
+            calling thread only). The results do not depend on it.
 
     Per-mission arrays (row i = mission i; SI units): ``state`` (N, 2·dim) LVLH position and
     velocity, ``time`` (N,) s, ``steps`` (N,), ``delta_v`` (N,) m/s spent, ``captured`` (N, T),
@@ -87,8 +104,10 @@ class MissionBatch:
         max_accel: float,
         polygon_start: int | None = None,
         max_episode_steps: int | None = None,
+        threads: int = 1,
     ) -> None:
         n, d, t = num, cfg.dim, n_targets
+        self.threads = check_threads(threads)
         self.config = cfg
         self.num, self.dim, self.n_targets = n, d, t
         self.physics = (mean_motion, dt, max_accel)
@@ -209,7 +228,10 @@ class MissionBatch:
             )  # fmt: skip
         if live.dtype != np.bool_ or actions.dtype != np.float64:
             live, actions = live.astype(np.bool_), actions.astype(np.float64)
-        _step(live, np.ascontiguousarray(actions), *tail)
+        if self.threads > 1:
+            _step_threaded(self.threads, live, np.ascontiguousarray(actions), *tail)
+        else:
+            _step(live, np.ascontiguousarray(actions), *tail)
         return self._reward, self._terminated, self._truncated, self._terms
 
     def observe(self, out: np.ndarray, horizon: int) -> np.ndarray:
@@ -220,13 +242,16 @@ class MissionBatch:
             horizon: steps the ``time_remaining`` element counts down from.
         """
         f = self.field
-        _observe(
+        args = (
             self.state, self.steps, self.delta_v, self.captured, self.gaps, self.nearest,
-            f.centers, f.radii,
-            f.polygon_start, f.n_vertices, f.vertices, self.n_targets, self.dock,
-            self.length_scale, self.speed_scale, self.params, self.options, self.lidar_dirs,
-            float(horizon), out,
+            f.centers, f.radii, f.polygon_start, f.n_vertices, f.vertices, self.n_targets,
+            self.dock, self.length_scale, self.speed_scale, self.params, self.options,
+            self.lidar_dirs, float(horizon), out,
         )  # fmt: skip
+        if self.threads > 1:
+            _observe_threaded(self.threads, *args)
+        else:
+            _observe(*args)
         return out
 
 
@@ -368,7 +393,42 @@ def _step(
     centers, radii, polygon_start, n_vertices, vertices, dock, low, high, length_scale,
     speed_scale, terms, reward, terminated, truncated,
 ):  # fmt: skip
-    num, n_bodies = gaps.shape
+    _step_rows(
+        0, live.shape[0], live, actions, matrix_t, prm, opt, n_targets, state, time, steps,
+        delta_v, captured, collision, out_of_bounds, success, gaps, nearest, min_clearance,
+        potential, last_accel, centers, radii, polygon_start, n_vertices, vertices, dock, low,
+        high, length_scale, speed_scale, terms, reward, terminated, truncated,
+    )  # fmt: skip
+
+
+@threaded
+def _step_threaded(
+    n_chunks, live, actions, matrix_t, prm, opt, n_targets, state, time, steps, delta_v, captured,
+    collision, out_of_bounds, success, gaps, nearest, min_clearance, potential, last_accel,
+    centers, radii, polygon_start, n_vertices, vertices, dock, low, high, length_scale,
+    speed_scale, terms, reward, terminated, truncated,
+):  # fmt: skip
+    """:func:`_step` with the missions split into ``n_chunks`` row ranges run in parallel."""
+    num = live.shape[0]
+    for c in numba.prange(n_chunks):
+        _step_rows(
+            c * num // n_chunks, (c + 1) * num // n_chunks, live, actions, matrix_t, prm, opt,
+            n_targets, state, time, steps, delta_v, captured, collision, out_of_bounds, success,
+            gaps, nearest, min_clearance, potential, last_accel, centers, radii, polygon_start,
+            n_vertices, vertices, dock, low, high, length_scale, speed_scale, terms, reward,
+            terminated, truncated,
+        )  # fmt: skip
+
+
+@kernel  # called once per row range: no need to inline it
+def _step_rows(
+    lo, hi, live, actions, matrix_t, prm, opt, n_targets, state, time, steps, delta_v, captured,
+    collision, out_of_bounds, success, gaps, nearest, min_clearance, potential, last_accel,
+    centers, radii, polygon_start, n_vertices, vertices, dock, low, high, length_scale,
+    speed_scale, terms, reward, terminated, truncated,
+):  # fmt: skip
+    """One step of the missions ``lo … hi − 1`` (see :meth:`MissionBatch.step`)."""
+    n_bodies = gaps.shape[1]
     dim = dock.shape[1]
     n_out = matrix_t.shape[1]
     n_sub = (n_out - dim) // dim
@@ -378,7 +438,7 @@ def _step(
     touched = np.empty(n_bodies, dtype=np.bool_)
     best = np.empty(nearest.shape[1])
     chaser_r = prm[_CHASER_R]
-    for i in range(num):
+    for i in range(lo, hi):
         if not live[i]:
             for k in range(terms.shape[1]):
                 terms[i, k] = 0.0
@@ -520,14 +580,43 @@ def _observe(
     n_vertices, vertices, n_targets, dock, length_scale, speed_scale, prm, opt, lidar_dirs,
     horizon, out,
 ):  # fmt: skip
-    num, n_bodies = gaps.shape
+    _observe_rows(
+        0, state.shape[0], state, steps, delta_v, captured, gaps, nearest, centers, radii,
+        polygon_start, n_vertices, vertices, n_targets, dock, length_scale, speed_scale, prm, opt,
+        lidar_dirs, horizon, out,
+    )  # fmt: skip
+
+
+@threaded
+def _observe_threaded(
+    n_chunks, state, steps, delta_v, captured, gaps, nearest, centers, radii, polygon_start,
+    n_vertices, vertices, n_targets, dock, length_scale, speed_scale, prm, opt, lidar_dirs,
+    horizon, out,
+):  # fmt: skip
+    """:func:`_observe` with the missions split into ``n_chunks`` row ranges run in parallel."""
+    num = state.shape[0]
+    for c in numba.prange(n_chunks):
+        _observe_rows(
+            c * num // n_chunks, (c + 1) * num // n_chunks, state, steps, delta_v, captured, gaps,
+            nearest, centers, radii, polygon_start, n_vertices, vertices, n_targets, dock,
+            length_scale, speed_scale, prm, opt, lidar_dirs, horizon, out,
+        )  # fmt: skip
+
+
+@kernel  # called once per row range
+def _observe_rows(
+    lo, hi, state, steps, delta_v, captured, gaps, nearest, centers, radii, polygon_start,
+    n_vertices, vertices, n_targets, dock, length_scale, speed_scale, prm, opt, lidar_dirs,
+    horizon, out,
+):  # fmt: skip
+    """Observations of the missions ``lo … hi − 1`` into ``out`` (:meth:`MissionBatch.observe`)."""
     dim = dock.shape[1]
     n_slots = opt[_OBS_TARGETS]
     order = np.empty(n_targets, dtype=np.int64)
     n_near = nearest.shape[1]
     ranges = np.empty(lidar_dirs.shape[0])
     queued = opt[_QUEUED]
-    for i in range(num):
+    for i in range(lo, hi):
         L = length_scale[i]
         V = speed_scale[i]
         k = 0

@@ -20,9 +20,9 @@ term               value per step
 ``shaping_speed`` · max(0, speed − (capture_speed + ``shaping_speed_slope`` · gap)) / V, and
 minus, when ``shaping_clearance`` > 0, ``shaping_clearance`` · max(0, 1 − c / d)², c the gap
 from the chaser's surface to the nearest obstacle (debris that is not a target) and d
-``shaping_clearance_distance`` (m). The progress term is potential-based (Ng, Harada & Russell 1999), so it changes how fast an agent
-learns but not which policy is optimal (for the same γ as the learner's, and Φ = 0 after
-termination).
+``shaping_clearance_distance`` (m). The progress term is potential-based (Ng, Harada & Russell
+1999), so it changes how fast an agent learns but not which policy is optimal (for the same γ
+as the learner's, and Φ = 0 after termination).
 
 The terms are computed in the envs' compiled step (:mod:`debris_gym.mission_batch`); this
 module names them (in the order of ``info["reward_terms"]`` and of the step's term columns).

@@ -118,6 +118,9 @@ def test_vector_section_rows(bench, all_rows):
     expected |= {("native", bench.ID_2D, "observation=lidar", tiny["vector_variant_envs"])}
     expected |= {("sync", bench.ID_2D, "", tiny["sync_envs"])}
     expected |= {("subproc", bench.ID_2D, "", n) for n in tiny["subproc_envs"]}
+    if bench.numba_threads() >= 2:  # the default env again, stepped by two threads
+        threaded = {tiny["cartpole_envs"], tiny["vector_envs"][-1]}
+        expected |= {("native", bench.ID_2D, "num_threads=2", n) for n in threaded}
     assert keys == expected
     for row in vec:
         assert row["error"] is None, row["error"]
@@ -128,7 +131,8 @@ def test_vector_section_rows(bench, all_rows):
         assert row["ends_per_1000"] >= 0
     native_2d = [r for r in vec if r["level"] == "native" and r["env_id"] == bench.ID_2D]
     assert all(_finite_positive(r["ratio_cartpole"]) for r in native_2d)
-    assert all(_finite_positive(r["ratio_sync"]) for r in native_2d if not r["variant"])
+    same_env = [r for r in native_2d if not r["variant"] or r["variant"] == "num_threads=2"]
+    assert all(_finite_positive(r["ratio_sync"]) for r in same_env)
     subproc = [r for r in vec if r["level"] == "subproc"]
     assert all(_finite_positive(r["ratio_sync"]) for r in subproc)
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import gymnasium as gym
+import numba
 import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode
@@ -194,6 +195,36 @@ def test_bad_actions_and_arguments_raise():
         env.reset(seed=[1, 2, 3])
     with pytest.raises(RuntimeError, match="reset"):
         DebrisFieldVectorEnv(num_envs=1).step(np.zeros((1, 2), dtype=np.float32))
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs 2 numba threads")
+@pytest.mark.parametrize("observation", ["kinematics", "lidar"])
+def test_two_threads_fly_exactly_the_episodes_of_one(observation):
+    """num_threads splits the sub-envs into row ranges; nothing else may change (37 sub-envs:
+    unequal ranges; a time limit of 60 steps: autoresets inside the threaded step)."""
+    kw = dict(num_envs=37, max_episode_steps=60, observation=observation, n_obstacles=30)
+    one, two = DebrisFieldVectorEnv(**kw), DebrisFieldVectorEnv(num_threads=2, **kw)
+    (obs_1, info_1), (obs_2, info_2) = one.reset(seed=11), two.reset(seed=11)
+    assert two._missions.threads == 2 and one._missions.threads == 1
+    np.testing.assert_array_equal(obs_1, obs_2)
+    np.testing.assert_array_equal(info_1["chaser_state"], info_2["chaser_state"])
+    rng = np.random.default_rng(3)
+    ended = 0
+    for step in range(150):
+        actions = rng.uniform(-0.6, 0.6, (37, 2)).astype(np.float32)
+        out_1, out_2 = one.step(actions), two.step(actions)
+        for name, a, b in zip(("obs", "reward", "terminated", "truncated"), out_1, out_2):
+            np.testing.assert_array_equal(a, b, err_msg=f"{name} at step {step}")
+        for key in INFO_KEYS:
+            np.testing.assert_array_equal(out_1[4][key], out_2[4][key], err_msg=key)
+        ended += int(np.sum(out_1[2] | out_1[3]))
+    assert ended > 37  # every sub-env ended at least once
+
+
+@pytest.mark.parametrize("bad", [0, 3.5, True, "2", 10_000])
+def test_num_threads_out_of_range_is_refused(bad):
+    with pytest.raises(ValueError, match=r"num_threads.*\[1, \d+\]"):
+        DebrisFieldVectorEnv(num_envs=2, num_threads=bad)
 
 
 def test_pinned_scenario_and_chaser_state():

@@ -36,7 +36,7 @@ from debris_gym.envs.common import (
     single_spaces,
 )
 from debris_gym.generators import paper_field, random_fields, scenario_from_arrays
-from debris_gym.mission_batch import MissionBatch
+from debris_gym.mission_batch import MissionBatch, check_threads
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.scenario import Scenario, as_scenario
 
@@ -52,6 +52,10 @@ class DebrisFieldVectorEnv(VectorEnv):
         autoreset_mode: ``NEXT_STEP`` (Gymnasium's default) or ``SAME_STEP`` (the ending step
             already returns the new episode's first observation; the last one is in
             ``info["final_obs"]``, its info in ``info["final_info"]``), as for SyncVectorEnv.
+        num_threads: threads that step the sub-envs (1, the default: the calling thread only;
+            up to the number of cores). The sub-envs are split into row ranges stepped in
+            parallel by numba; results are identical for any count. On a shared machine, or
+            with other processes training beside it, keep 1.
         **kwargs: any :class:`~debris_gym.config.EnvConfig` key, as for the single env.
     """
 
@@ -63,6 +67,7 @@ class DebrisFieldVectorEnv(VectorEnv):
         max_episode_steps: int | None = None,
         render_mode: str | None = None,
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        num_threads: int = 1,
         **kwargs: Any,
     ) -> None:
         if not (isinstance(num_envs, (int, np.integer)) and num_envs >= 1):
@@ -73,6 +78,7 @@ class DebrisFieldVectorEnv(VectorEnv):
             raise ValueError(
                 "the vector env does not render; make a single env with render_mode='rgb_array'"
             )
+        self.num_threads = check_threads(num_threads)
         mode = AutoresetMode(autoreset_mode)
         if mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
             raise ValueError(f"autoreset_mode must be NEXT_STEP or SAME_STEP, got {mode!r}")
@@ -164,6 +170,7 @@ class DebrisFieldVectorEnv(VectorEnv):
             self._missions = missions = MissionBatch(
                 self.config, self.num_envs, n_targets, n_bodies, mean_motion=mean_motion, dt=dt,
                 max_accel=max_accel, max_episode_steps=self.max_episode_steps,
+                threads=self.num_threads,
             )  # fmt: skip
         elif (physics, n_targets, n_bodies) != (
             missions.physics,
