@@ -134,6 +134,11 @@ OPTIONS: dict[str, Option] = {
     "shaping_clearance_distance": Option(
         "m", 1e-3, None, doc="clearance below which Φ's clearance term acts (shaping_clearance)"
     ),
+    "obs_other_targets": Option(
+        choices=(False, True),
+        doc="the nearest-obstacle slots hold the nearest bodies other than the current goal, "
+        "targets included (captured ones too: they are still bodies to avoid)",
+    ),
     "obs_goal": Option(
         choices=(False, True),
         doc="append the current goal at a 10× finer scale: relative position / (L/10), "
@@ -189,6 +194,7 @@ class EnvConfig:
     shaping_clearance: float = 0.0
     shaping_clearance_distance: float = 50.0
     obs_goal: bool = False
+    obs_other_targets: bool = False
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):

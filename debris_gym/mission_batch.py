@@ -41,8 +41,8 @@ _N_PARAMS = 19
 
 # integer options (MissionBatch.options)
 _QUEUED, _RETURN, _TERMINAL_ZERO, _LIDAR, _OBS_TARGETS, _OBS_OBSTACLES, _MAX_STEPS, _BOX = range(8)
-_OBS_GOAL = 8
-_N_OPTIONS = 9
+_OBS_GOAL, _OBS_OTHER_TARGETS = 8, 9
+_N_OPTIONS = 10
 
 # reward term columns, in REWARD_TERMS order
 _T_CAPTURE, _T_SUCCESS, _T_PROGRESS, _T_DV, _T_COLLISION, _T_OOB, _T_TIME = range(7)
@@ -143,6 +143,7 @@ class MissionBatch:
         options[_MAX_STEPS] = -1 if max_episode_steps is None else max_episode_steps
         options[_BOX] = cfg.thrust_model == "box"
         options[_OBS_GOAL] = cfg.obs_goal
+        options[_OBS_OTHER_TARGETS] = cfg.obs_other_targets
         self.options = options
         lidar = cfg.observation == "lidar"
         self.lidar_dirs = lidar_directions(d, cfg.lidar_rays) if lidar else np.zeros((1, d))
@@ -319,17 +320,27 @@ def _mission_gaps(
 ):  # fmt: skip
     """Gaps (m) from ``point`` to every body of field ``i``, into ``gaps`` (B,), and the nearest
     obstacles by gap, into ``nearest`` (nearest first, ties by index); ``best`` is scratch of
-    ``nearest``'s length (the selected gaps, kept beside the indices: comparing with them
-    directly instead of through ``gaps[nearest[k]]`` halved the selection's cost).
+    ``nearest``'s length (:func:`_select_nearest`).
 
     The gaps are exact for every body: computing all of them in one tight loop costs less than
     culling polygons with bounds (measured: the bookkeeping of a culled selection outweighs the
     polygon edges it saves at the default 20 obstacles).
     """
     field_gaps(point, i, centers, radii, polygon_start, n_vertices, vertices, gaps)
+    _select_nearest(gaps, n_targets, -1, nearest, best)
+
+
+@inlined
+def _select_nearest(gaps, first, skip, nearest, best):
+    """The bodies ``first …`` except ``skip`` with the smallest ``gaps`` (B,), nearest first (ties
+    by index), into ``nearest``; ``best`` is scratch of its length (their gaps, kept beside the
+    indices: comparing with them directly instead of through ``gaps[nearest[k]]`` halved the
+    selection's cost)."""
     n = nearest.shape[0]
     count = 0
-    for b in range(n_targets, gaps.shape[0] if n else n_targets):
+    for b in range(first, gaps.shape[0] if n else first):
+        if b == skip:
+            continue
         g = gaps[b]
         if count == n:
             if not g < best[n - 1]:
@@ -614,6 +625,10 @@ def _observe_rows(
     n_slots = opt[_OBS_TARGETS]
     order = np.empty(n_targets, dtype=np.int64)
     n_near = nearest.shape[1]
+    if opt[_OBS_OTHER_TARGETS] and not opt[_LIDAR]:  # every body but the goal is a candidate
+        n_near = min(opt[_OBS_OBSTACLES], gaps.shape[1] - 1)
+    near = np.empty(n_near, dtype=np.int64)  # the bodies in the obstacle slots
+    near_gap = np.empty(n_near)
     ranges = np.empty(lidar_dirs.shape[0])
     queued = opt[_QUEUED]
     for i in range(lo, hi):
@@ -658,9 +673,16 @@ def _observe_rows(
             for r in range(ranges.shape[0]):
                 k = _put(out, i, k, ranges[r] / prm[_LIDAR_RANGE])
         else:
-            # the nearest obstacles by surface gap, nearest first (see _mission_gaps)
+            # the nearest obstacles by surface gap, nearest first (see _mission_gaps); with
+            # obs_other_targets the nearest bodies other than the current goal
+            if opt[_OBS_OTHER_TARGETS]:
+                goal, _, _ = _goal(i, prm, opt, n_targets, state, captured, gaps)
+                _select_nearest(gaps[i], 0, goal, near, near_gap)
+            else:
+                for s in range(n_near):
+                    near[s] = nearest[i, s]
             for s in range(n_near):
-                b = nearest[i, s]
+                b = near[s]
                 for a in range(dim):
                     k = _put(out, i, k, (centers[i, b, a] - state[i, a]) / L)
                 k = _put(out, i, k, radii[i, b] / L)

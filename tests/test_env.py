@@ -587,6 +587,46 @@ def test_capture_at_just_under_capture_speed():
         assert info["targets_captured"] == captured and not info["collision"], speed
 
 
+@pytest.mark.parametrize("other_targets", [False, True])
+def test_obstacle_slots_with_other_targets(other_targets):
+    """obs_other_targets: the slots hold the nearest bodies except the current goal, so a
+    captured target the chaser sits beside is seen (regression: the shipped policy, blind to
+    it, ran into the target it had just captured in 8 of 40 collisions)."""
+    scen = simple_scenario(
+        targets=(
+            Body(position=(0.0, 100.0), radius=5.0),
+            Body(position=(300.0, 300.0), radius=8.0),
+        )
+    )
+    env = DebrisFieldEnv(obs_other_targets=other_targets, obs_obstacles=3)
+    names = env.observation_names()
+    env.reset(options={"scenario": scen, "chaser_state": [0.0, 92.0, 0.0, 0.0]})
+    obs, _, _, _, info = env.step(np.zeros(2, dtype=np.float32))
+    assert info["captured"].tolist() == [True, False]  # the goal is now target 1
+    slots = dict(zip(names, obs.tolist()))
+    pos = info["chaser_state"][:2]
+    L = 500.0
+
+    def expect(slot, center, radius):
+        rel = (np.asarray(center) - pos) / L
+        gap = (np.linalg.norm(np.asarray(center) - pos) - radius) / L  # from the chaser's centre
+        assert slots[f"obstacle{slot}_rel_pos_x"] == pytest.approx(rel[0], rel=1e-6, abs=1e-7)
+        assert slots[f"obstacle{slot}_rel_pos_y"] == pytest.approx(rel[1], rel=1e-6, abs=1e-7)
+        assert slots[f"obstacle{slot}_radius"] == pytest.approx(radius / L, rel=1e-6)
+        assert slots[f"obstacle{slot}_gap"] == pytest.approx(gap, rel=1e-5)
+
+    if other_targets:
+        expect(0, (0.0, 100.0), 5.0)  # the captured target, 3 m away
+        expect(1, (200.0, 0.0), 20.0)  # then the obstacle; the goal itself is not listed
+        empty = [2]
+    else:
+        expect(0, (200.0, 0.0), 20.0)  # obstacles only
+        empty = [1, 2]
+    for slot in empty:  # empty slots read as far away
+        assert slots[f"obstacle{slot}_gap"] == 1.0
+        assert slots[f"obstacle{slot}_radius"] == 0.0
+
+
 def test_goal_observation_at_a_fine_scale():
     """obs_goal appends the current goal (nearest uncaptured target, then the dock) / (L/10)."""
     env = DebrisFieldEnv(obs_goal=True, delta_v_budget=None)
