@@ -651,6 +651,19 @@ def test_goal_observation_at_a_fine_scale():
     assert goal["goal_gap"] == pytest.approx(np.linalg.norm(pos) / 50.0, rel=1e-6)
 
 
+def assert_progress_telescopes(seed: int, steps: int, **kwargs) -> None:
+    """With γ = 1 and 'hold' the progress terms of random flights sum to w · (Φ(end) − Φ(start))."""
+    env = DebrisFieldEnv(shaping_gamma=1.0, shaping_terminal="hold", **kwargs)
+    env.reset(seed=seed)
+    phi0, total, rng = env._potential, 0.0, np.random.default_rng(seed)
+    for _ in range(steps):
+        _, _, terminated, _, info = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
+        total += info["reward_terms"]["progress"]
+        if terminated:
+            break
+    assert total == pytest.approx(env.config.reward_progress * (env._potential - phi0), rel=1e-9)
+
+
 def test_clearance_shaping_hand_computed():
     """Φ −= w · max(0, 1 − c / d)², c = chaser surface to the nearest obstacle's surface."""
     scen = simple_scenario()
@@ -678,15 +691,7 @@ def test_clearance_shaping_hand_computed():
     expected = -(goal_gap / 500.0 + 1.0) - 2.0 * (1.0 - clearance / 50.0) ** 2
     assert env._potential == pytest.approx(expected, rel=1e-12)
     # with γ = 1 and 'hold' the progress terms still telescope to Φ(end) − Φ(start)
-    env = DebrisFieldEnv(shaping_gamma=1.0, shaping_terminal="hold", n_obstacles=60, **kwargs)
-    env.reset(seed=5)
-    phi0, total, rng = env._potential, 0.0, np.random.default_rng(1)
-    for _ in range(80):
-        _, _, terminated, _, info = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
-        total += info["reward_terms"]["progress"]
-        if terminated:
-            break
-    assert total == pytest.approx(env.config.reward_progress * (env._potential - phi0), rel=1e-9)
+    assert_progress_telescopes(n_obstacles=60, seed=5, steps=80, **kwargs)
 
 
 @pytest.mark.parametrize(
@@ -715,12 +720,4 @@ def test_approach_speed_shaping_hand_computed():
     env.reset(options={"scenario": scen, "chaser_state": [0.0, 80.0, 0.0, 0.5]})  # under it
     assert env._potential == pytest.approx(-(gap / 500.0 + 1.0), rel=1e-12)
     # with γ = 1 and 'hold', the progress terms still sum to Φ(end) − Φ(start)
-    env = DebrisFieldEnv(shaping_gamma=1.0, shaping_terminal="hold", **kwargs)
-    env.reset(seed=3)
-    phi0, total, rng = env._potential, 0.0, np.random.default_rng(0)
-    for _ in range(60):
-        _, _, terminated, _, info = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
-        total += info["reward_terms"]["progress"]
-        if terminated:
-            break
-    assert total == pytest.approx(env.config.reward_progress * (env._potential - phi0), rel=1e-9)
+    assert_progress_telescopes(seed=3, steps=60, **kwargs)
