@@ -134,6 +134,17 @@ OPTIONS: dict[str, Option] = {
     "shaping_clearance_distance": Option(
         "m", 1e-3, None, doc="clearance below which Φ's clearance term acts (shaping_clearance)"
     ),
+    "shaping_closing": Option(
+        "",
+        0.0,
+        None,
+        doc="weight of Φ's closing term: −w·max over bodies b other than the goal with clearance "
+        "c_b < shaping_closing_distance of max(0, v_b − capture_speed) / V · (1 − c_b / d), v_b "
+        "the speed toward b's centre (0 = off)",
+    ),
+    "shaping_closing_distance": Option(
+        "m", 1e-3, None, doc="clearance below which Φ's closing term acts (shaping_closing)"
+    ),
     "obs_other_targets": Option(
         choices=(False, True),
         doc="the nearest-obstacle slots hold the nearest bodies other than the current goal, "
@@ -193,6 +204,8 @@ class EnvConfig:
     shaping_speed_slope: float = 0.01
     shaping_clearance: float = 0.0
     shaping_clearance_distance: float = 50.0
+    shaping_closing: float = 0.0
+    shaping_closing_distance: float = 20.0
     obs_goal: bool = False
     obs_other_targets: bool = False
 

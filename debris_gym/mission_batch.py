@@ -36,8 +36,8 @@ from debris_gym.thrust import delta_v_rate_row, thrust_row
 _DT, _CHASER_R, _CAPTURE_R, _CAPTURE_V, _BUDGET, _GAMMA = range(6)
 _W_CAPTURE, _W_SUCCESS, _W_PROGRESS, _W_DV, _W_COLLISION, _W_OOB, _W_TIME = range(6, 13)
 _LIDAR_RANGE, _MAX_ACCEL, _W_SPEED, _SPEED_SLOPE = 13, 14, 15, 16
-_W_CLEARANCE, _CLEARANCE_DIST = 17, 18
-_N_PARAMS = 19
+_W_CLEARANCE, _CLEARANCE_DIST, _W_CLOSING, _CLOSING_DIST = 17, 18, 19, 20
+_N_PARAMS = 21
 
 # integer options (MissionBatch.options)
 _QUEUED, _RETURN, _TERMINAL_ZERO, _LIDAR, _OBS_TARGETS, _OBS_OBSTACLES, _MAX_STEPS, _BOX = range(8)
@@ -132,6 +132,8 @@ class MissionBatch:
         params[_SPEED_SLOPE] = cfg.shaping_speed_slope
         params[_W_CLEARANCE] = cfg.shaping_clearance
         params[_CLEARANCE_DIST] = cfg.shaping_clearance_distance
+        params[_W_CLOSING] = cfg.shaping_closing
+        params[_CLOSING_DIST] = cfg.shaping_closing_distance
         self.params = params
         options = np.zeros(_N_OPTIONS, dtype=np.int64)
         options[_QUEUED] = cfg.target_order == "queued"
@@ -282,11 +284,15 @@ def _goal(i, prm, opt, n_targets, state, captured, gaps):
 
 
 @inlined
-def _potential(i, prm, opt, n_targets, state, captured, gaps, dock, length_scale, speed_scale):
+def _potential(
+    i, prm, opt, n_targets, state, captured, gaps, centers, dock, length_scale, speed_scale
+):
     """Φ = −(gap to the current goal / L + goals after it), minus the approach-speed term
     ``shaping_speed`` · max(0, speed − (capture_speed + slope · gap)) / V and the clearance
     term ``shaping_clearance`` · max(0, 1 − c / d)² (c: the chaser surface's gap to the nearest
-    obstacle) when they are on."""
+    obstacle) and the closing term ``shaping_closing`` · max over bodies b other than the goal
+    within ``shaping_closing_distance`` of max(0, v_b − capture_speed) / V · (1 − c_b / d) (v_b:
+    the chaser's speed toward b's centre) when they are on."""
     dim = dock.shape[1]
     goal, gap, after = _goal(i, prm, opt, n_targets, state, captured, gaps)
     if goal == -1:
@@ -310,6 +316,23 @@ def _potential(i, prm, opt, n_targets, state, captured, gaps, dock, length_scale
         clearance = max(nearest - prm[_CHASER_R], 0.0)
         closeness = max(1.0 - clearance / prm[_CLEARANCE_DIST], 0.0)
         phi -= prm[_W_CLEARANCE] * closeness * closeness
+    if prm[_W_CLOSING] > 0.0:
+        worst = 0.0
+        reach = prm[_CLOSING_DIST]
+        for b in range(gaps.shape[1]):
+            c = gaps[i, b] - prm[_CHASER_R]
+            if b == goal or not c < reach:
+                continue
+            toward = 0.0
+            dist2 = 0.0
+            for a in range(dim):
+                rel = centers[i, b, a] - state[i, a]
+                toward += rel * state[i, dim + a]
+                dist2 += rel * rel
+            closing = toward / math.sqrt(dist2) if dist2 > 0.0 else 0.0
+            excess = max(closing - prm[_CAPTURE_V], 0.0) / speed_scale[i]
+            worst = max(worst, excess * (1.0 - max(c, 0.0) / reach))
+        phi -= prm[_W_CLOSING] * worst
     return phi
 
 
@@ -393,7 +416,17 @@ def _begin(
             clearance = min(clearance, gaps[i, b])
         min_clearance[i] = clearance
         potential[i] = _potential(
-            i, prm, opt, n_targets, state, captured, gaps, dock, length_scale, speed_scale
+            i,
+            prm,
+            opt,
+            n_targets,
+            state,
+            captured,
+            gaps,
+            centers,
+            dock,
+            length_scale,
+            speed_scale,
         )
 
 
@@ -555,7 +588,17 @@ def _step_rows(
 
         # reward terms
         phi = _potential(
-            i, prm, opt, n_targets, state, captured, gaps, dock, length_scale, speed_scale
+            i,
+            prm,
+            opt,
+            n_targets,
+            state,
+            captured,
+            gaps,
+            centers,
+            dock,
+            length_scale,
+            speed_scale,
         )
         progress = prm[_GAMMA] * phi - potential[i]
         potential[i] = phi

@@ -20,7 +20,10 @@ term               value per step
 ``shaping_speed`` · max(0, speed − (capture_speed + ``shaping_speed_slope`` · gap)) / V, and
 minus, when ``shaping_clearance`` > 0, ``shaping_clearance`` · max(0, 1 − c / d)², c the gap
 from the chaser's surface to the nearest obstacle (debris that is not a target) and d
-``shaping_clearance_distance`` (m). The progress term is potential-based (Ng, Harada & Russell
+``shaping_clearance_distance`` (m), and minus, when ``shaping_closing`` > 0, ``shaping_closing``
+· max over the bodies b other than the current goal whose clearance c_b is below
+``shaping_closing_distance`` d of max(0, v_b − capture_speed) / V · (1 − c_b / d), v_b the
+chaser's speed toward b's centre. The progress term is potential-based (Ng, Harada & Russell
 1999), so it changes how fast an agent learns but not which policy is optimal (for the same γ
 as the learner's, and Φ = 0 after termination).
 

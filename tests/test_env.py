@@ -694,12 +694,33 @@ def test_clearance_shaping_hand_computed():
     assert_progress_telescopes(n_obstacles=60, seed=5, steps=80, **kwargs)
 
 
+def test_closing_shaping_hand_computed():
+    """Φ −= w · max_b max(0, v_b − capture_speed) / V · (1 − c_b / d) over bodies b ≠ goal."""
+    scen = simple_scenario()
+    kwargs = dict(shaping_closing=2.0, shaping_closing_distance=20.0, delta_v_budget=None)
+    env = DebrisFieldEnv(**kwargs)
+    env.reset(options={"scenario": scen, "chaser_state": [170.0, 0.0, 2.0, 0.0]})
+    goal_gap = math.hypot(170.0, 100.0) - 6.0
+    clearance = (200.0 - 170.0) - 20.0 - 1.0  # 9 m to the obstacle, closing at 2 m/s
+    term = 2.0 * (2.0 - 0.5) / 5.0 * (1.0 - clearance / 20.0)
+    assert env._potential == pytest.approx(-(goal_gap / 500.0 + 1.0) - term, rel=1e-12)
+    # moving away from it: no term
+    env.reset(options={"scenario": scen, "chaser_state": [170.0, 0.0, -2.0, 0.0]})
+    assert env._potential == pytest.approx(-(goal_gap / 500.0 + 1.0), rel=1e-12)
+    # closing on the goal itself is the approach-speed term's business, not this one's
+    env.reset(options={"scenario": scen, "chaser_state": [0.0, 88.0, 0.0, 2.0]})
+    assert env._potential == pytest.approx(-((100.0 - 88.0 - 6.0) / 500.0 + 1.0), rel=1e-12)
+    assert_progress_telescopes(n_obstacles=60, seed=9, steps=80, **kwargs)
+
+
 @pytest.mark.parametrize(
     "kwargs, message",
     [
         ({"shaping_clearance": -1.0}, "shaping_clearance=-1.0 is out of range"),
         ({"shaping_clearance_distance": 0.0}, "shaping_clearance_distance=0.0 m is out of range"),
         ({"shaping_clearance": float("nan")}, "shaping_clearance must be finite"),
+        ({"shaping_closing": -0.5}, "shaping_closing=-0.5 is out of range"),
+        ({"shaping_closing_distance": 0.0}, "shaping_closing_distance=0.0 m is out of range"),
     ],
 )
 def test_clearance_shaping_rejects_bad_values(kwargs, message):

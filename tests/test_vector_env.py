@@ -91,6 +91,7 @@ def compare_run(
         ("DebrisGym/Rendezvous2D-v0", {"shaping_speed": 1.0, "obs_goal": True}, 0.5),
         ("DebrisGym/Rendezvous2D-v0", {"shaping_clearance": 1.0, "n_obstacles": 40}, 0.5),
         ("DebrisGym/Rendezvous2D-v0", {"obs_other_targets": True, "obs_obstacles": 30}, 0.5),
+        ("DebrisGym/Rendezvous2D-v0", {"shaping_closing": 1.0, "n_obstacles": 40}, 0.5),
         (
             "DebrisGym/Rendezvous2D-v0",
             {"target_order": "queued", "thrust_model": "box", "delta_v_budget": 15.0},
