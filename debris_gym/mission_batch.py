@@ -416,17 +416,7 @@ def _begin(
             clearance = min(clearance, gaps[i, b])
         min_clearance[i] = clearance
         potential[i] = _potential(
-            i,
-            prm,
-            opt,
-            n_targets,
-            state,
-            captured,
-            gaps,
-            centers,
-            dock,
-            length_scale,
-            speed_scale,
+            i, prm, opt, n_targets, state, captured, gaps, centers, dock, length_scale, speed_scale
         )
 
 
@@ -588,17 +578,7 @@ def _step_rows(
 
         # reward terms
         phi = _potential(
-            i,
-            prm,
-            opt,
-            n_targets,
-            state,
-            captured,
-            gaps,
-            centers,
-            dock,
-            length_scale,
-            speed_scale,
+            i, prm, opt, n_targets, state, captured, gaps, centers, dock, length_scale, speed_scale
         )
         progress = prm[_GAMMA] * phi - potential[i]
         potential[i] = phi
@@ -675,6 +655,9 @@ def _observe_rows(
     ranges = np.empty(lidar_dirs.shape[0])
     queued = opt[_QUEUED]
     for i in range(lo, hi):
+        goal, gap = -2, 0.0  # the current goal, for the options that show it
+        if opt[_OBS_GOAL] or opt[_OBS_OTHER_TARGETS]:
+            goal, gap, _ = _goal(i, prm, opt, n_targets, state, captured, gaps)
         L = length_scale[i]
         V = speed_scale[i]
         k = 0
@@ -719,7 +702,6 @@ def _observe_rows(
             # the nearest obstacles by surface gap, nearest first (see _mission_gaps); with
             # obs_other_targets the nearest bodies other than the current goal
             if opt[_OBS_OTHER_TARGETS]:
-                goal, _, _ = _goal(i, prm, opt, n_targets, state, captured, gaps)
                 _select_nearest(gaps[i], 0, goal, near, near_gap)
             else:
                 for s in range(n_near):
@@ -738,7 +720,6 @@ def _observe_rows(
         k = _put(out, i, k, 1.0 if budget == math.inf else max(budget - delta_v[i], 0.0) / budget)
         k = _put(out, i, k, max(horizon - steps[i], 0.0) / horizon)
         if opt[_OBS_GOAL]:  # the current goal at a 10x finer scale
-            goal, gap, _ = _goal(i, prm, opt, n_targets, state, captured, gaps)
             fine_l = L / 10.0
             s = 0.0
             for a in range(dim):
