@@ -1,7 +1,10 @@
 """The mission a classical agent flies: the visiting order and the current goal.
 
 Targets are visited in the shortest closed-tour order from the dock (``agents.ordering``), or the
-env's queue order when ``target_order="queued"``, then the dock if a return is required. A goal is
+env's queue order when ``target_order="queued"``, then the dock if a return is required. With
+``ordering="nearest"`` the current goal is the one the env itself names (its ``obs_goal`` and
+shaping): the uncaptured target whose surface is nearest the chaser *now*, re-chosen at every
+call, so it can change mid-leg; the later ones follow greedily. A goal is
 an *approach point*: the chaser position from which a target counts as reached — half the capture
 depth outside the target's surface, on the side facing the chaser — or the dock itself.
 """
@@ -15,6 +18,9 @@ import numpy as np
 from agents.ordering import polygon_order, shortest_order
 from debris_gym.config import EnvConfig
 from debris_gym.scenario import Scenario
+
+ORDERINGS = ("shortest", "polygon", "nearest")
+"""Target visiting orders a :class:`MissionPlan` can follow."""
 
 
 @dataclass(frozen=True)
@@ -40,8 +46,9 @@ class MissionPlan:
     Args:
         scenario: the field.
         config: the env's configuration (capture geometry, order rule, return to dock).
-        ordering: "shortest" (exact/heuristic shortest tour) or "polygon" (seed 000 Alg. 1);
-            ignored when the env fixes the order.
+        ordering: "shortest" (exact/heuristic shortest tour), "polygon" (seed 000 Alg. 1) or
+            "nearest" (the env's own current goal, see above); ignored when the env fixes the
+            order.
     """
 
     def __init__(self, scenario: Scenario, config: EnvConfig, ordering: str = "shortest") -> None:
@@ -50,14 +57,18 @@ class MissionPlan:
         self.centres = np.array([t.position for t in scenario.targets], dtype=float)
         self.radii = np.array([t.radius for t in scenario.targets], dtype=float)
         self.dock = np.asarray(scenario.dock, dtype=float)
+        self.nearest = False
+        if ordering not in ORDERINGS:
+            raise ValueError(f"ordering must be one of {', '.join(ORDERINGS)}, got {ordering!r}")
         if config.target_order == "queued" or len(scenario.targets) == 1:
             self.order = list(range(len(scenario.targets)))
+        elif ordering == "nearest":
+            self.order = list(range(len(scenario.targets)))
+            self.nearest = True
         elif ordering == "shortest":
             self.order = shortest_order(self.centres, self.dock)
-        elif ordering == "polygon":
-            self.order = polygon_order(self.centres)
         else:
-            raise ValueError(f"ordering must be 'shortest' or 'polygon', got {ordering!r}")
+            self.order = polygon_order(self.centres)
 
     def stand_off(self, index: int) -> float:
         """Distance (m) from target ``index``'s centre to its approach points."""
@@ -76,13 +87,27 @@ class MissionPlan:
         """Remaining goals in order, approach sides chosen along the way (first is current)."""
         out: list[Goal] = []
         here = np.asarray(position, dtype=float)
-        for i in self.order:
-            if not captured[i]:
-                point = self.approach_point(i, here)
-                out.append(Goal("target", i, point, self.centres[i]))
-                here = point
+        for i in self._order(captured, here):
+            point = self.approach_point(i, here)
+            out.append(Goal("target", i, point, self.centres[i]))
+            here = point
         if self.config.return_to_dock:
             out.append(Goal("dock", None, self.dock.copy(), self.dock.copy()))
+        return out
+
+    def _order(self, captured: np.ndarray, position: np.ndarray) -> list[int]:
+        """Uncaptured targets in visiting order from ``position``."""
+        left = [i for i in self.order if not captured[i]]
+        if not self.nearest:
+            return left
+        out: list[int] = []
+        here = position
+        while left:
+            # the env's rule: smallest gap |p - c| - r, the lowest index on a tie
+            gaps = [float(np.linalg.norm(self.centres[i] - here)) - self.radii[i] for i in left]
+            i = left.pop(int(np.argmin(gaps)))
+            out.append(i)
+            here = self.approach_point(i, here)
         return out
 
     def current_goal(self, captured: np.ndarray, position: np.ndarray) -> Goal | None:

@@ -840,7 +840,8 @@ class MPCPathAgent(ClassicalAgent):
         env: the DebrisGym env.
         mpc: tracker parameters (shared by every subclass, so comparisons are of planners).
         reference: speed-profile parameters; ``end_speed`` is capped at 0.3 × capture speed.
-        ordering: target visiting order, "shortest" or "polygon" (see :class:`MissionPlan`).
+        ordering: target visiting order, "shortest", "polygon" or "nearest" (the env's own
+            current goal; see :class:`MissionPlan`).
         replan_distance: deviation from the path (m) that triggers a re-plan; None: 2 % of the
             world size.
         stall_steps: re-plan when the chaser has not advanced along the path (short of its end)
@@ -927,9 +928,13 @@ class MPCPathAgent(ClassicalAgent):
         pos = state[:d]
         captured = env.captured
         key = tuple(bool(c) for c in captured)
+        goal = None
+        if self.mission.nearest:  # the env's goal can change without a capture
+            goal = self.mission.current_goal(captured, pos)
+            key += (None if goal is None else goal.index,)
         if key != self._goal_key:
             self._goal_key = key
-            self._goal = self.mission.current_goal(captured, pos)
+            self._goal = goal or self.mission.current_goal(captured, pos)
             self.tracker.reset()
             self._new_path(pos)
         elif self._ref is not None and self._ref.deviation > self._replan_distance:

@@ -1,0 +1,81 @@
+"""Teach a policy network to fly like a classical baseline: behaviour cloning, then DAgger.
+
+The expert (APF-MPC by default) flies training fields; an MLP policy is fit to its actions; then
+for each DAgger round the policy flies while the expert labels every state it visits, and the
+policy is refit on all the data. Settings come from agents/configs/<env>_imitation.yaml (or
+--config FILE) with --set overrides. Outputs in --out DIR: model.zip + vecnormalize.pkl (an SB3
+PPO model: evaluate it with evaluate.py --agents ppo=DIR/model.zip), config.yaml,
+imitation_log.json (per round: the policy's success rate on its rollouts, data set size, losses,
+wall times) and imitation_curve.png. The library is agents/imitation.py; docs/training.md has
+the measured runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+EXAMPLES = """\
+examples:
+  python imitate.py --out /tmp/im1 --set bc_episodes=4 --set dagger_rounds=1 \\
+      --set dagger_episodes=2 --set workers=1                          # a quick check
+  python imitate.py --out runs/dagger                                  # the full recipe
+  python evaluate.py --agents apf-mpc,ppo=runs/dagger/model.zip --episodes 30 --seed 10000000
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="imitate.py",
+        description=__doc__,
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--out", type=Path, metavar="DIR", required=True, help="run directory")
+    parser.add_argument(
+        "--env", metavar="ID", default="DebrisGym/Rendezvous2D-v0", help="environment ID"
+    )
+    parser.add_argument(
+        "--config",
+        type=Path,
+        metavar="FILE",
+        help="config YAML (default: agents/configs/<env>_imitation.yaml)",
+    )
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a config key (dotted, value parsed as YAML), e.g. --set dagger_rounds=2; "
+        "repeatable",
+    )
+    parser.add_argument("--seed", type=int, metavar="S", help="base seed (default: the config's)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    from agents.imitation import imitate, load_imitation_config
+
+    try:
+        config = load_imitation_config(args.env, args.config, args.overrides, args.seed)
+        result = imitate(config, args.out, progress=not args.no_progress)
+    except (FileNotFoundError, FileExistsError, ValueError) as exc:
+        parser.error(str(exc))
+    except KeyboardInterrupt:
+        print("\ninterrupted; nothing saved (a run writes its files at the end)", file=sys.stderr)
+        return 130
+    print(
+        f"done in {result['wall_s']:.0f} s\n  {result['model']}\n  {args.out / 'config.yaml'}\n"
+        f"  {args.out / 'imitation_log.json'}\n  {args.out / 'imitation_curve.png'}\n"
+        f"evaluate with: python evaluate.py --agents apf-mpc,ppo={result['model']}"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
