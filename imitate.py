@@ -63,7 +63,9 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         config = load_imitation_config(args.env, args.config, args.overrides, args.seed)
-        result = imitate(config, args.out, progress=not args.no_progress)
+        words = sys.argv[1:] if argv is None else argv
+        command = " ".join(["python", Path(sys.argv[0]).name, *words])
+        result = imitate(config, args.out, progress=not args.no_progress, command=command)
     except (FileNotFoundError, FileExistsError, ValueError) as exc:
         parser.error(str(exc))
     except KeyboardInterrupt:

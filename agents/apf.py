@@ -589,7 +589,7 @@ class APFAgent(ClassicalAgent):
         env: the DebrisGym env.
         params: potential parameters; default :meth:`APFParams.for_scenario` of each field.
         guidance: control gains; default :meth:`APFGuidance.for_scenario`.
-        ordering: target order, "shortest" or "polygon" (see :class:`MissionPlan`).
+        ordering: target order, "shortest", "polygon" or "nearest" (see :class:`MissionPlan`).
     """
 
     name = "apf"

@@ -76,7 +76,7 @@ class APFMPCAgent(MPCPathAgent):
         apf: APF planner parameters; None: :meth:`APFParams.for_scenario` (scaled to the field).
         mpc: MPC tracker parameters (the same defaults as the "astar" agent).
         reference: speed profile of the reference.
-        ordering: "shortest" or "polygon" (seed 000 Alg. 1) target order.
+        ordering: "shortest", "polygon" (seed 000 Alg. 1) or "nearest" (the env's goal) order.
         replan_distance: deviation from the path (m) that triggers a re-plan; None: 2 % of the
             world size.
         fallback_cell: grid cell (m) of the A* fallback after an APF stall; None: the "astar"

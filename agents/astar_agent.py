@@ -269,7 +269,7 @@ class AStarAgent(MPCPathAgent):
             tracker's keep-out margin. The goal target is inflated by the chaser radius only.
         mpc: MPC tracker parameters (the same defaults as "apf-mpc").
         reference: speed profile of the reference.
-        ordering: "shortest" or "polygon" target order.
+        ordering: "shortest", "polygon" or "nearest" target order (see :class:`MissionPlan`).
         replan_distance: deviation from the path (m) that triggers a re-plan; None: 2 % of the
             world size.
 

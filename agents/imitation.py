@@ -486,8 +486,16 @@ def imitate(
     out: str | Path,
     log: Callable[[str], None] = print,
     progress: bool = True,
+    command: str | None = None,
 ) -> dict[str, Any]:
     """Behaviour cloning then DAgger; writes a run directory ``out`` (see the module doc).
+
+    Args:
+        config: the run's settings.
+        out: run directory (created; refused if it already holds a model).
+        log: where the per-round lines go.
+        progress: tqdm bars over the rollouts.
+        command: the command line, recorded in ``config.yaml``.
 
     Returns:
         the run log (also written to ``out/imitation_log.json``): per round the rollout outcomes
@@ -580,7 +588,14 @@ def imitate(
         "model": str(model_path),
     }
     _write_text(out / "imitation_log.json", json.dumps(run_log, indent=2) + "\n")
-    _write_text(out / "config.yaml", _run_config_yaml(config))
+    run = {
+        "command": command,
+        "started_at": _iso(started),
+        "finished_at": _iso(time.time()),
+        "wall_s": round(run_log["wall_s"], 1),
+        "versions": _versions(),
+    }
+    _write_text(out / "config.yaml", _run_config_yaml(config, run))
     plot_rounds(run_log, out / "imitation_curve.png")
     return run_log
 
@@ -595,7 +610,19 @@ def _round_line(h: dict[str, Any]) -> str:
     )
 
 
-def _run_config_yaml(config: ImitationConfig) -> str:
+def _iso(t: float) -> str:
+    from datetime import datetime, timezone
+
+    return datetime.fromtimestamp(t, tz=timezone.utc).isoformat(timespec="seconds")
+
+
+def _versions() -> dict[str, str]:
+    from agents.training import _versions as training_versions
+
+    return training_versions()
+
+
+def _run_config_yaml(config: ImitationConfig, run: dict[str, Any] | None = None) -> str:
     """``config.yaml`` of an imitation run: what :mod:`agents.learned` reads (``env_kwargs`` for
     the observation options, ``normalize`` for the statistics) plus the imitation settings."""
     import yaml
@@ -613,6 +640,8 @@ def _run_config_yaml(config: ImitationConfig) -> str:
         },
         "imitation": config.to_dict(),
     }
+    if run is not None:
+        data["run"] = run
     header = (
         "# Imitation run (imitate.py): an SB3 PPO model whose actor was fit to the expert's\n"
         "# actions (behaviour cloning + DAgger); see agents/imitation.py.\n"

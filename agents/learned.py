@@ -50,7 +50,7 @@ PRETRAINED_DIR = Path(__file__).resolve().parent / "pretrained"
 """Package data: the shipped policies (and their VecNormalize statistics)."""
 
 PRETRAINED_POLICIES: dict[str, tuple[str, str]] = {
-    "DebrisGym/Rendezvous2D-v0": ("ppo", "rendezvous2d_ppo.zip"),
+    "DebrisGym/Rendezvous2D-v0": ("ppo", "rendezvous2d_dagger.zip"),
 }
 """Env ID → (algorithm, file in :data:`PRETRAINED_DIR`)."""
 

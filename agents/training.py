@@ -634,8 +634,9 @@ def default_config_path(env_id: str, algo: str) -> Path:
 
 
 def available_configs() -> list[str]:
-    """Names of the checked-in configs (``rendezvous2d_ppo``, …)."""
-    return sorted(p.stem for p in CONFIG_DIR.glob("*.yaml"))
+    """Names of the checked-in training configs (``rendezvous2d_ppo``, …; one per algorithm,
+    so not imitate.py's ``*_imitation.yaml``)."""
+    return sorted(p.stem for p in CONFIG_DIR.glob("*.yaml") if p.stem.rsplit("_", 1)[-1] in ALGOS)
 
 
 def load_config_file(path: str | Path) -> tuple[dict[str, Any], dict[str, Any]]:

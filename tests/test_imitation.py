@@ -11,6 +11,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
+import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -170,6 +171,11 @@ def test_beta_outside_the_unit_interval_is_refused(beta):
 
 
 def test_checked_in_recipe_loads():
+    """The recipe loads; train.py does not list it among its own configs (regression: its
+    config test read every YAML in agents/configs as a training config)."""
+    from agents.training import available_configs
+
+    assert "rendezvous2d_imitation" not in available_configs()
     config = im.load_imitation_config(ENV_ID)
     assert config.expert == "apf-mpc" and config.expert_kwargs["ordering"] == "nearest"
     assert config.env_kwargs["obs_goal"] is True
@@ -192,6 +198,8 @@ def test_tiny_run_end_to_end(tmp_path):
     for name in ("model.zip", "vecnormalize.pkl", "config.yaml", "imitation_log.json",
                  "imitation_curve.png"):  # fmt: skip
         assert (out / name).is_file(), name
+    run = yaml.safe_load((out / "config.yaml").read_text())["run"]
+    assert run["command"].startswith("python imitate.py --out") and run["wall_s"] > 0
     log = json.loads((out / "imitation_log.json").read_text())
     assert [r["round"] for r in log["rounds"]] == [0, 1]
     assert log["rounds"][0]["episodes"] == 2 and log["rounds"][1]["dataset"] > 0

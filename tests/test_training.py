@@ -416,12 +416,12 @@ def test_load_agent_errors(trained, tmp_path):
 
 
 def test_the_shipped_pretrained_policy_flies_its_env():
-    """agents/pretrained/rendezvous2d_ppo.zip loads with its statistics and the observation
+    """agents/pretrained/rendezvous2d_dagger.zip loads with its statistics and the observation
     options of its run, and refuses the default env with an error naming them."""
     from agents.learned import observation_options
 
     options = observation_options("pretrained", ENV_ID)
-    assert options == {"obs_targets": 1, "obs_goal": True}
+    assert options == {"obs_targets": 1, "obs_goal": True, "obs_other_targets": True}
     env = gym.make(ENV_ID, **options)
     agent = agents.load_agent("pretrained", env)
     assert agent.algo == "ppo" and agent.obs_normalizer is not None
