@@ -30,6 +30,7 @@ import dataclasses
 import json
 import multiprocessing
 import pickle
+import signal
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -314,6 +315,13 @@ def _rollouts(
     return np.asarray(observations, np.float32), np.asarray(labels, np.float32), stats
 
 
+def _ignore_interrupts() -> None:
+    """Worker initialiser: Ctrl-C is the parent's to handle; the parent's SIGTERM (how
+    ``Pool.terminate`` stops a worker) ends a worker quietly, whatever handler imitate.py set."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def collect(
     config: ImitationConfig,
     seeds: Sequence[int],
@@ -344,7 +352,7 @@ def collect(
         results = map(_rollouts, tasks)
         pool = None
     else:
-        pool = multiprocessing.get_context("fork").Pool(config.workers)
+        pool = multiprocessing.get_context("fork").Pool(config.workers, _ignore_interrupts)
         results = pool.imap(_rollouts, tasks)
     try:
         for obs, act, part in results:
@@ -353,6 +361,12 @@ def collect(
             stats.extend(part)
             if progress is not None:
                 progress(len(part.seeds))
+    except BaseException:  # Ctrl-C or a worker's error: stop the workers now
+        if pool is not None:
+            pool.terminate()
+            pool.join()
+            pool = None
+        raise
     finally:
         if pool is not None:
             pool.close()

@@ -221,3 +221,29 @@ def test_expert_settings_are_checked_up_front():
         im.ImitationConfig.from_dict({"expert_kwargs": {"reference": {"cruise_speed": -1}}})
     with pytest.raises(ValueError, match="expert_kwargs"):
         im.ImitationConfig.from_dict({"expert_kwargs": {"horizon": 3}})
+
+
+def test_ctrl_c_stops_the_run_and_its_workers(tmp_path):
+    """SIGINT during a DAgger round: exit status 130, no model written, the rollout workers
+    stopped (regression: SIGINT ignored by a background parent; workers printed tracebacks)."""
+    import signal
+    import time
+
+    out = tmp_path / "run"
+    sets = ["bc_episodes=2", "max_episode_steps=25", "dagger_episodes=400", "workers=2"]
+    cmd = [sys.executable, str(ROOT / "imitate.py"), "--out", str(out), "--no-progress"]
+    for item in sets:
+        cmd += ["--set", item]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        line = proc.stdout.readline()
+        assert line.startswith("round 0"), line
+        time.sleep(1.0)  # inside round 1's rollouts
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, err
+    assert "interrupted; nothing saved" in err
+    assert "Traceback" not in err
+    assert not (out / "model.zip").exists()
