@@ -42,7 +42,7 @@ import sys
 import threading
 import time
 import zipfile
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -849,6 +849,31 @@ def find_latest_checkpoint(run_dir: str | Path) -> Path:
     return best[2]
 
 
+@contextlib.contextmanager
+def _interrupts_deferred() -> Iterator[None]:
+    """Hold a Ctrl-C (SIGINT) that arrives inside the block, and raise it as a
+    ``KeyboardInterrupt`` when the block ends.
+
+    For saves during learning: a ``KeyboardInterrupt`` inside torch's zip writer comes out as a
+    ``RuntimeError`` ("unexpected pos …"), which is not an interrupt and ended the run with an
+    error instead of the interrupt checkpoint (seen in the Ctrl-C test). Only Python's default
+    handler is replaced; off the main thread, or under any other handler (e.g. SIG_IGN while the
+    final files are written), the block runs as it is.
+    """
+    main = threading.current_thread() is threading.main_thread()
+    if not main or signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        yield
+        return
+    caught: list[int] = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if caught:
+        raise KeyboardInterrupt
+
+
 def _atomic(path: Path, save: Callable[[str], None]) -> Path:
     """``save(tmp)`` into a temporary name in the same directory, then ``os.replace``."""
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -990,13 +1015,17 @@ def _make_callbacks(
         def _on_training_end(self) -> None:
             self.flush()
 
-    class SaveStatsOnBest(cb.BaseCallback):
-        """Called by EvalCallback on a new best model: save its VecNormalize stats beside it."""
+    class SaveBest(cb.BaseCallback):
+        """Called by EvalCallback on a new best model: save it and its VecNormalize stats,
+        atomically and with a Ctrl-C held until both are written (EvalCallback's own save
+        writes in place)."""
 
         def _on_step(self) -> bool:
-            venv = self.model.get_vec_normalize_env()
-            if venv is not None:
-                _atomic(sidecar_path(out / "best_model.zip", "vecnormalize"), venv.save)
+            with _interrupts_deferred():
+                _atomic(out / "best_model.zip", self.model.save)
+                venv = self.model.get_vec_normalize_env()
+                if venv is not None:
+                    _atomic(sidecar_path(out / "best_model.zip", "vecnormalize"), venv.save)
             return True
 
     class HeldOutEvalCallback(cb.EvalCallback):
@@ -1102,10 +1131,19 @@ def _make_callbacks(
             if self.n_calls % self.save_freq != 0:
                 return True
             start = time.perf_counter()
-            result = super()._on_step()
-            self._prune()
+            with _interrupts_deferred():  # CheckpointCallback's saves, atomic and whole
+                _atomic(Path(self._checkpoint_path(extension="zip")), self.model.save)
+                buffer = getattr(self.model, "replay_buffer", None)
+                if self.save_replay_buffer and buffer is not None:
+                    path = Path(self._checkpoint_path("replay_buffer_", extension="pkl"))
+                    _atomic(path, self.model.save_replay_buffer)
+                venv = self.model.get_vec_normalize_env()
+                if self.save_vecnormalize and venv is not None:
+                    path = Path(self._checkpoint_path("vecnormalize_", extension="pkl"))
+                    _atomic(path, venv.save)
+                self._prune()
             self.seconds += time.perf_counter() - start
-            return result
+            return True
 
         def _prune(self) -> None:
             folder = Path(self.save_path)
@@ -1147,11 +1185,11 @@ def _make_callbacks(
     if config.eval.freq > 0:
         evaluation = HeldOutEvalCallback(
             eval_env,
-            callback_on_new_best=SaveStatsOnBest(),
+            callback_on_new_best=SaveBest(),
             n_eval_episodes=config.eval.n_episodes,
             eval_freq=max(config.eval.freq // n, 1),
             log_path=str(out),
-            best_model_save_path=str(out),
+            best_model_save_path=None,  # SaveBest writes best_model.zip
             deterministic=config.eval.deterministic,
             verbose=0,
         )

@@ -259,6 +259,37 @@ def test_ctrl_c_leaves_a_checkpoint_that_resumes(tmp_path):
     assert tr.model_timesteps(out / "model.zip") >= steps + 64
 
 
+def test_ctrl_c_during_a_save_waits_for_the_whole_file(tmp_path):
+    """Regression: a Ctrl-C that hit EvalCallback's best-model save inside torch's zip writer
+    came out as a RuntimeError ("unexpected pos"), so train.py exited 1 without its interrupt
+    checkpoint, leaving a cut best_model.zip. Saves during learning now hold the interrupt until
+    the file is whole, then raise it."""
+    from stable_baselines3 import PPO
+
+    model = PPO("MlpPolicy", "CartPole-v1", n_steps=64, batch_size=64, device="cpu")
+    path = tmp_path / "best_model.zip"
+    reached = []
+
+    def save(tmp: str) -> None:
+        os.kill(os.getpid(), signal.SIGINT)  # arrives mid-save: handled at the next bytecode
+        model.save(tmp)
+        reached.append(True)
+
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # xdist may change it
+    try:
+        with pytest.raises(KeyboardInterrupt), tr._interrupts_deferred():
+            tr._atomic(path, save)
+        # under an ignoring handler (the final save) the block runs as it is and raises nothing
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        with tr._interrupts_deferred():
+            tr._atomic(tmp_path / "final.zip", save)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert reached == [True, True]
+    assert PPO.load(path, device="cpu").num_timesteps == model.num_timesteps
+    assert not list(tmp_path.glob(".*tmp*"))  # no scratch files left behind
+
+
 # --- config validation --------------------------------------------------------------------------
 
 
