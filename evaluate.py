@@ -6,7 +6,9 @@ debris field comes from that seed. Outputs in --out DIR:
   episodes.csv              one row per agent x episode
   summary.json              per agent: success_rate, targets_captured_mean, delta_v_mean,
                             time_mean, path_length_mean, collision_rate, min_clearance_min,
-                            decision_ms_p50/p95, with 95 % confidence intervals
+                            decision_ms_p50/p95, with 95 % confidence intervals; and
+                            paired_delta_v: each agent's Δv minus apf-mpc's (or the
+                            first agent's) on the episodes both complete, paired by seed
   summary.md                the Markdown table also printed to stdout
   trajectories_epNNN.png    all agents' trajectories over the field, first --plots episodes
   paper_table.md/.json      with --paper: seed 000's Table I beside our measurements

@@ -59,6 +59,7 @@ __all__ = [
     "build_agent",
     "check_agent_available",
     "evaluate_agents",
+    "paired_delta_v",
     "parse_agent_spec",
     "parse_agent_specs",
     "plot_episode",
@@ -641,6 +642,56 @@ def _mean(values: Sequence[float]) -> float | None:
     return float(np.mean(values)) if len(values) else None
 
 
+PAIRED_REFERENCE = "apf-mpc"
+"""The agent the others' Δv is paired against when it is evaluated (else the first agent)."""
+
+
+def paired_delta_v(results: EvaluationResults, reference: str | None = None) -> dict[str, Any]:
+    """Each agent's Δv against ``reference`` on the episodes that both complete, paired by seed.
+
+    Means over all episodes mix fuel with failure (a crash can be cheap: it ends early), and
+    means over each agent's own successes compare different fields. Here an agent is compared
+    with the reference only where both succeed on the same field: per episode the difference
+    agent − reference (m/s; negative = the agent spends less), its mean and a Student t interval.
+
+    Args:
+        reference: an agent label; default :data:`PAIRED_REFERENCE` if evaluated, else the
+            first agent.
+
+    Returns:
+        ``{"reference": label, "agents": {label: {"both_succeeded", "delta_v_mean",
+        "reference_delta_v_mean", "difference_mean", "difference_mean_ci95"}}}`` (means None
+        where no episode qualifies); ``agents`` is empty with fewer than two agents.
+
+    Raises:
+        ValueError: ``reference`` is not one of the evaluated agents.
+    """
+    labels = [spec.label for spec in results.agents]
+    if reference is None:
+        reference = PAIRED_REFERENCE if PAIRED_REFERENCE in labels else labels[0]
+    if reference not in labels:
+        raise ValueError(f"reference={reference!r} is not an evaluated agent; agents: {labels}")
+    ref = {r.episode: r for r in results.for_agent(reference)}
+    paired: dict[str, Any] = {}
+    for label in labels:
+        if label == reference:
+            continue
+        both = [
+            (r.delta_v, ref[r.episode].delta_v)
+            for r in results.for_agent(label)
+            if r.success and r.episode in ref and ref[r.episode].success
+        ]
+        diff = [a - b for a, b in both]
+        paired[label] = {
+            "both_succeeded": len(both),
+            "delta_v_mean": _mean([a for a, _ in both]),
+            "reference_delta_v_mean": _mean([b for _, b in both]),
+            "difference_mean": _mean(diff),
+            "difference_mean_ci95": list(t_interval(diff)),
+        }
+    return {"reference": reference, "agents": paired}
+
+
 def summarize(results: EvaluationResults) -> dict[str, Any]:
     """Per-agent summary (DESIGN §6 keys, confidence intervals) plus how the run was made.
 
@@ -703,6 +754,7 @@ def summarize(results: EvaluationResults) -> dict[str, Any]:
         },
         "elapsed_s": results.elapsed,
         "agents": agents,
+        "paired_delta_v": paired_delta_v(results),
     }
 
 
@@ -765,6 +817,21 @@ def summary_markdown(summary: dict[str, Any]) -> str:
         "Brackets: 95 % confidence intervals — Wilson score for rates, Student t for means "
         "(means are over all episodes, failed ones included).",
     ]
+    paired = summary.get("paired_delta_v") or {}
+    if paired.get("agents"):
+        ref = paired["reference"]
+        lines += [
+            "",
+            f"Δv on the missions both complete, paired with {ref} by seed:",
+            "",
+            f"| agent | both complete | agent Δv [m/s] | {ref} Δv [m/s] | agent − {ref} [m/s] |",
+            "|---|---|---|---|---|",
+        ]
+        for label, e in paired["agents"].items():
+            lines.append(
+                f"| {label} | {e['both_succeeded']} / {n} | {_fmt(e['delta_v_mean'])} "
+                f"| {_fmt(e['reference_delta_v_mean'])} | {_with_ci(e, 'difference_mean')} |"
+            )
     return "\n".join(lines) + "\n"
 
 

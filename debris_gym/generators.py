@@ -186,6 +186,7 @@ def random_field(
     return fields.scenario(0, mean_motion=mean_motion, dt=dt, max_accel=max_accel)
 
 
+@functools.lru_cache(maxsize=64)  # called on every reset; the spec is frozen
 def draw_size(spec: FieldSpec) -> int:
     """Uniform numbers one draw of one field consumes from its generator (a fixed block)."""
     bodies = spec.n_targets + spec.n_obstacles

@@ -26,12 +26,22 @@ import numba
 COMPILED_MODULES = ("batch_geometry", "generators", "mission_batch", "thrust")
 """Modules of this package with numba-compiled functions (their caches are dropped together)."""
 
+COMPILE_OPTIONS: dict[str, object] = {"cache": True, "nogil": True, "error_model": "numpy"}
+"""Options of every decorator below. ``error_model="numpy"``: a division by zero gives inf/NaN
+as in numpy instead of raising, which spares a zero test before every ``/`` in the hot loops."""
+
 _STAMP = "numba_sources.sha256"
 
 
-def sources_digest(package_dir: Path, modules: tuple[str, ...] = COMPILED_MODULES) -> str:
-    """sha256 of the sources of ``modules`` (files ``<name>.py`` in ``package_dir``)."""
+def sources_digest(
+    package_dir: Path,
+    modules: tuple[str, ...] = COMPILED_MODULES,
+    options: dict[str, object] = COMPILE_OPTIONS,
+) -> str:
+    """sha256 of the sources of ``modules`` (files ``<name>.py`` in ``package_dir``) and of the
+    compile ``options`` (numba's cache does not key on them either)."""
     digest = hashlib.sha256()
+    digest.update(repr(sorted(options.items())).encode())
     for name in modules:
         digest.update(name.encode())
         digest.update((package_dir / f"{name}.py").read_bytes())
@@ -81,11 +91,11 @@ def drop_stale_cache(package_dir: Path, modules: tuple[str, ...] = COMPILED_MODU
 with contextlib.suppress(OSError):
     drop_stale_cache(Path(__file__).resolve().parent)
 
-kernel = numba.njit(cache=True, nogil=True)
+kernel = numba.njit(**COMPILE_OPTIONS)
 """Decorator for a compiled loop called from Python."""
 
-inlined = numba.njit(cache=True, nogil=True, inline="always")
+inlined = numba.njit(**COMPILE_OPTIONS, inline="always")
 """Decorator for a compiled helper that kernels call (inlined into them)."""
 
-threaded = numba.njit(cache=True, nogil=True, parallel=True)
+threaded = numba.njit(**COMPILE_OPTIONS, parallel=True)
 """Decorator for a compiled loop whose ``numba.prange`` iterations run on several threads."""

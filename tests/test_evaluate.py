@@ -235,9 +235,45 @@ def test_summary_statistics(results):
     assert rnd["decision_ms_p95"] == pytest.approx(np.percentile(all_ms, 95))
     assert rnd["decisions"] == all_ms.size
     md = ev.summary_markdown(summary)
-    rows = [line for line in md.splitlines() if line.startswith("| ")]
+    table = md.split("\n\n")[1]  # the first table; the paired Δv table follows
+    rows = [line for line in table.splitlines() if line.startswith("| ")]
     assert [row.split(" | ")[0] for row in rows] == ["| agent", "| zero", "| random"]
     json.loads(ev.to_json(summary))  # strict JSON
+
+
+def test_paired_delta_v_hand_computed(results):
+    """Δv paired by seed on the episodes both agents complete, against a reference agent."""
+    import dataclasses
+
+    # episodes 0-2: reference (zero) succeeds on 0, 1, 2; random on 0, 2 only
+    outcomes = {
+        ("zero", 0): (True, 10.0), ("zero", 1): (True, 20.0), ("zero", 2): (True, 30.0),
+        ("random", 0): (True, 12.5), ("random", 1): (False, 1.0), ("random", 2): (True, 26.0),
+    }  # fmt: skip
+    records = [
+        dataclasses.replace(r, success=outcomes[r.agent, r.episode][0],
+                            delta_v=outcomes[r.agent, r.episode][1])
+        for r in results.records
+    ]  # fmt: skip
+    rigged = dataclasses.replace(results, records=records)
+    paired = ev.paired_delta_v(rigged, reference="zero")
+    assert paired["reference"] == "zero" and list(paired["agents"]) == ["random"]
+    e = paired["agents"]["random"]
+    assert e["both_succeeded"] == 2
+    assert e["delta_v_mean"] == pytest.approx((12.5 + 26.0) / 2)
+    assert e["reference_delta_v_mean"] == pytest.approx((10.0 + 30.0) / 2)
+    assert e["difference_mean"] == pytest.approx((2.5 - 4.0) / 2)  # episode 1 left out
+    # t interval of {2.5, -4}: mean -0.75, sem 3.25, t(0.975, 1) = 12.706
+    assert e["difference_mean_ci95"] == pytest.approx(
+        [-0.75 - 12.7062 * 3.25, -0.75 + 12.7062 * 3.25], rel=1e-4
+    )
+    # the reference defaults to the first agent when apf-mpc was not evaluated
+    assert ev.paired_delta_v(rigged)["reference"] == "zero"
+    md = ev.summary_markdown(ev.summarize(rigged))
+    assert "| random | 2 / 3 | 19.2 | 20 | -0.75 [" in md
+    assert ev.paired_delta_v(results)["agents"]["random"]["difference_mean"] is None  # none
+    with pytest.raises(ValueError, match="reference='apf'"):
+        ev.paired_delta_v(results, reference="apf")
 
 
 def test_wilson_interval_hand_computed():

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from debris_gym import jit
 
 MODULES = ("geo", "step")
@@ -62,3 +64,27 @@ def test_the_digest_covers_every_compiled_module_of_the_package():
     assert "numba.njit" not in "".join(
         p.read_text() for p in pkg.rglob("*.py") if p.stem != "jit"
     )  # every compiled function goes through the guarded decorators
+
+
+def test_changed_compile_options_drop_the_cache(tmp_path):
+    """Regression: numba's cache keys on neither the helpers' files nor the decorator options,
+    so editing the options in jit.py (e.g. ``error_model``) kept running the old machine code."""
+    pkg = _package(tmp_path)
+    assert jit.drop_stale_cache(pkg, MODULES)
+    before = jit.sources_digest(pkg, MODULES)
+    assert before == jit.sources_digest(pkg, MODULES, jit.COMPILE_OPTIONS)
+    changed = {**jit.COMPILE_OPTIONS, "error_model": "python"}
+    assert jit.sources_digest(pkg, MODULES, changed) != before
+    # the stamp written for one set of options is stale for another
+    stamp = (pkg / "__pycache__" / "numba_sources.sha256").read_text()
+    assert stamp == before != jit.sources_digest(pkg, MODULES, changed)
+
+
+def test_division_by_zero_in_compiled_code_follows_numpy():
+    """error_model="numpy": 1/0 is inf in a kernel (no zero test, no ZeroDivisionError)."""
+
+    @jit.kernel
+    def divide(a, b):
+        return a / b
+
+    assert divide(1.0, 0.0) == np.inf
