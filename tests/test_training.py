@@ -141,7 +141,12 @@ def test_train_writes_a_run_that_evaluate_py_flies(
     assert (out / "vecnormalize.pkl").is_file()  # every checked-in config normalises obs
     assert (out / "learning_curve.png").read_bytes().startswith(b"\x89PNG")
     assert tr.model_timesteps(out / "model.zip") >= 256
-    assert list((out / "checkpoints").glob("rl_model_*_steps.zip"))
+    checkpoints = list((out / "checkpoints").glob("rl_model_*_steps.zip"))
+    assert checkpoints
+    for ckpt in checkpoints:  # each with its VecNormalize stats beside it, no scratch files
+        assert tr.sidecar_path(ckpt, "vecnormalize").is_file(), ckpt
+    assert (out / "best_model_vecnormalize.pkl").is_file()
+    assert not list(out.rglob(".*tmp*"))
 
     config = yaml.safe_load((out / "config.yaml").read_text())
     assert config["algo"] == algo and config["env_id"] == ENV_ID and config["version"] >= 1
