@@ -33,7 +33,6 @@ import json
 import math
 import os
 import sys
-import tempfile
 import time
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
@@ -45,6 +44,7 @@ import numpy as np
 
 import debris_gym  # noqa: F401  (registers the DebrisGym IDs)
 from agents.metrics import TrajectoryMetrics, trajectory_metrics
+from debris_gym.files import write_atomic
 from debris_gym.scenario import Scenario
 from debris_gym.thrust import commanded_accel, delta_v_rate
 
@@ -833,26 +833,6 @@ def summary_markdown(summary: dict[str, Any]) -> str:
                 f"| {_fmt(e['reference_delta_v_mean'])} | {_with_ci(e, 'difference_mean')} |"
             )
     return "\n".join(lines) + "\n"
-
-
-def write_atomic(path: str | os.PathLike[str], data: str | bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file in the same directory + os.replace."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the usual permissions
-        with os.fdopen(fd, "wb") as f:
-            f.write(data.encode("utf-8") if isinstance(data, str) else data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def _json_safe(value: Any) -> Any:

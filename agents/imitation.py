@@ -486,13 +486,13 @@ def fit(
 
 
 def _atomic_pickle(path: Path, obj: Any) -> None:
-    from agents.training import _atomic
+    from debris_gym.files import save_atomic
 
     def save(tmp: str) -> None:
         with open(tmp, "wb") as fh:
             pickle.dump(obj, fh)
 
-    _atomic(path, save)
+    save_atomic(path, save)
 
 
 def imitate(
@@ -517,7 +517,7 @@ def imitate(
     """
     import torch
 
-    from agents.training import _atomic, _write_text
+    from debris_gym.files import save_atomic, write_atomic
 
     torch.set_num_threads(1)
     out = Path(out)
@@ -593,15 +593,15 @@ def imitate(
         )
         log(_round_line(history[-1]))
 
-    model_path = _atomic(out / "model.zip", model.save)
-    _atomic(out / "vecnormalize.pkl", venv.save)
+    model_path = save_atomic(out / "model.zip", model.save)
+    save_atomic(out / "vecnormalize.pkl", venv.save)
     run_log = {
         "config": config.to_dict(),
         "rounds": history,
         "wall_s": time.time() - started,
         "model": str(model_path),
     }
-    _write_text(out / "imitation_log.json", json.dumps(run_log, indent=2) + "\n")
+    write_atomic(out / "imitation_log.json", json.dumps(run_log, indent=2) + "\n")
     run = {
         "command": command,
         "started_at": _iso(started),
@@ -609,7 +609,7 @@ def imitate(
         "wall_s": round(run_log["wall_s"], 1),
         "versions": _versions(),
     }
-    _write_text(out / "config.yaml", _run_config_yaml(config, run))
+    write_atomic(out / "config.yaml", _run_config_yaml(config, run))
     plot_rounds(run_log, out / "imitation_curve.png")
     return run_log
 
@@ -715,7 +715,7 @@ def plot_rounds(run_log: dict[str, Any], path: str | Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from agents.training import _atomic
+    from debris_gym.files import save_atomic
 
     rounds = run_log["rounds"]
     r = [h["round"] for h in rounds]
@@ -734,6 +734,6 @@ def plot_rounds(run_log: dict[str, Any], path: str | Path) -> Path:
     fig.suptitle(f"imitation of {run_log['config']['expert']} on {run_log['config']['env_id']}")
     fig.tight_layout()
     out = Path(path)
-    _atomic(out, lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
+    save_atomic(out, lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
     plt.close(fig)
     return out

@@ -33,7 +33,6 @@ import importlib.util
 import inspect
 import json
 import math
-import os
 import platform
 import re
 import shlex
@@ -42,7 +41,7 @@ import sys
 import threading
 import time
 import zipfile
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -50,6 +49,8 @@ from typing import Any
 
 import numpy as np
 import yaml
+
+from debris_gym.files import save_atomic, write_atomic
 
 __all__ = [
     "ALGOS",
@@ -874,26 +875,6 @@ def _interrupts_deferred() -> Iterator[None]:
         raise KeyboardInterrupt
 
 
-def _atomic(path: Path, save: Callable[[str], None]) -> Path:
-    """``save(tmp)`` into a temporary name in the same directory, then ``os.replace``."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.tmp{os.getpid()}{path.suffix}")
-    try:
-        save(str(tmp))
-        os.replace(tmp, path)
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
-    return path
-
-
-def _write_text(path: Path, text: str) -> None:
-    def save(tmp: str) -> None:
-        Path(tmp).write_text(text)
-
-    _atomic(path, save)
-
-
 def _replay_buffer_bytes(model: Any) -> int:
     buffer = getattr(model, "replay_buffer", None)
     if buffer is None:
@@ -912,12 +893,12 @@ def _save_replay_buffer(config: TrainConfig, model: Any) -> bool:
 def save_model_files(model: Any, config: TrainConfig, path: Path) -> list[Path]:
     """Save ``model`` at ``path`` with its VecNormalize stats and (per config) replay buffer,
     each atomically, under the :func:`sidecar_path` names. Returns the files written."""
-    written = [_atomic(path, model.save)]
+    written = [save_atomic(path, model.save)]
     venv = model.get_vec_normalize_env()
     if venv is not None:
-        written.append(_atomic(sidecar_path(path, "vecnormalize"), venv.save))
+        written.append(save_atomic(sidecar_path(path, "vecnormalize"), venv.save))
     if _save_replay_buffer(config, model):
-        written.append(_atomic(sidecar_path(path, "replay_buffer"), model.save_replay_buffer))
+        written.append(save_atomic(sidecar_path(path, "replay_buffer"), model.save_replay_buffer))
     return written
 
 
@@ -1022,10 +1003,10 @@ def _make_callbacks(
 
         def _on_step(self) -> bool:
             with _interrupts_deferred():
-                _atomic(out / "best_model.zip", self.model.save)
+                save_atomic(out / "best_model.zip", self.model.save)
                 venv = self.model.get_vec_normalize_env()
                 if venv is not None:
-                    _atomic(sidecar_path(out / "best_model.zip", "vecnormalize"), venv.save)
+                    save_atomic(sidecar_path(out / "best_model.zip", "vecnormalize"), venv.save)
             return True
 
     class HeldOutEvalCallback(cb.EvalCallback):
@@ -1071,7 +1052,7 @@ def _make_callbacks(
                     successes=self.evaluations_successes,
                     targets_captured=self.evaluations_targets,
                 )
-                _atomic(Path(self.log_path + ".npz"), lambda tmp: np.savez(tmp, **arrays))
+                save_atomic(Path(self.log_path + ".npz"), lambda tmp: np.savez(tmp, **arrays))
             self.seconds += time.perf_counter() - start
             returns = self.evaluations_results[-1] if self.evaluations_results else [np.nan]
             success = self.evaluations_successes[-1] if self.evaluations_successes else [np.nan]
@@ -1132,15 +1113,15 @@ def _make_callbacks(
                 return True
             start = time.perf_counter()
             with _interrupts_deferred():  # CheckpointCallback's saves, atomic and whole
-                _atomic(Path(self._checkpoint_path(extension="zip")), self.model.save)
+                save_atomic(Path(self._checkpoint_path(extension="zip")), self.model.save)
                 buffer = getattr(self.model, "replay_buffer", None)
                 if self.save_replay_buffer and buffer is not None:
                     path = Path(self._checkpoint_path("replay_buffer_", extension="pkl"))
-                    _atomic(path, self.model.save_replay_buffer)
+                    save_atomic(path, self.model.save_replay_buffer)
                 venv = self.model.get_vec_normalize_env()
                 if self.save_vecnormalize and venv is not None:
                     path = Path(self._checkpoint_path("vecnormalize_", extension="pkl"))
-                    _atomic(path, venv.save)
+                    save_atomic(path, venv.save)
                 self._prune()
             self.seconds += time.perf_counter() - start
             return True
@@ -1347,7 +1328,7 @@ def _write_config(out: Path, config: TrainConfig, run: dict[str, Any]) -> None:
     body = yaml.safe_dump(
         {**config.to_dict(), "run": run}, sort_keys=False, width=100, default_flow_style=None
     )
-    _write_text(out / "config.yaml", header + body)
+    write_atomic(out / "config.yaml", header + body)
 
 
 def _read_log(out: Path) -> dict[str, Any]:
@@ -1363,7 +1344,7 @@ def _write_log(out: Path, log: dict[str, Any]) -> None:
     log["env_steps"] = steps
     log["env_steps_per_s"] = round(steps / wall, 1) if wall > 0 else None
     ordered = {k: v for k, v in log.items() if k != "segments"} | {"segments": segments}
-    _write_text(out / "train_log.json", json.dumps(ordered, indent=2) + "\n")
+    write_atomic(out / "train_log.json", json.dumps(ordered, indent=2) + "\n")
 
 
 def _row_ok(row: list[str], width: int) -> bool:
@@ -1386,7 +1367,7 @@ def _truncate_episodes(path: Path, until: int) -> None:
     kept = [rows[0], *(r for r in rows[1:] if _row_ok(r, width) and int(r[0]) <= until)]
     if len(kept) != len(rows):
         buffer = "".join(",".join(r) + "\n" for r in kept)
-        _write_text(path, buffer)
+        write_atomic(path, buffer)
 
 
 def _close_progress_bar(callbacks: Sequence[Any]) -> None:
@@ -1706,6 +1687,6 @@ def plot_learning_curve(run_dir: str | Path) -> Path:
     ax_r.set_title(title, fontsize=10)
     fig.tight_layout()
     out = run_dir / "learning_curve.png"
-    _atomic(out, lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
+    save_atomic(out, lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
     plt.close(fig)
     return out

@@ -71,7 +71,6 @@ import platform
 import statistics
 import subprocess
 import sys
-import tempfile
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
@@ -83,6 +82,7 @@ import numpy as np
 from tqdm import tqdm
 
 import debris_gym
+from debris_gym.files import write_atomic
 
 if "torch" in sys.modules:  # only pin threads if something imported it
     sys.modules["torch"].set_num_threads(1)
@@ -1648,23 +1648,6 @@ def _step_line(
         *extra,
     ]
     return "| " + " | ".join(cells) + " |"
-
-
-def write_atomic(path: str, text: str) -> None:
-    """Write ``text`` to ``path`` via a temp file in the same directory and ``os.replace``."""
-    directory = os.path.dirname(os.path.abspath(path))
-    os.makedirs(directory, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=".bench-", suffix=".tmp", dir=directory)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def main(argv: list[str] | None = None) -> int:

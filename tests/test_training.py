@@ -283,11 +283,11 @@ def test_ctrl_c_during_a_save_waits_for_the_whole_file(tmp_path):
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # xdist may change it
     try:
         with pytest.raises(KeyboardInterrupt), tr._interrupts_deferred():
-            tr._atomic(path, save)
+            tr.save_atomic(path, save)
         # under an ignoring handler (the final save) the block runs as it is and raises nothing
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         with tr._interrupts_deferred():
-            tr._atomic(tmp_path / "final.zip", save)
+            tr.save_atomic(tmp_path / "final.zip", save)
     finally:
         signal.signal(signal.SIGINT, previous)
     assert reached == [True, True]
