@@ -8,7 +8,8 @@ debris field comes from that seed. Outputs in --out DIR:
                             time_mean, path_length_mean, collision_rate, min_clearance_min,
                             decision_ms_p50/p95, with 95 % confidence intervals; and
                             paired_delta_v: each agent's Δv minus apf-mpc's (or the
-                            first agent's) on the episodes both complete, paired by seed
+                            first agent's, or --reference's) on the episodes both
+                            complete, paired by seed
   summary.md                the Markdown table also printed to stdout
   trajectories_epNNN.png    all agents' trajectories over the field, first --plots episodes
   paper_table.md/.json      with --paper: seed 000's Table I beside our measurements
@@ -135,6 +136,13 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="N",
         help="override the env's time limit (max_episode_steps) — for quick checks; headline "
         "numbers use the registered limit",
+    )
+    parser.add_argument(
+        "--reference",
+        default=None,
+        metavar="AGENT",
+        help="agent the others' Δv is paired with on the episodes both complete (default: "
+        "apf-mpc if evaluated, else the first agent)",
     )
     parser.add_argument(
         "--no-progress", action="store_true", help="no progress bar (it goes to stderr)"
@@ -267,6 +275,13 @@ def main(argv: list[str] | None = None) -> int:
         flag = "--paper" if args.paper else "--agents"
         parser.error(f"argument {flag}: none of its agents can be built (see the notes above)")
 
+    labels = [spec.label for spec in specs]
+    if args.reference is not None and args.reference not in labels:
+        parser.error(
+            f"argument --reference: {args.reference!r} is not an evaluated agent; "
+            f"agents: {', '.join(labels)}"
+        )
+
     results = ev.evaluate_agents(
         env_id,
         specs,
@@ -276,7 +291,7 @@ def main(argv: list[str] | None = None) -> int:
         progress=not args.no_progress,
         max_episode_steps=args.max_steps,
     )
-    summary = ev.summarize(results)
+    summary = ev.summarize(results, reference=args.reference)
     if skipped:
         summary["skipped"] = skipped
     written = ev.write_outputs(results, args.out, plots=args.plots, summary=summary)

@@ -692,8 +692,9 @@ def paired_delta_v(results: EvaluationResults, reference: str | None = None) -> 
     return {"reference": reference, "agents": paired}
 
 
-def summarize(results: EvaluationResults) -> dict[str, Any]:
-    """Per-agent summary (DESIGN §6 keys, confidence intervals) plus how the run was made.
+def summarize(results: EvaluationResults, reference: str | None = None) -> dict[str, Any]:
+    """Per-agent summary (DESIGN §6 keys, confidence intervals) plus how the run was made, and
+    the :func:`paired_delta_v` comparison against ``reference``.
 
     Rates get a Wilson score interval, means a Student t interval (``ci_method`` names them).
     ``decision_ms_p50/p95`` are over all decisions of the agent, across episodes.
@@ -754,7 +755,7 @@ def summarize(results: EvaluationResults) -> dict[str, Any]:
         },
         "elapsed_s": results.elapsed,
         "agents": agents,
-        "paired_delta_v": paired_delta_v(results),
+        "paired_delta_v": paired_delta_v(results, reference),
     }
 
 

@@ -139,6 +139,7 @@ def test_script_rejects_an_unknown_agent_by_name(tmp_path):
         (["--paper", "--episodes", "3"], "--episodes", "--paper"),
         (["--paper", "--agents", "zero"], "--agents", "--paper"),
         (["--plots", "-1"], "--plots", ">= 0"),
+        (["--agents", "zero,random", "--reference", "apf"], "--reference", "agents: zero, random"),
     ],
 )
 def test_cli_errors_name_the_flag(cli, capsys, tmp_path, argv, flag, text):
@@ -269,6 +270,10 @@ def test_paired_delta_v_hand_computed(results):
     )
     # the reference defaults to the first agent when apf-mpc was not evaluated
     assert ev.paired_delta_v(rigged)["reference"] == "zero"
+    other = ev.summarize(rigged, reference="random")["paired_delta_v"]
+    assert other["reference"] == "random" and other["agents"]["zero"]["difference_mean"] == (
+        pytest.approx(-e["difference_mean"])
+    )
     md = ev.summary_markdown(ev.summarize(rigged))
     assert "| random | 2 / 3 | 19.2 | 20 | -0.75 [" in md
     assert ev.paired_delta_v(results)["agents"]["random"]["difference_mean"] is None  # none
