@@ -1112,16 +1112,8 @@ def _make_callbacks(
             if self.n_calls % self.save_freq != 0:
                 return True
             start = time.perf_counter()
-            with _interrupts_deferred():  # CheckpointCallback's saves, atomic and whole
-                save_atomic(Path(self._checkpoint_path(extension="zip")), self.model.save)
-                buffer = getattr(self.model, "replay_buffer", None)
-                if self.save_replay_buffer and buffer is not None:
-                    path = Path(self._checkpoint_path("replay_buffer_", extension="pkl"))
-                    save_atomic(path, self.model.save_replay_buffer)
-                venv = self.model.get_vec_normalize_env()
-                if self.save_vecnormalize and venv is not None:
-                    path = Path(self._checkpoint_path("vecnormalize_", extension="pkl"))
-                    save_atomic(path, venv.save)
+            with _interrupts_deferred():  # atomic and whole, unlike CheckpointCallback's
+                save_model_files(self.model, config, Path(self._checkpoint_path(extension="zip")))
                 self._prune()
             self.seconds += time.perf_counter() - start
             return True
@@ -1157,8 +1149,8 @@ def _make_callbacks(
             save_freq=max(config.checkpoint.freq // n, 1),
             save_path=str(out / "checkpoints"),
             name_prefix=CHECKPOINT_PREFIX,
-            save_replay_buffer=False,  # decided per save below
-            save_vecnormalize=True,
+            save_replay_buffer=False,  # unused: _on_step saves through save_model_files
+            save_vecnormalize=False,
             keep=config.checkpoint.keep,
         )
         callbacks.append(checkpoint)
@@ -1511,8 +1503,6 @@ def train(options: TrainOptions) -> TrainResult:
     callbacks, evaluation, checkpointer, episodes = _make_callbacks(
         config, out, eval_env, start_steps if checkpoint is not None else None, segment_seed
     )
-    if checkpointer is not None:
-        checkpointer.save_replay_buffer = _save_replay_buffer(config, model)
     if options.progress:
         callbacks.append(_callbacks_module().ProgressBarCallback())
 

@@ -145,6 +145,9 @@ def test_train_writes_a_run_that_evaluate_py_flies(
     assert checkpoints
     for ckpt in checkpoints:  # each with its VecNormalize stats beside it, no scratch files
         assert tr.sidecar_path(ckpt, "vecnormalize").is_file(), ckpt
+    latest = max(checkpoints, key=tr.model_timesteps)
+    buffer = tr.sidecar_path(latest, "replay_buffer").is_file()
+    assert buffer == (algo in tr.OFF_POLICY)  # small buffers go with the latest checkpoint
     assert (out / "best_model_vecnormalize.pkl").is_file()
     assert not list(out.rglob(".*tmp*"))
 
