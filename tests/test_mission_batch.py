@@ -12,7 +12,10 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
+from debris_gym import mission_batch
 from debris_gym.envs import DebrisFieldEnv
 from debris_gym.scenario import Body
 from tests.reference_env import ReferenceDebrisFieldEnv
@@ -161,3 +164,21 @@ def test_env_equals_the_reference_on_captures_and_success():
                     same(out[4][key], out_r[4][key], f"{key} {start} step {k}")
                 if out[2]:
                     break
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    gaps=st.lists(st.sampled_from([-3.0, 0.0, 0.5, 2.0, 2.0 + 1e-12, 7.0, np.inf]), min_size=1,
+                  max_size=25),
+    first=st.integers(0, 3),
+    data=st.data(),
+)  # fmt: skip
+def test_the_obstacle_order_is_by_gap_then_index_from_any_start(gaps, first, data):
+    """The step re-sorts last step's order (_sort_by_gap): from whatever permutation it starts,
+    the result is the (gap, index) order, ties (drawn often here) by index."""
+    gaps = np.array(gaps)
+    first = min(first, len(gaps) - 1)
+    bodies = list(range(first, len(gaps)))
+    start = np.array(data.draw(st.permutations(bodies)), dtype=np.int64)
+    mission_batch._sort_by_gap(gaps, start)
+    assert start.tolist() == sorted(bodies, key=lambda b: (gaps[b], b))

@@ -321,7 +321,7 @@ class DebrisFieldVectorEnv(VectorEnv):
             "chaser_state": m.state.copy(),
             "time": m.time.copy(),
             "delta_v": m.delta_v.copy(),
-            "targets_captured": m.captured.sum(axis=1),
+            "targets_captured": m.captured_counts(),
             "n_targets": np.full(n, m.n_targets),
             "captured": m.captured.copy(),
             "min_clearance": m.min_clearance - self.config.chaser_radius,
@@ -333,7 +333,8 @@ class DebrisFieldVectorEnv(VectorEnv):
         for key, value in values.items():
             info[key] = value
             info["_" + key] = mask
-        info["reward_terms"] = {k: terms[:, c].copy() for c, k in enumerate(REWARD_TERMS)}
+        by_term = terms.T.copy()  # one copy; each term is a contiguous row of it
+        info["reward_terms"] = dict(zip(REWARD_TERMS, by_term))
         info["_reward_terms"] = mask
         return info
 
