@@ -131,17 +131,17 @@ class FieldBatch:
             n_vertices: (K, P) vertex counts, 0 for circles / spheres.
         """
         rows = np.asarray(rows, dtype=np.int64)
-        self.centers[rows] = centers
-        self.radii[rows] = radii
-        if self.dim != 2 or self.n_vertices.shape[1] == 0:
-            return
-        counts = np.asarray(n_vertices, dtype=np.int16)
-        if counts.max(initial=0) > self.max_vertices:
-            self._grow_vertices(int(counts.max()))
-        self.n_vertices[rows] = counts
-        _load_polygons(
-            rows, np.ascontiguousarray(vertices, dtype=float), counts, self.centers,
-            self.polygon_start, self.vertices,
+        if self.dim == 2 and self.n_vertices.shape[1] > 0:
+            counts = np.ascontiguousarray(n_vertices, dtype=np.int64)
+            if counts.max(initial=0) > self.max_vertices:
+                self._grow_vertices(int(counts.max()))
+            vertices = np.ascontiguousarray(vertices, dtype=float)
+        else:  # no polygons
+            counts, vertices = np.zeros((0, 0), dtype=np.int64), np.zeros((0, 0, 0, 2))
+        _load_fields(
+            rows, np.ascontiguousarray(centers, dtype=float),
+            np.ascontiguousarray(radii, dtype=float), vertices, counts, self.centers,
+            self.radii, self.polygon_start, self.n_vertices, self.vertices,
         )  # fmt: skip
 
     def _grow_vertices(self, v: int) -> None:
@@ -235,28 +235,39 @@ class FieldBatch:
 
 
 @kernel
-def _load_polygons(rows, vertices, counts, centers, polygon_start, out):
-    """Copy relative vertices (K, P, V', 2) with counts (K, P) into ``out[rows]`` (zero-padded),
+def _load_fields(
+    rows, centers, radii, vertices, counts, out_centers, out_radii, polygon_start, out_counts,
+    out_vertices,
+):  # fmt: skip
+    """Copy K fields into the slots ``rows``: centres (K, B, dim) and radii (K, B), and (when
+    ``counts`` (K, P) is not empty) the relative polygon vertices (K, P, V', 2), zero-padded,
     with the edge vector from each vertex to the next, computed from the absolute vertices as
     :class:`~debris_gym.geometry.FieldGeometry` does (vertex + centre, next − this)."""
     for k in range(rows.shape[0]):
         i = rows[k]
+        for b in range(centers.shape[1]):
+            out_radii[i, b] = radii[k, b]
+            for a in range(centers.shape[2]):
+                out_centers[i, b, a] = centers[k, b, a]
+        if counts.shape[0] == 0:
+            continue
         for j in range(counts.shape[1]):
             m = counts[k, j]
-            cx = centers[i, polygon_start + j, 0]
-            cy = centers[i, polygon_start + j, 1]
-            for v in range(out.shape[2]):
-                for c in range(out.shape[3]):
-                    out[i, j, v, c] = 0.0
+            out_counts[i, j] = m
+            cx = out_centers[i, polygon_start + j, 0]
+            cy = out_centers[i, polygon_start + j, 1]
+            for v in range(out_vertices.shape[2]):
+                for c in range(out_vertices.shape[3]):
+                    out_vertices[i, j, v, c] = 0.0
                 if v < m:
-                    out[i, j, v, 0] = vertices[k, j, v, 0]
-                    out[i, j, v, 1] = vertices[k, j, v, 1]
+                    out_vertices[i, j, v, 0] = vertices[k, j, v, 0]
+                    out_vertices[i, j, v, 1] = vertices[k, j, v, 1]
             for v in range(m):
                 w = v + 1 if v + 1 < m else 0
-                ex = (out[i, j, w, 0] + cx) - (out[i, j, v, 0] + cx)
-                ey = (out[i, j, w, 1] + cy) - (out[i, j, v, 1] + cy)
-                out[i, j, v, 2] = ex
-                out[i, j, v, 3] = ey
+                ex = (out_vertices[i, j, w, 0] + cx) - (out_vertices[i, j, v, 0] + cx)
+                ey = (out_vertices[i, j, w, 1] + cy) - (out_vertices[i, j, v, 1] + cy)
+                out_vertices[i, j, v, 2] = ex
+                out_vertices[i, j, v, 3] = ey
 
 
 @inlined

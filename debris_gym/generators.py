@@ -264,57 +264,61 @@ def random_fields(
             parts[0].dim, parts[0].half_size, parts[0].n_targets,
             *(np.concatenate([getattr(p, k) for p in parts]) for k in _ARRAY_FIELDS),
         )  # fmt: skip
-    num, dim = len(rngs), spec.dim
-    t, o = spec.n_targets, spec.n_obstacles
+    num, dim, t = len(rngs), spec.dim, spec.n_targets
     half = spec.field_size / 2.0
-    v = MAX_POLYGON_VERTICES if dim == 2 else 0
-    out = FieldArrays(
-        dim=dim,
-        half_size=half,
-        n_targets=t,
-        centers=np.zeros((num, t + o, dim)),
-        radii=np.zeros((num, t + o)),
-        vertices=np.zeros((num, o, v, 2)),
-        n_vertices=np.zeros((num, o), dtype=np.int64),
-    )
-    low, high = np.full(dim, -half), np.full(dim, half)
-    by_construction = route_by_construction(spec, capture_radius)
-    pending = np.arange(num)
     block = np.empty((num, draw_size(spec)))
+    out: FieldArrays | None = None  # filled field by field when some need another draw
+    pending = np.arange(num)
     for _ in range(max_tries):
-        if pending.size == 0:
-            break
         u = block[: pending.size]
-        for row, i in zip(u, pending):
+        for row, i in zip(u, pending.tolist()):
             rngs[i].random(out=row)
         centers, radii, vertices, n_vertices, placed = _draw_fields(u, spec)
-        ok = placed.copy()
-        if ok.any() and not by_construction:
-            ok[ok] = _route_proof(
-                centers[ok], radii[ok], t, low, high, np.zeros(dim), spec.chaser_radius,
-                capture_radius,
+        ok = _accepted(centers, radii, vertices, n_vertices, placed, spec, capture_radius)
+        if out is None:
+            if ok.all():  # everything on the first draw (the usual case)
+                return FieldArrays(dim, half, t, centers, radii, vertices, n_vertices)
+            out = FieldArrays(
+                dim, half, t,
+                *(np.zeros((num, *a.shape[1:]), a.dtype) for a in (centers, radii, vertices,
+                                                                    n_vertices)),
             )  # fmt: skip
-        for j in np.flatnonzero(placed & ~ok):  # the proof does not apply: search a grid (rare)
-            draw = FieldArrays(dim, half, t, centers, radii, vertices, n_vertices)
-            scenario = draw.scenario(int(j), mean_motion=0.0, dt=1.0, max_accel=1.0)
-            ok[j] = is_solvable(scenario, spec.chaser_radius, capture_radius)
-        if ok.all() and pending.size == num:  # everything on the first draw (the usual case)
-            return FieldArrays(dim, half, t, centers, radii, vertices, n_vertices)
         done = pending[ok]
         out.centers[done] = centers[ok]
         out.radii[done] = radii[ok]
         out.vertices[done] = vertices[ok]
         out.n_vertices[done] = n_vertices[ok]
         pending = pending[~ok]
-    if pending.size:
-        raise ValueError(
-            f"could not place n_targets={spec.n_targets} and n_obstacles={spec.n_obstacles} "
-            f"in field_size={spec.field_size} m with min_gap={spec.min_gap} m after {max_tries} "
-            "draws; lower n_obstacles or the obstacle radius range, or raise field_size"
+        if pending.size == 0:
+            return out
+    raise ValueError(
+        f"could not place n_targets={spec.n_targets} and n_obstacles={spec.n_obstacles} "
+        f"in field_size={spec.field_size} m with min_gap={spec.min_gap} m after {max_tries} "
+        "draws; lower n_obstacles or the obstacle radius range, or raise field_size"
+    )
+
+
+def _accepted(centers, radii, vertices, n_vertices, placed, spec: FieldSpec, capture_radius):
+    """Which placed fields of a draw are solvable, (K,) bool: by construction, by
+    :func:`_route_proof`, or (where the proof does not apply, rarely) by :func:`is_solvable`."""
+    if route_by_construction(spec, capture_radius):
+        return placed
+    dim, t = spec.dim, spec.n_targets
+    half = spec.field_size / 2.0
+    ok = placed.copy()
+    if ok.any():
+        low, high = np.full(dim, -half), np.full(dim, half)
+        ok[ok] = _route_proof(
+            centers[ok], radii[ok], t, low, high, np.zeros(dim), spec.chaser_radius, capture_radius
         )
-    return out
+    for j in np.flatnonzero(placed & ~ok):  # the proof does not apply: search a grid
+        draw = FieldArrays(dim, half, t, centers, radii, vertices, n_vertices)
+        scenario = draw.scenario(int(j), mean_motion=0.0, dt=1.0, max_accel=1.0)
+        ok[j] = is_solvable(scenario, spec.chaser_radius, capture_radius)
+    return ok
 
 
+@functools.lru_cache(maxsize=64)  # asked on every draw; the spec is frozen
 def route_by_construction(spec: FieldSpec, capture_radius: float) -> bool:
     """True if every field the placement accepts passes :func:`is_solvable`'s proof by itself.
 
@@ -353,30 +357,28 @@ def _draw_fields(u: np.ndarray, spec: FieldSpec):
         of that row is then meaningless).
     """
     min_dock = (spec.dock_clearance, max(spec.min_target_distance, spec.dock_clearance))
-    radii, vertices, n_vertices, cand, valid, spacing = _decode(
+    return _draw(
         np.ascontiguousarray(u), spec.dim, spec.n_targets, spec.n_obstacles,
         *spec.target_radius, *spec.obstacle_radius, spec.polygon_fraction, spec.field_size,
         spec.min_gap, spec.target_clearance, *min_dock,
     )  # fmt: skip
-    centers, placed = _place(cand, valid, radii, spacing)
-    return centers, radii, vertices, n_vertices, placed
 
 
 @kernel
-def _decode(
+def _draw(
     u, dim, t, o, target_lo, target_hi, obstacle_lo, obstacle_hi, polygon_fraction, field_size,
     min_gap, target_clearance, obstacle_dock, target_dock,
 ):  # fmt: skip
-    """Radii, polygons and candidate positions of K fields from their blocks ``u``.
+    """The bodies of K fields from their blocks ``u`` (:func:`_draw_fields`).
 
     Block layout: B radii (targets first), then in 2D O polygon flags and O × 10 polygon shape
-    numbers, then B × C × dim candidate coordinates. Candidates are uniform in the box that
-    keeps ``min_gap`` to the bounds; ``valid`` marks those at least the body's dock distance
-    (``target_dock`` / ``obstacle_dock``) plus its radius from the dock at the origin.
-
-    Returns:
-        ``radii (K, B), vertices (K, O, V, 2), n_vertices (K, O), cand (K, B, C, dim),
-        valid (K, B, C), spacing (B,)`` (the free gap each body demands around itself).
+    numbers, then B × C × dim candidate coordinates. A candidate is uniform in the box that
+    keeps ``min_gap`` to the bounds; it is valid when at least the body's dock distance
+    (``target_dock`` / ``obstacle_dock``) plus its radius from the dock at the origin. Bodies are
+    placed one after another: body b takes its first valid candidate that keeps, to every body
+    j < b, a centre distance of at least r_b + r_j + max(s_b, s_j) (compared squared), where s
+    is the free gap a body demands (``min_gap``, plus ``target_clearance`` for targets).
+    Candidates are decoded only as far as they are tried.
     """
     num = u.shape[0]
     b_all = t + o
@@ -384,13 +386,14 @@ def _decode(
     v_max = MAX_POLYGON_VERTICES if dim == 2 else 0
     vertices = np.zeros((num, o, v_max, 2))
     n_vertices = np.zeros((num, o), dtype=np.int64)
+    centers = np.zeros((num, b_all, dim))
+    placed = np.ones(num, dtype=np.bool_)
     start = b_all + (o * (1 + _POLYGON_DRAWS) if dim == 2 else 0)
     n_cand = (u.shape[1] - start) // (b_all * dim)
-    cand = np.empty((num, b_all, n_cand, dim))
-    valid = np.empty((num, b_all, n_cand), dtype=np.bool_)
     spacing = np.full(b_all, float(min_gap))
     for b in range(t):
         spacing[b] += target_clearance
+    x = np.empty(dim)
     for k in range(num):
         for b in range(b_all):
             if b < t:
@@ -407,65 +410,33 @@ def _decode(
         for b in range(b_all):
             lim = field_size / 2.0 - radii[k, b] - min_gap
             reach = (target_dock if b < t else obstacle_dock) + radii[k, b]
+            found = False
             for c in range(n_cand):
                 norm2 = 0.0
                 for a in range(dim):
-                    x = (u[k, start + (b * n_cand + c) * dim + a] * 2.0 - 1.0) * lim
-                    cand[k, b, c, a] = x
-                    norm2 += x * x
-                valid[k, b, c] = norm2 >= reach * reach and lim > 0.0
-    return radii, vertices, n_vertices, cand, valid, spacing
-
-
-@kernel
-def _place(
-    cand: np.ndarray, valid: np.ndarray, radii: np.ndarray, spacing: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Put every body at its first candidate that is valid against the bodies before it.
-
-    Bodies are placed one after another (a compiled loop over fields, bodies and candidates):
-    body b takes its first candidate that passes ``valid`` and keeps, to every body j < b
-    already placed, a centre distance of at least r_b + r_j + max(spacing_b, spacing_j)
-    (compared squared).
-
-    Args:
-        cand: (K, B, C, dim) candidate centres (m).
-        valid: (K, B, C) candidates that pass the checks not involving other bodies.
-        radii: (K, B) body radii (m).
-        spacing: (B,) free gap each body demands (m).
-
-    Returns:
-        ``(centers (K, B, dim), placed (K,))``; ``placed`` is False where some body has no valid
-        candidate (the rest of that row is then meaningless).
-    """
-    num, n_bodies, n_cand, dim = cand.shape
-    centers = np.zeros((num, n_bodies, dim))
-    placed = np.ones(num, dtype=np.bool_)
-    for k in range(num):
-        for b in range(n_bodies):
-            found = False
-            for c in range(n_cand):
-                if not valid[k, b, c]:
+                    x[a] = (u[k, start + (b * n_cand + c) * dim + a] * 2.0 - 1.0) * lim
+                    norm2 += x[a] * x[a]
+                if not (norm2 >= reach * reach and lim > 0.0):
                     continue
                 clear = True
                 for j in range(b):
                     need = radii[k, b] + radii[k, j] + max(spacing[b], spacing[j])
                     dist2 = 0.0
                     for a in range(dim):
-                        delta = cand[k, b, c, a] - centers[k, j, a]
+                        delta = x[a] - centers[k, j, a]
                         dist2 += delta * delta
                     if dist2 < need * need:
                         clear = False
                         break
                 if clear:
                     for a in range(dim):
-                        centers[k, b, a] = cand[k, b, c, a]
+                        centers[k, b, a] = x[a]
                     found = True
                     break
             if not found:
                 placed[k] = False
                 break
-    return centers, placed
+    return centers, radii, vertices, n_vertices, placed
 
 
 @inlined

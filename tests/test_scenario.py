@@ -266,18 +266,28 @@ def sequential_placement(cand, valid, radii, spacing):
         FieldSpec(n_obstacles=70, field_size=1500.0),  # one body after another only
     ],
 )
-def test_compiled_placement_equals_one_body_after_another(spec, monkeypatch):
-    seen = {}
-    place = generators._place
-
-    def spy(cand, valid, radii, spacing):
-        seen["args"] = (cand, valid, radii, spacing)
-        return place(cand, valid, radii, spacing)
-
-    monkeypatch.setattr(generators, "_place", spy)
+def test_compiled_placement_equals_one_body_after_another(spec):
+    """The compiled draw against the block layout decoded here in numpy and placed by
+    :func:`sequential_placement`."""
     u = np.random.default_rng(0).random((24, draw_size(spec)))
-    centers, _, _, _, placed = generators._draw_fields(u, spec)
-    ref_centers, ref_placed = sequential_placement(*seen["args"])
+    centers, radii, _, _, placed = generators._draw_fields(u, spec)
+    t, b_all, dim = spec.n_targets, spec.n_targets + spec.n_obstacles, spec.dim
+    is_target = np.arange(b_all) < t
+    lo = np.where(is_target, spec.target_radius[0], spec.obstacle_radius[0])
+    hi = np.where(is_target, spec.target_radius[1], spec.obstacle_radius[1])
+    np.testing.assert_array_equal(radii, lo + (hi - lo) * u[:, :b_all])
+    polygons = spec.n_obstacles * (1 + generators._POLYGON_DRAWS) if dim == 2 else 0
+    n_cand = generators.candidates(spec)
+    coords = u[:, b_all + polygons :].reshape(len(u), b_all, n_cand, dim)
+    lim = spec.field_size / 2.0 - radii - spec.min_gap
+    cand = (coords * 2.0 - 1.0) * lim[:, :, None, None]
+    dock = np.where(
+        is_target, max(spec.min_target_distance, spec.dock_clearance), spec.dock_clearance
+    )
+    reach = dock + radii
+    valid = ((cand**2).sum(axis=3) >= reach[:, :, None] ** 2) & (lim > 0.0)[:, :, None]
+    spacing = spec.min_gap + np.where(is_target, spec.target_clearance, 0.0)
+    ref_centers, ref_placed = sequential_placement(cand, valid, radii, spacing)
     np.testing.assert_array_equal(placed, ref_placed)
     np.testing.assert_array_equal(centers[placed], ref_centers[placed])
 
