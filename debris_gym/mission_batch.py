@@ -180,6 +180,7 @@ class MissionBatch:
         self._truncated = np.zeros(n, dtype=bool)
         self._terms = np.zeros((n, len(REWARD_TERMS)))
         self._step_tail: tuple | None = None  # the step kernel's arguments after the actions
+        self._tail_vertices: np.ndarray | None = None  # the vertex array the tail holds
 
     def set_world(self, rows: np.ndarray, dock, low, high, length_scale: float) -> None:
         """Dock position, bounds (m) and length scale L of the fields in ``rows``."""
@@ -199,7 +200,7 @@ class MissionBatch:
             self.params, self.options, self.n_targets, self.state, self.time, self.steps,
             self.delta_v, self.captured, self.collision, self.out_of_bounds, self.success,
             self.gaps, self.nearest, self.min_clearance, self.potential, self.accel, f.centers,
-            f.radii, f.polygon_start, f.n_vertices, f.vertices, self.dock,
+            f.radii, f.polygon_start, f.polygons, f.n_vertices, f.vertices, self.dock,
             self.length_scale, self.speed_scale,
         )  # fmt: skip
 
@@ -220,14 +221,15 @@ class MissionBatch:
             :data:`debris_gym.rewards.REWARD_TERMS`.
         """
         tail = self._step_tail
-        if tail is None or tail[21] is not self.field.vertices:  # (re)built: vertices can grow
+        if tail is None or self._tail_vertices is not self.field.vertices:  # vertices can grow
             f = self.field
+            self._tail_vertices = f.vertices
             tail = self._step_tail = (
                 self.step_matrix_t, self.params, self.options, self.n_targets, self.state,
                 self.time, self.steps, self.delta_v, self.captured, self.collision,
                 self.out_of_bounds, self.success, self.gaps, self.nearest, self.min_clearance,
-                self.potential, self.accel, f.centers, f.radii, f.polygon_start, f.n_vertices,
-                f.vertices, self.dock, self.low, self.high, self.length_scale,
+                self.potential, self.accel, f.centers, f.radii, f.polygon_start, f.polygons,
+                f.n_vertices, f.vertices, self.dock, self.low, self.high, self.length_scale,
                 self.speed_scale, self._terms,
                 self._reward, self._terminated, self._truncated,
             )  # fmt: skip
@@ -346,7 +348,8 @@ def _potential(
 
 @inlined
 def _mission_gaps(
-    point, i, n_targets, centers, radii, polygon_start, n_vertices, vertices, gaps, nearest
+    point, i, n_targets, centers, radii, polygon_start, polygons, n_vertices, vertices, gaps,
+    nearest,
 ):  # fmt: skip
     """Gaps (m) from ``point`` to every body of field ``i``, into ``gaps`` (B,), and the
     obstacles ``nearest`` (O,) (a permutation of them) re-sorted by gap (:func:`_sort_by_gap`).
@@ -355,7 +358,7 @@ def _mission_gaps(
     culling polygons with bounds (measured: the bookkeeping of a culled selection outweighs the
     polygon edges it saves at the default 20 obstacles).
     """
-    field_gaps(point, i, centers, radii, polygon_start, n_vertices, vertices, gaps)
+    field_gaps(point, i, centers, radii, polygon_start, polygons, n_vertices, vertices, gaps)
     _sort_by_gap(gaps, nearest)
 
 
@@ -414,7 +417,7 @@ def _select_nearest(gaps, first, skip, nearest, best):
 def _begin(
     rows, states, prm, opt, n_targets, state, time, steps, delta_v, captured, collision,
     out_of_bounds, success, gaps, nearest, min_clearance, potential, accel, centers, radii,
-    polygon_start, n_vertices, vertices, dock, length_scale, speed_scale,
+    polygon_start, polygons, n_vertices, vertices, dock, length_scale, speed_scale,
 ):  # fmt: skip
     dim = dock.shape[1]
     n_bodies = centers.shape[1]
@@ -439,8 +442,8 @@ def _begin(
         out_of_bounds[i] = False
         success[i] = False
         _mission_gaps(
-            state[i, :dim], i, n_targets, centers, radii, polygon_start, n_vertices, vertices,
-            gaps[i], nearest[i],
+            state[i, :dim], i, n_targets, centers, radii, polygon_start, polygons, n_vertices,
+            vertices, gaps[i], nearest[i],
         )  # fmt: skip
         clearance = math.inf
         for b in range(n_targets, n_bodies):
@@ -455,13 +458,15 @@ def _begin(
 def _step(
     live, actions, matrix_t, prm, opt, n_targets, state, time, steps, delta_v, captured,
     collision, out_of_bounds, success, gaps, nearest, min_clearance, potential, last_accel,
-    centers, radii, polygon_start, n_vertices, vertices, dock, low, high, length_scale,
+    centers, radii, polygon_start, polygons, n_vertices, vertices, dock, low, high,
+    length_scale,
     speed_scale, terms, reward, terminated, truncated,
 ):  # fmt: skip
     _step_rows(
         0, live.shape[0], live, actions, matrix_t, prm, opt, n_targets, state, time, steps,
         delta_v, captured, collision, out_of_bounds, success, gaps, nearest, min_clearance,
-        potential, last_accel, centers, radii, polygon_start, n_vertices, vertices, dock, low,
+        potential, last_accel, centers, radii, polygon_start, polygons, n_vertices, vertices, dock,
+        low,
         high, length_scale, speed_scale, terms, reward, terminated, truncated,
     )  # fmt: skip
 
@@ -470,7 +475,8 @@ def _step(
 def _step_threaded(
     n_chunks, live, actions, matrix_t, prm, opt, n_targets, state, time, steps, delta_v, captured,
     collision, out_of_bounds, success, gaps, nearest, min_clearance, potential, last_accel,
-    centers, radii, polygon_start, n_vertices, vertices, dock, low, high, length_scale,
+    centers, radii, polygon_start, polygons, n_vertices, vertices, dock, low, high,
+    length_scale,
     speed_scale, terms, reward, terminated, truncated,
 ):  # fmt: skip
     """:func:`_step` with the missions split into ``n_chunks`` row ranges run in parallel."""
@@ -480,8 +486,8 @@ def _step_threaded(
             c * num // n_chunks, (c + 1) * num // n_chunks, live, actions, matrix_t, prm, opt,
             n_targets, state, time, steps, delta_v, captured, collision, out_of_bounds, success,
             gaps, nearest, min_clearance, potential, last_accel, centers, radii, polygon_start,
-            n_vertices, vertices, dock, low, high, length_scale, speed_scale, terms, reward,
-            terminated, truncated,
+            polygons, n_vertices, vertices, dock, low, high, length_scale, speed_scale, terms,
+            reward, terminated, truncated,
         )  # fmt: skip
 
 
@@ -489,7 +495,8 @@ def _step_threaded(
 def _step_rows(
     lo, hi, live, actions, matrix_t, prm, opt, n_targets, state, time, steps, delta_v, captured,
     collision, out_of_bounds, success, gaps, nearest, min_clearance, potential, last_accel,
-    centers, radii, polygon_start, n_vertices, vertices, dock, low, high, length_scale,
+    centers, radii, polygon_start, polygons, n_vertices, vertices, dock, low, high,
+    length_scale,
     speed_scale, terms, reward, terminated, truncated,
 ):  # fmt: skip
     """One step of the missions ``lo … hi − 1`` (see :meth:`MissionBatch.step`)."""
@@ -546,8 +553,8 @@ def _step_rows(
 
         # mission: captures, collision, bounds, success
         _mission_gaps(
-            state[i, :dim], i, n_targets, centers, radii, polygon_start, n_vertices, vertices,
-            gaps[i], nearest[i],
+            state[i, :dim], i, n_targets, centers, radii, polygon_start, polygons, n_vertices,
+            vertices, gaps[i], nearest[i],
         )  # fmt: skip
         if n_bodies > n_targets:  # clearance to debris other than targets
             clearance = min_clearance[i]
