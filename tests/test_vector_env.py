@@ -223,6 +223,29 @@ def test_two_threads_fly_exactly_the_episodes_of_one(observation):
     assert ended > 37  # every sub-env ended at least once
 
 
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {},
+        {"observation": "lidar"},
+        {"obs_goal": True, "obs_other_targets": True},
+        {"obs_obstacles": 30, "obs_targets": 5},  # more slots than bodies: empty slots
+        {"dim": 3},
+    ],
+)
+def test_every_observation_element_is_written(kwargs):
+    """The env hands out observations in arrays it does not clear first: the compiled
+    observation must write every element (checked on a buffer full of NaN)."""
+    env = DebrisFieldVectorEnv(num_envs=5, max_episode_steps=40, **kwargs)
+    env.reset(seed=2)
+    rng = np.random.default_rng(0)
+    m = env._missions
+    for _ in range(50):
+        env.step(rng.uniform(-0.5, 0.5, (5, env.dim)).astype(np.float32))
+        out = m.observe(np.full_like(env._obs, np.nan), 40)
+        assert not np.isnan(out).any()
+
+
 @pytest.mark.parametrize("bad", [0, 3.5, True, "2", 10_000])
 def test_num_threads_out_of_range_is_refused(bad):
     with pytest.raises(ValueError, match=r"num_threads.*\[1, \d+\]"):

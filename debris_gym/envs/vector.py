@@ -318,7 +318,9 @@ class DebrisFieldVectorEnv(VectorEnv):
         return a
 
     def _observe(self) -> np.ndarray:
-        return self._missions.observe(self._obs, registered_horizon(self.spec)).copy()
+        """A new (N, obs size) array of every sub-env's observation."""
+        out = np.empty_like(self._obs)  # every element is written: no zeroing, no copy
+        return self._missions.observe(out, registered_horizon(self.spec))
 
     def _info(self, terms: np.ndarray, mask: np.ndarray | None = None) -> dict[str, Any]:
         n, m = self.num_envs, self._missions
