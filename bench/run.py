@@ -836,9 +836,11 @@ def memory_child(num_envs: int, env_id: str = ID_2D) -> dict[str, Any]:
     rss_steps = _rss_bytes()
     un = env.unwrapped
     arrays = []
+    seen: set[int] = set()  # an array held by two attributes counts once
     for owner, obj in (("env", un), ("missions", un._missions), ("field", un._field)):
         for name, value in vars(obj).items():
-            if isinstance(value, np.ndarray):
+            if isinstance(value, np.ndarray) and id(value) not in seen:
+                seen.add(id(value))
                 arrays.append(
                     {
                         "owner": owner,

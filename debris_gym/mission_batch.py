@@ -180,7 +180,7 @@ class MissionBatch:
         self._truncated = np.zeros(n, dtype=bool)
         self._terms = np.zeros((n, len(REWARD_TERMS)))
         self._step_tail: tuple | None = None  # the step kernel's arguments after the actions
-        self._tail_vertices: np.ndarray | None = None  # the vertex array the tail holds
+        self._tail_vertices = 0  # id() of the vertex array the tail holds
 
     def set_world(self, rows: np.ndarray, dock, low, high, length_scale: float) -> None:
         """Dock position, bounds (m) and length scale L of the fields in ``rows``."""
@@ -221,9 +221,9 @@ class MissionBatch:
             :data:`debris_gym.rewards.REWARD_TERMS`.
         """
         tail = self._step_tail
-        if tail is None or self._tail_vertices is not self.field.vertices:  # vertices can grow
+        if tail is None or self._tail_vertices != id(self.field.vertices):  # vertices can grow
             f = self.field
-            self._tail_vertices = f.vertices
+            self._tail_vertices = id(f.vertices)  # (the tail keeps that array alive)
             tail = self._step_tail = (
                 self.step_matrix_t, self.params, self.options, self.n_targets, self.state,
                 self.time, self.steps, self.delta_v, self.captured, self.collision,

@@ -184,6 +184,24 @@ def test_memory_child_counts_every_array(bench):
     assert out["rss_after_reset"] > 0
 
 
+def test_memory_child_counts_an_array_held_twice_once(bench, monkeypatch):
+    """Regression: MissionBatch kept a second reference to the vertex array, and the memory
+    section counted it twice (9.9 instead of 5.4 KiB per sub-env)."""
+    from debris_gym.envs import vector
+
+    reset = vector.DebrisFieldVectorEnv.reset
+
+    def reset_and_alias(self, *args, **kwargs):
+        out = reset(self, *args, **kwargs)
+        self._missions.alias_of_vertices = self._missions.field.vertices
+        return out
+
+    monkeypatch.setattr(vector.DebrisFieldVectorEnv, "reset", reset_and_alias)
+    out = bench.memory_child(2)
+    names = [a["name"] for a in out["arrays"]]
+    assert names.count("vertices") + names.count("alias_of_vertices") == 1
+
+
 def test_deep_size_counts_shared_objects_once(bench):
     shared = tuple(float(i) for i in range(100))
     one = bench._deep_size([shared])

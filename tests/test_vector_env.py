@@ -338,8 +338,8 @@ def test_field_arrays_stay_within_10_kib_per_sub_env():
     env = DebrisFieldVectorEnv(num_envs=8)
     env.reset(seed=0)
     owners = (vars(env), vars(env._missions), vars(env._field))
-    arrays = [v for owner in owners for v in owner.values() if isinstance(v, np.ndarray)]
-    per_env = sum(a.nbytes for a in arrays if a is not env._obs) / env.num_envs
+    arrays = {id(v): v for owner in owners for v in owner.values() if isinstance(v, np.ndarray)}
+    per_env = sum(a.nbytes for a in arrays.values() if a is not env._obs) / env.num_envs
     assert per_env <= 10 * 1024
 
 
