@@ -481,20 +481,47 @@ def _touched(paths, start_gaps, inflate, centers, radii, polygon_start, n_vertic
 def ray_ranges(
     origin, directions, max_range, i, centers, radii, polygon_start, n_vertices, vertices, out
 ):
-    """Range (m) from ``origin`` along each direction (R, dim) to field ``i``'s first surface,
-    capped at ``max_range``, into ``out`` (R,)."""
+    """Range (m) from ``origin`` along each unit direction (R, dim) to field ``i``'s first
+    surface, capped at ``max_range``, into ``out`` (R,).
+
+    Body by body, each ray keeping its nearest entry so far. A polygon's edges are tested only
+    for the rays that enter its bounding circle (about its centre, through its farthest vertex)
+    before their nearest entry so far; the polygon lies inside that circle, so the rays skipped
+    cannot meet it sooner (the circle is widened far above rounding), and the ranges are those
+    of testing every edge (measured ~3x faster with 32 rays and 20 debris).
+    """
     n_bodies, dim = centers.shape[1], centers.shape[2]
-    for r in range(directions.shape[0]):
-        best = math.inf
-        for b in range(n_bodies):
-            j = b - polygon_start
-            m = n_vertices[i, j] if dim == 2 and j >= 0 else 0
-            if m:
-                entry = _ray_polygon(
-                    origin[0], origin[1], directions[r, 0], directions[r, 1],
-                    centers[i, b, 0], centers[i, b, 1], vertices[i, j], m,
-                )  # fmt: skip
-            else:
+    n_rays = directions.shape[0]
+    ox, oy = origin[0], origin[1]
+    for r in range(n_rays):
+        out[r] = max_range
+    for b in range(n_bodies):
+        j = b - polygon_start
+        m = n_vertices[i, j] if dim == 2 and j >= 0 else 0
+        if m:
+            verts = vertices[i, j]
+            cx, cy = centers[i, b, 0], centers[i, b, 1]
+            relx, rely = cx - ox, cy - oy
+            rel2 = relx * relx + rely * rely
+            far2 = 0.0
+            for v in range(m):
+                far2 = max(far2, verts[v, 0] * verts[v, 0] + verts[v, 1] * verts[v, 1])
+            slack = 1e-9 * (1.0 + math.sqrt(rel2) + math.sqrt(far2))
+            far = math.sqrt(far2) + slack
+            for r in range(n_rays):
+                dx, dy = directions[r, 0], directions[r, 1]
+                proj = dx * relx + dy * rely
+                perp2 = rel2 - proj * proj
+                if perp2 > far * far + slack:
+                    continue  # the ray's line misses the circle
+                half = math.sqrt(max(far * far - perp2, 0.0)) + slack
+                if proj + half < 0.0 or proj - half - slack >= out[r]:
+                    continue  # the circle is behind, or no nearer than what the ray has met
+                entry = _ray_polygon(ox, oy, dx, dy, cx, cy, verts, m)
+                out[r] = min(out[r], entry)
+        else:
+            r2 = radii[i, b] * radii[i, b]
+            for r in range(n_rays):
                 proj = 0.0
                 rel2 = 0.0
                 for a in range(dim):
@@ -502,13 +529,9 @@ def ray_ranges(
                     proj += directions[r, a] * rel
                     rel2 += rel * rel
                 perp2 = rel2 - proj * proj
-                r2 = radii[i, b] * radii[i, b]
                 half = math.sqrt(max(r2 - perp2, 0.0))
-                entry = math.inf
                 if perp2 <= r2 and proj + half >= 0.0:
-                    entry = max(proj - half, 0.0)
-            best = min(best, entry)
-        out[r] = min(best, max_range)
+                    out[r] = min(out[r], max(proj - half, 0.0))
 
 
 @kernel
