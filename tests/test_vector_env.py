@@ -390,3 +390,44 @@ def test_batch_geometry_matches_single_geometry(dim, compact):
         ref_ranges = np.stack([g.lidar(paths[i, 0], dirs, 200.0) for i, g in enumerate(singles)])
         np.testing.assert_allclose(ranges, ref_ranges, rtol=1e-9, atol=1e-9)
     assert hits > 20  # the comparison covered real contacts
+
+
+def test_lidar_culling_changes_no_range():
+    """FieldBatch.lidar tests a polygon's edges only for rays that enter its bounding circle
+    before their nearest entry so far. Against every ray tested against every body (the same
+    per-body primitives, no culling), the ranges must be equal exactly, from origins far out,
+    near surfaces and at polygon centres (inside)."""
+    from debris_gym import batch_geometry as bg
+
+    n = 4
+    fields = random_fields(n, 2, seed=77)
+    batch = FieldBatch(n, len(fields[0].bodies), 2, polygon_start=len(fields[0].targets))
+    for i, f in enumerate(fields):
+        batch.load(i, f)
+    dirs = lidar_directions(2, 16)
+    rng = np.random.default_rng(5)
+    for scale in (0.0, 2.0, 20.0, 400.0):
+        k = rng.integers(batch.polygon_start, batch.n_bodies, n)
+        origins = batch.centers[np.arange(n), k] + rng.normal(0.0, scale, (n, 2))
+        for max_range in (60.0, 1e4):
+            ranges = batch.lidar(origins, dirs, max_range)
+            for i in range(n):
+                ox, oy = origins[i]
+                for r, (dx, dy) in enumerate(dirs):
+                    best = math.inf
+                    for b in range(batch.n_bodies):
+                        j = b - batch.polygon_start
+                        m = int(batch.n_vertices[i, j]) if j >= 0 else 0
+                        cx, cy = batch.centers[i, b]
+                        if m:
+                            entry = bg._ray_polygon(ox, oy, dx, dy, cx, cy, batch.vertices[i, j], m)
+                        else:
+                            relx, rely = cx - ox, cy - oy
+                            proj = dx * relx + dy * rely
+                            perp2 = (relx * relx + rely * rely) - proj * proj
+                            r2 = batch.radii[i, b] ** 2
+                            half = math.sqrt(max(r2 - perp2, 0.0))
+                            hit = perp2 <= r2 and proj + half >= 0.0
+                            entry = max(proj - half, 0.0) if hit else math.inf
+                        best = min(best, entry)
+                    assert ranges[i, r] == min(best, max_range), (scale, i, r)
