@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import gymnasium as gym
@@ -262,6 +263,23 @@ def test_pinned_scenario_and_chaser_state():
     np.testing.assert_array_equal(info["targets_captured"], [1, 0])
     with pytest.raises(ValueError, match="touches debris"):
         env.reset(options={"scenario": scen, "chaser_state": [200.0, 0.0, 0.0, 0.0]})
+
+
+def test_a_random_field_after_a_pinned_one_gets_the_random_world():
+    """The vector env sets the dock, bounds and length scale of random fields only where they
+    may have changed: rows that held a pinned field (another size) must get them back."""
+    env = DebrisFieldVectorEnv(num_envs=2)
+    fresh = DebrisFieldVectorEnv(num_envs=2)
+    env.reset(seed=1)
+    scen = dataclasses.replace(env.scenarios[0], bounds=((-800.0, 800.0), (-700.0, 900.0)))
+    env.reset(seed=0, options={"scenario": scen})
+    assert env._missions.length_scale[0] == scen.size / 2.0
+    obs, _ = env.reset(seed=4)
+    ref, _ = fresh.reset(seed=4)
+    np.testing.assert_array_equal(obs, ref)
+    m, f = env._missions, fresh._missions
+    for name in ("dock", "low", "high", "length_scale", "speed_scale"):
+        np.testing.assert_array_equal(getattr(m, name), getattr(f, name), err_msg=name)
 
 
 def test_pinned_scenario_must_match_the_batch():

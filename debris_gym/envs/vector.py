@@ -97,7 +97,6 @@ class DebrisFieldVectorEnv(VectorEnv):
         self._field_spec = field_spec(cfg)
         self._rngs: list[np.random.Generator] = [np.random.default_rng() for _ in range(n)]
         self._pinned: list[Scenario | None] = [None] * n  # fields not drawn by the env
-        self._random_world = np.zeros(n, dtype=bool)  # dock, bounds and L of a random field set
         self._paper: Scenario | None = None
         self._missions: MissionBatch | None = None
         self._autoreset = np.zeros(n, dtype=bool)
@@ -144,17 +143,20 @@ class DebrisFieldVectorEnv(VectorEnv):
         fields = random_fields(
             [self._rngs[i] for i in listed], self._field_spec, capture_radius=cfg.capture_radius
         )
+        # every random field has the same world (dock, bounds, L): set it only in new batches
+        # and in rows that held a pinned field
+        stale = (
+            rows if self._missions is None else [i for i in listed if self._pinned[i] is not None]
+        )
         missions = self._fit((cfg.n, cfg.dt, cfg.max_accel), fields.n_targets, len(fields.radii[0]))
         missions.field.load_arrays(
             rows, fields.centers, fields.radii, fields.vertices, fields.n_vertices
         )
         for i in listed:
             self._pinned[i] = None
-        stale = rows[~self._random_world[rows]]  # every random field has the same world
-        if stale.size:
+        if len(stale):
             half = fields.half_size
             missions.set_world(stale, 0.0, -half, half, (half - -half) / 2.0)  # L = size / 2
-            self._random_world[stale] = True
 
     def _load_scenario(self, rows: np.ndarray, scenario: Scenario) -> None:
         """Install ``scenario`` in the sub-envs ``rows``."""
@@ -165,7 +167,6 @@ class DebrisFieldVectorEnv(VectorEnv):
         missions.field.load_scenario(rows, scenario)
         for i in rows.tolist():
             self._pinned[i] = scenario
-        self._random_world[rows] = False
         missions.set_world(rows, scenario.dock, scenario.low, scenario.high, scenario.size / 2.0)
 
     def _fit(self, physics: tuple[float, float, float], n_targets: int, n_bodies: int):
