@@ -136,6 +136,10 @@ class MissionBatch:
         params[_W_CLOSING] = cfg.shaping_closing
         params[_CLOSING_DIST] = cfg.shaping_closing_distance
         self.params = params
+        shaped = cfg.shaping_speed > 0 or cfg.shaping_clearance > 0 or cfg.shaping_closing > 0
+        self.shaping = params if shaped else None
+        """The parameters again if an optional shaping term is on, else None (the kernels are
+        compiled without those terms then)."""
         options = np.zeros(_N_OPTIONS, dtype=np.int64)
         options[_QUEUED] = cfg.target_order == "queued"
         options[_RETURN] = cfg.return_to_dock
@@ -201,7 +205,7 @@ class MissionBatch:
             self.delta_v, self.captured, self.collision, self.out_of_bounds, self.success,
             self.gaps, self.nearest, self.min_clearance, self.potential, self.accel, f.centers,
             f.radii, f.polygon_start, f.polygons, f.n_vertices, f.vertices, self.dock,
-            self.length_scale, self.speed_scale,
+            self.length_scale, self.speed_scale, self.shaping,
         )  # fmt: skip
 
     def step(
@@ -230,7 +234,7 @@ class MissionBatch:
                 self.out_of_bounds, self.success, self.gaps, self.nearest, self.min_clearance,
                 self.potential, self.accel, f.centers, f.radii, f.polygon_start, f.polygons,
                 f.n_vertices, f.vertices, self.dock, self.low, self.high, self.length_scale,
-                self.speed_scale, self._terms,
+                self.speed_scale, self.shaping, self._terms,
                 self._reward, self._terminated, self._truncated,
             )  # fmt: skip
         if live.dtype != np.bool_ or actions.dtype != np.float64:
@@ -295,14 +299,19 @@ def _goal(i, prm, opt, n_targets, state, captured, gaps):
 
 @inlined
 def _potential(
-    i, prm, opt, n_targets, state, captured, gaps, centers, dock, length_scale, speed_scale
-):
+    i, prm, opt, n_targets, state, captured, gaps, centers, dock, length_scale, speed_scale,
+    shaping,
+):  # fmt: skip
     """Φ = −(gap to the current goal / L + goals after it), minus the approach-speed term
     ``shaping_speed`` · max(0, speed − (capture_speed + slope · gap)) / V and the clearance
     term ``shaping_clearance`` · max(0, 1 − c / d)² (c: the chaser surface's gap to the nearest
     obstacle) and the closing term ``shaping_closing`` · max over bodies b other than the goal
     within ``shaping_closing_distance`` of max(0, v_b − capture_speed) / V · (1 − c_b / d) (v_b:
-    the chaser's speed toward b's centre) when they are on."""
+    the chaser's speed toward b's centre) when they are on.
+
+    ``shaping`` is None when all three are off (:attr:`MissionBatch.shaping`): numba then
+    compiles a kernel without the call, whose mere presence (never taken) cost 3-4 % of a step.
+    """
     goal, gap, after = _goal(i, prm, opt, n_targets, state, captured, gaps)
     if goal == -1:  # the distance to the dock, written out for 2 or 3 axes (no loop)
         off = state[i, 0] - dock[i, 0]
@@ -315,14 +324,14 @@ def _potential(
         gap = math.sqrt(s)
     goal_gap = max(gap, 0.0)
     phi = -(goal_gap / length_scale[i] + after)
-    if prm[_W_SPEED] > 0.0 or prm[_W_CLEARANCE] > 0.0 or prm[_W_CLOSING] > 0.0:
+    if shaping is not None:
         phi = _shaping_terms(
             phi, goal, goal_gap, i, prm, n_targets, state, gaps, centers, speed_scale
         )
     return phi
 
 
-@kernel  # not inlined: off by default; inlined, its loops cost 1-2 % of a vector step
+@kernel  # not inlined: off by default (see _potential's ``shaping``)
 def _shaping_terms(phi, goal, goal_gap, i, prm, n_targets, state, gaps, centers, speed_scale):
     """Φ less the optional approach-speed, clearance and closing terms of :func:`_potential`."""
     dim = centers.shape[2]
@@ -430,7 +439,7 @@ def _select_nearest(gaps, first, skip, nearest, best):
 def _begin(
     rows, states, prm, opt, n_targets, state, time, steps, delta_v, captured, collision,
     out_of_bounds, success, gaps, nearest, min_clearance, potential, accel, centers, radii,
-    polygon_start, polygons, n_vertices, vertices, dock, length_scale, speed_scale,
+    polygon_start, polygons, n_vertices, vertices, dock, length_scale, speed_scale, shaping,
 ):  # fmt: skip
     dim = dock.shape[1]
     n_bodies = centers.shape[1]
@@ -463,8 +472,9 @@ def _begin(
             clearance = min(clearance, gaps[i, b])
         min_clearance[i] = clearance
         potential[i] = _potential(
-            i, prm, opt, n_targets, state, captured, gaps, centers, dock, length_scale, speed_scale
-        )
+            i, prm, opt, n_targets, state, captured, gaps, centers, dock, length_scale, speed_scale,
+            shaping,
+        )  # fmt: skip
 
 
 @kernel
@@ -472,13 +482,13 @@ def _step(
     live, actions, matrix_t, prm, opt, n_targets, state, time, steps, delta_v, captured,
     collision, out_of_bounds, success, gaps, nearest, min_clearance, potential, last_accel,
     centers, radii, polygon_start, polygons, n_vertices, vertices, dock, low, high,
-    length_scale, speed_scale, terms, reward, terminated, truncated,
+    length_scale, speed_scale, shaping, terms, reward, terminated, truncated,
 ):  # fmt: skip
     _step_rows(
         0, live.shape[0], live, actions, matrix_t, prm, opt, n_targets, state, time, steps,
         delta_v, captured, collision, out_of_bounds, success, gaps, nearest, min_clearance,
         potential, last_accel, centers, radii, polygon_start, polygons, n_vertices, vertices, dock,
-        low, high, length_scale, speed_scale, terms, reward, terminated, truncated,
+        low, high, length_scale, speed_scale, shaping, terms, reward, terminated, truncated,
     )  # fmt: skip
 
 
@@ -487,7 +497,7 @@ def _step_threaded(
     n_chunks, live, actions, matrix_t, prm, opt, n_targets, state, time, steps, delta_v, captured,
     collision, out_of_bounds, success, gaps, nearest, min_clearance, potential, last_accel,
     centers, radii, polygon_start, polygons, n_vertices, vertices, dock, low, high,
-    length_scale, speed_scale, terms, reward, terminated, truncated,
+    length_scale, speed_scale, shaping, terms, reward, terminated, truncated,
 ):  # fmt: skip
     """:func:`_step` with the missions split into ``n_chunks`` row ranges run in parallel."""
     num = live.shape[0]
@@ -496,8 +506,8 @@ def _step_threaded(
             c * num // n_chunks, (c + 1) * num // n_chunks, live, actions, matrix_t, prm, opt,
             n_targets, state, time, steps, delta_v, captured, collision, out_of_bounds, success,
             gaps, nearest, min_clearance, potential, last_accel, centers, radii, polygon_start,
-            polygons, n_vertices, vertices, dock, low, high, length_scale, speed_scale, terms,
-            reward, terminated, truncated,
+            polygons, n_vertices, vertices, dock, low, high, length_scale, speed_scale, shaping,
+            terms, reward, terminated, truncated,
         )  # fmt: skip
 
 
@@ -506,7 +516,7 @@ def _step_rows(
     lo, hi, live, actions, matrix_t, prm, opt, n_targets, state, time, steps, delta_v, captured,
     collision, out_of_bounds, success, gaps, nearest, min_clearance, potential, last_accel,
     centers, radii, polygon_start, polygons, n_vertices, vertices, dock, low, high,
-    length_scale, speed_scale, terms, reward, terminated, truncated,
+    length_scale, speed_scale, shaping, terms, reward, terminated, truncated,
 ):  # fmt: skip
     """One step of the missions ``lo … hi − 1`` (see :meth:`MissionBatch.step`)."""
     n_bodies = gaps.shape[1]
@@ -624,8 +634,9 @@ def _step_rows(
 
         # reward terms
         phi = _potential(
-            i, prm, opt, n_targets, state, captured, gaps, centers, dock, length_scale, speed_scale
-        )
+            i, prm, opt, n_targets, state, captured, gaps, centers, dock, length_scale, speed_scale,
+            shaping,
+        )  # fmt: skip
         progress = prm[_GAMMA] * phi - potential[i]
         potential[i] = phi
         terms[i, _T_CAPTURE] = prm[_W_CAPTURE] * new
