@@ -2,7 +2,7 @@
 
 Run as a script::
 
-    python bench/run.py                       # every section (~8-10 min on a 2-core machine)
+    python bench/run.py                       # every section (~5 min on a 2-core machine)
     python bench/run.py --quick               # ~1-3 min, fewer / shorter repeats, smaller N
     python bench/run.py --only vector,train   # some sections only
     python bench/run.py --out docs/bench_table.md
@@ -19,6 +19,9 @@ Sections (``--only`` takes a comma-separated list; default: all of them):
   process RSS growth (measured in fresh subprocesses). Row section "memory".
 * ``train``: end-to-end SB3 PPO env-steps/s on ``NativeVecEnv`` and on a ``DummyVecEnv`` of
   single envs, split into env time, the rest of the rollout, and the update. Row section "train".
+* ``decisions``: decision times (p50 / p95 / max ms per ``predict`` call) of every baseline and
+  the pretrained policy flying the default evaluation's first missions, and the p50 in single
+  env steps. Row section "decisions".
 
 Everything is measured in one process, in one run (the memory section in child processes, and
 SubprocVecEnv steps its envs in its workers), and reported as *ratios* measured within that run:
@@ -53,6 +56,10 @@ What is timed:
   native vector env and reports its arrays and its RSS growth (``/proc/self/statm``).
 * Train rows: ``model.learn(k rollouts)`` of SB3 PPO (default ``MlpPolicy``, CPU, one torch
   thread) after one warm-up rollout+update (which also does the env reset SB3 starts with).
+* Decision rows: ``agent.predict`` calls inside :func:`agents.evaluation.run_episode` (the
+  loop of ``evaluate.py``), every agent on the same seeded missions, one mission of each agent
+  in turn, with a block of plain ``env.step`` calls (as in the step rows) timed before each
+  round as the reference; untimed warm-up calls on another mission first.
 
 The number of steps (resets) per repeat is calibrated per measurement during a warm-up so every
 repeat lasts about the same wall time, unless fixed with ``run(steps=…, resets=…)``.
@@ -96,7 +103,7 @@ DEFAULT_OBSTACLES = 20
 THRUST = 0.05  # continuous actions are uniform in [-THRUST, THRUST] (fraction of max_accel)
 DISCRETE_COAST = 0.9  # share of coast (0) actions for discrete DebrisGym envs
 
-SECTIONS = ("single", "vector", "scaling", "memory", "train")
+SECTIONS = ("single", "vector", "scaling", "memory", "train", "decisions")
 """Section names for ``--only`` / ``run(sections=…)``, in the order they run."""
 
 QUICK: dict[str, Any] = {
@@ -128,6 +135,9 @@ QUICK: dict[str, Any] = {
     "train_repeats": 1,
     "train_batch": 4096,
     "train_epochs": 2,
+    # decision times: missions per agent (seeds DECISION_SEED …), time limit (None: the env's)
+    "decision_episodes": 1,
+    "decision_max_steps": None,
 }
 FULL: dict[str, Any] = {
     **QUICK,
@@ -147,6 +157,7 @@ FULL: dict[str, Any] = {
     "train_rollout": 16384,
     "train_rollouts": 3,
     "train_repeats": 2,
+    "decision_episodes": 3,
 }
 TINY: dict[str, Any] = {
     "vector_envs": (4,),
@@ -165,6 +176,8 @@ TINY: dict[str, Any] = {
     "train_repeats": 1,
     "train_batch": 64,
     "train_epochs": 1,
+    "decision_episodes": 1,
+    "decision_max_steps": 5,
 }
 """Sizes for smoke tests (``run(sizes=TINY)``): every code path, seconds not minutes."""
 
@@ -361,6 +374,8 @@ def run(
     if "train" in chosen:
         train_repeats = repeats if repeats is not None else cfg["train_repeats"]
         rows += _run_train(cfg, train_repeats, progress)
+    if "decisions" in chosen:
+        rows += _run_decisions(cfg, steps, progress)
     return rows
 
 
@@ -1161,6 +1176,156 @@ def _train_rows(todo: list[TrainMeasurement]) -> list[dict[str, Any]]:
     return rows
 
 
+# --- decision times -----------------------------------------------------------------------------
+
+DECISION_SEED = 0
+"""Seed of the first timed mission: the default evaluation's (``python evaluate.py``) missions."""
+DECISION_WARMUP_SEED = 999_999
+"""Seed of the untimed warm-up calls (compilation, model loading, first planning)."""
+DECISION_WARMUP_CALLS = 3
+
+
+@dataclass
+class DecisionMeasurement:
+    """One agent flying whole missions, every ``predict`` call timed."""
+
+    spec: str  # an evaluate.py agent spec: a baseline name or "pretrained"
+    label: str = ""
+    env: Any = None
+    agent: Any = None
+    decision_ms: list[np.ndarray] = field(default_factory=list)  # per mission, ms per call
+    successes: int = 0
+    setup_s: float = math.nan  # building the agent and the warm-up calls
+    error: str | None = None
+
+
+def decision_agents() -> list[str]:
+    """Every baseline of ``agents.BASELINES`` and the shipped pretrained policy."""
+    import agents
+    from agents.evaluation import PRETRAINED
+
+    return [*agents.BASELINES, PRETRAINED]
+
+
+def _decision_setup(m: DecisionMeasurement, cfg: dict[str, Any]) -> None:
+    """Build the agent's env and the agent (as evaluate.py does), then make untimed warm-up
+    calls so compilation and loading stay out of the timed calls."""
+    from agents.evaluation import agent_env_options, build_agent, make_env, parse_agent_spec
+
+    start = time.perf_counter()
+    spec = parse_agent_spec(m.spec)
+    m.label = spec.label
+    m.env = make_env(ID_2D, agent_env_options(spec, ID_2D), cfg["decision_max_steps"])
+    m.agent = build_agent(spec, m.env)
+    obs, _ = m.env.reset(seed=DECISION_WARMUP_SEED)
+    state = None
+    for k in range(DECISION_WARMUP_CALLS):
+        action, state = m.agent.predict(
+            obs, state=state, episode_start=np.array([k == 0]), deterministic=True
+        )
+        obs, _, terminated, truncated, _ = m.env.step(action)
+        if terminated or truncated:
+            break
+    m.setup_s = time.perf_counter() - start
+
+
+def _decision_measure(m: DecisionMeasurement, episode: int) -> None:
+    from agents.evaluation import run_episode
+
+    record = run_episode(m.env, m.agent, m.label, episode, DECISION_SEED + episode)
+    m.decision_ms.append(record.trajectory.decision_ms)
+    m.successes += int(record.success)
+
+
+def _run_decisions(cfg: dict[str, Any], steps: int | None, progress: bool) -> list[dict[str, Any]]:
+    """The decision-time section: every agent on the same seeded missions, interleaved mission by
+    mission with a timed block of plain env steps (the reference for the ratio)."""
+    try:
+        names = decision_agents()
+    except ImportError as exc:  # the agents package (or an extra it needs) is missing
+        names, missing = ["agents"], f"{type(exc).__name__}: {exc}"
+    else:
+        missing = None
+    todo = [DecisionMeasurement(name, label=name, error=missing) for name in names]
+    ref = Measurement("step", "", ID_2D, {}, "make")
+    episodes = int(cfg["decision_episodes"])
+    try:
+        with _bar((len(todo) + 1) * (episodes + 1), "decisions", progress) as bar:
+            bar.set_postfix_str(f"setup {ID_2D} env steps", refresh=False)
+            _guard(ref, lambda: _setup(ref, cfg, steps, None))
+            bar.update()
+            for m in todo:
+                bar.set_postfix_str(f"setup {m.spec}", refresh=False)
+                if m.error is None:
+                    _guard(m, lambda m=m: _decision_setup(m, cfg))
+                bar.update()
+            for ep in range(episodes):
+                bar.set_postfix_str(f"mission {ep + 1}/{episodes} env steps", refresh=False)
+                if ref.error is None:
+                    _guard(ref, lambda: _measure(ref))
+                bar.update()
+                for m in todo:
+                    bar.set_postfix_str(f"mission {ep + 1}/{episodes} {m.label}", refresh=False)
+                    if m.error is None:
+                        _guard(m, lambda m=m, ep=ep: _decision_measure(m, ep))
+                    bar.update()
+    finally:
+        for m in [*todo, ref]:
+            if m.env is not None:
+                _guard(m, m.env.close)
+            m.env = None
+        for m in todo:
+            m.agent = None
+    return _decision_rows(todo, ref)
+
+
+def _decision_rows(todo: list[DecisionMeasurement], ref: Measurement) -> list[dict[str, Any]]:
+    """One row per agent.
+
+    Fields: ``agent`` (its label), ``episodes`` (missions flown), ``decisions`` (timed calls),
+    ``successes``, ``p50_ms`` / ``p95_ms`` / ``max_ms`` over every call, ``first_ms`` (median of
+    the missions' first calls, where a classical agent plans), ``later_p50_ms`` (median of the
+    other calls), ``env_step_us`` (median µs of one ``env.step`` through ``gym.make``, timed
+    between the missions), ``p50_steps`` (``p50_ms`` in env steps), ``setup_s`` and ``error``.
+    """
+    env_step_us = math.nan
+    if ref.times and ref.count:
+        env_step_us = statistics.median(t / ref.count for t in ref.times) * 1e6
+    rows = []
+    for m in todo:
+        calls = [a for a in m.decision_ms if a.size]
+        every = np.concatenate(calls) if calls else np.zeros(0)
+        later = np.concatenate([a[1:] for a in calls]) if calls else np.zeros(0)
+
+        def pct(values: np.ndarray, q: float) -> float:
+            return float(np.percentile(values, q)) if values.size else math.nan
+
+        p50 = pct(every, 50)
+        rows.append(
+            {
+                "section": "decisions",
+                "env_id": ID_2D,
+                "variant": m.label,
+                "level": "predict",
+                "n_obstacles": DEFAULT_OBSTACLES,
+                "agent": m.label,
+                "episodes": len(calls),
+                "decisions": int(every.size),
+                "successes": m.successes,
+                "p50_ms": p50,
+                "p95_ms": pct(every, 95),
+                "max_ms": float(every.max()) if every.size else math.nan,
+                "first_ms": statistics.median(float(a[0]) for a in calls) if calls else math.nan,
+                "later_p50_ms": pct(later, 50),
+                "env_step_us": env_step_us,
+                "p50_steps": p50 * 1e3 / env_step_us,
+                "setup_s": m.setup_s,
+                "error": m.error or ref.error,
+            }
+        )
+    return rows
+
+
 def machine_description() -> list[str]:
     """Lines describing the machine and library versions."""
     cpu = platform.processor() or platform.machine()
@@ -1529,6 +1694,53 @@ def _train_lines(rows: list[dict[str, Any]]) -> list[str]:
     return [*lines, ""]
 
 
+def _decision_lines(rows: list[dict[str, Any]]) -> list[str]:
+    decisions = [r for r in rows if r["section"] == "decisions"]
+    if not decisions:
+        return []
+    episodes = max((r["episodes"] for r in decisions), default=0)
+    step_us = next((r["env_step_us"] for r in decisions if math.isfinite(r["env_step_us"])), None)
+    lines = [
+        f"## Decision times (`{ID_2D}`)",
+        "",
+        f"Every agent flies the same {episodes} mission(s) of the default evaluation (`python "
+        f"evaluate.py`, reset seeds {DECISION_SEED}, {DECISION_SEED + 1}, …), mission by mission "
+        "in turn, and every `agent.predict(obs, state, episode_start, deterministic=True)` call "
+        "is timed (`time.perf_counter`); a few untimed calls on another mission come first "
+        "(compilation, model loading). A classical agent plans inside the first call of a "
+        "mission (APF-MPC and A* plan again after each capture, or when the chaser strays from "
+        "the path), so *p95* and *max* include planning; *first call* is the median over the "
+        "missions' first calls, *later calls* the median of all the others. *p50 in env "
+        "steps* = p50 over the median "
+        "`env.step` of the same env through `gym.make`"
+        + (f" ({step_us:.1f} µs)" if step_us is not None else "")
+        + ", timed between the missions in the same run.",
+        "",
+        "| agent | missions | decisions | successes | p50 ms | p95 ms | max ms "
+        "| first call ms | later calls p50 ms | p50 in env steps |",
+        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|",
+    ]
+    for row in decisions:
+        first = [f"`{row['agent']}`"]
+        if row["error"] and not math.isfinite(row["p50_ms"]):
+            lines.append("| " + " | ".join([*first, f"error: {row['error']}"] + [""] * 8) + " |")
+            continue
+        cells = [
+            *first,
+            str(row["episodes"]),
+            f"{row['decisions']:,}",
+            str(row["successes"]),
+            _f(row["p50_ms"], 3),
+            _f(row["p95_ms"], 3),
+            _f(row["max_ms"], 2),
+            _f(row["first_ms"], 2),
+            _f(row["later_p50_ms"], 3),
+            _f(row["p50_steps"], 1),
+        ]
+        lines.append("| " + " | ".join(cells) + " |")
+    return [*lines, ""]
+
+
 def format_report(
     rows: list[dict[str, Any]],
     *,
@@ -1545,6 +1757,7 @@ def format_report(
     lines += _vector_scaling_lines(rows)
     lines += _memory_lines(rows)
     lines += _train_lines(rows)
+    lines += _decision_lines(rows)
     errors = [r for r in rows if r["error"]]
     if errors:
         lines += ["## Errors", ""]

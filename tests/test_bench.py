@@ -92,7 +92,7 @@ def test_write_atomic_replaces_the_file(bench, tmp_path):
 
 
 def test_sections_are_selectable(bench):
-    assert bench.SECTIONS == ("single", "vector", "scaling", "memory", "train")
+    assert bench.SECTIONS == ("single", "vector", "scaling", "memory", "train", "decisions")
     assert bench._sections(["train", "vector"]) == ("vector", "train")  # run order
     assert bench._sections(None) == bench.SECTIONS
     with pytest.raises(ValueError, match="unknown section"):
@@ -229,6 +229,33 @@ def test_train_rows(bench, all_rows):
     assert all(_finite_positive(r["ratio_dummy"]) for r in train if r["level"] != "DummyVecEnv")
 
 
+def test_decision_rows(bench, all_rows):
+    decisions = [r for r in all_rows if r["section"] == "decisions"]
+    assert [r["agent"] for r in decisions] == bench.decision_agents()
+    assert "pretrained" in bench.decision_agents() and "apf-mpc" in bench.decision_agents()
+    limit = bench.TINY["decision_max_steps"]
+    for row in decisions:
+        assert row["error"] is None, row["error"]
+        assert row["episodes"] == bench.TINY["decision_episodes"]
+        assert 1 <= row["decisions"] <= limit * row["episodes"]
+        assert 0 < row["p50_ms"] <= row["p95_ms"] <= row["max_ms"]
+        assert 0 < row["first_ms"] <= row["max_ms"]
+        assert _finite_positive(row["env_step_us"])
+        assert row["p50_steps"] == pytest.approx(row["p50_ms"] * 1e3 / row["env_step_us"])
+    # every agent flew the same missions: the same env-step reference in every row
+    assert len({r["env_step_us"] for r in decisions}) == 1
+
+
+def test_decision_agent_that_cannot_be_built_is_reported(bench, monkeypatch):
+    monkeypatch.setattr(bench, "decision_agents", lambda: ["zero", "ppo=/nonexistent/model.zip"])
+    rows = bench.run(steps=20, progress=False, sections=["decisions"], sizes=bench.TINY)
+    zero, broken = rows
+    assert zero["error"] is None and zero["decisions"] >= 1
+    assert "nonexistent" in broken["error"] and math.isnan(broken["p50_ms"])
+    report = bench.format_report(rows, command="x", elapsed=1.0)
+    assert "| `ppo` | error: " in report and "## Errors" in report
+
+
 def test_report_has_every_section(bench, all_rows):
     report = bench.format_report(all_rows, command="python bench/run.py --quick", elapsed=1.0)
     for heading in (
@@ -237,6 +264,7 @@ def test_report_has_every_section(bench, all_rows):
         "## Vector env: scaling with debris count",
         "## Memory per sub-env",
         "## Training throughput",
+        "## Decision times",
     ):
         assert heading in report
     assert "SyncVectorEnv" in report and "SubprocVecEnv" in report
