@@ -354,9 +354,10 @@ def run(
     ms per reset done inside the step loop, at that wrapper level), ``ratio`` (cost relative to
     CartPole at the same wrapper level for "step" rows; relative to the 20-debris default for
     "scaling" rows) and ``error`` (None, or the message if the env could not be built or
-    stepped). The other sections' rows ("vector", "vector_scaling", "memory", "train") carry
-    ``section``, ``env_id``, ``variant``, ``level``, ``n_obstacles``, ``error`` and their own
-    fields (see :func:`_vector_rows`, :func:`_memory_row` and :func:`_train_rows`).
+    stepped). The other sections' rows ("vector", "vector_scaling", "memory", "train",
+    "decisions") carry ``section``, ``env_id``, ``variant``, ``level``, ``n_obstacles``,
+    ``error`` and their own fields (see :func:`_vector_rows`, :func:`_memory_row`,
+    :func:`_train_rows` and :func:`_decision_rows`).
     """
     chosen = _sections(sections)
     cfg = dict(QUICK if quick else FULL)
