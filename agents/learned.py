@@ -5,7 +5,7 @@ returns a :class:`LearnedAgent`; ``load_agent("pretrained", env)`` the policy sh
 ``agents/pretrained/`` for that env. The agent
 
 * restores the VecNormalize observation statistics saved next to the model (the
-  :func:`agents.training.sidecar_path` name: ``vecnormalize.pkl`` beside ``model.zip``,
+  :func:`agents.policies.model_files.sidecar_path` name: ``vecnormalize.pkl`` beside ``model.zip``,
   ``best_model_vecnormalize.pkl`` beside ``best_model.zip``, ``rl_model_vecnormalize_N_steps.pkl``
   beside a checkpoint) and normalises observations with them before calling the model, without
   updating them;
@@ -25,7 +25,13 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from agents.training import ALGOS, FINAL_MODEL, load_config_file, sidecar_path
+from agents.policies.model_files import (
+    ALGOS,
+    FINAL_MODEL,
+    algo_class,
+    load_config_file,
+    sidecar_path,
+)
 
 __all__ = [
     "OBSERVATION_KEYS",
@@ -350,7 +356,6 @@ def load_agent(spec: str, env: Any, device: str = "cpu") -> LearnedAgent:
             do not match the env's, or no pretrained policy for this env.
         FileNotFoundError: the model (or statistics it needs) is missing.
     """
-    from agents.training import _algo_class
 
     algo, path = _parse(spec)
     if algo == PRETRAINED:
@@ -360,7 +365,7 @@ def load_agent(spec: str, env: Any, device: str = "cpu") -> LearnedAgent:
         path = path / FINAL_MODEL
     if not path.is_file():
         raise FileNotFoundError(f"{algo} model {str(path)!r} not found")
-    cls = _algo_class(algo)
+    cls = algo_class(algo)
     # schedules are only needed to train; constants avoid unpickling closures at inference
     custom = {"learning_rate": 0.0, "lr_schedule": lambda _: 0.0, "clip_range": lambda _: 0.0}
     try:

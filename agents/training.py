@@ -50,6 +50,15 @@ from typing import Any
 import numpy as np
 import yaml
 
+from agents.policies.model_files import (
+    ALGOS,
+    CHECKPOINT_RE,
+    FINAL_MODEL,
+    ConfigError,
+    algo_class,
+    load_config_file,
+    sidecar_path,
+)
 from debris_gym.files import save_atomic, write_atomic
 
 __all__ = [
@@ -71,9 +80,6 @@ __all__ = [
     "sidecar_path",
     "train",
 ]
-
-ALGOS = ("ppo", "sac", "td3", "dqn")
-"""Algorithms ``train.py`` trains (the SB3 classes of the same name)."""
 
 OFF_POLICY = ("sac", "td3", "dqn")
 
@@ -101,13 +107,6 @@ RESERVED_ALGO_KWARGS = {
 
 CHECKPOINT_PREFIX = "rl_model"
 INTERRUPTED = "interrupted"
-FINAL_MODEL = "model.zip"
-
-
-def _algo_class(algo: str) -> type:
-    import stable_baselines3 as sb3
-
-    return {"ppo": sb3.PPO, "sac": sb3.SAC, "td3": sb3.TD3, "dqn": sb3.DQN}[algo]
 
 
 # --------------------------------------------------------------------------------------------------
@@ -257,12 +256,8 @@ class TrainConfig:
         """The algorithm's discount (its SB3 default when the config does not set it)."""
         value = self.algo_kwargs.get("gamma")
         if value is None:
-            value = inspect.signature(_algo_class(self.algo).__init__).parameters["gamma"].default
+            value = inspect.signature(algo_class(self.algo).__init__).parameters["gamma"].default
         return float(value)
-
-
-class ConfigError(ValueError):
-    """A config problem; the message names the key and the file."""
 
 
 def _fail(source: str, key: str, problem: str) -> ConfigError:
@@ -398,7 +393,7 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
     if algo in ("sac", "td3") and env_config.action != "continuous":
         raise _fail(source, "env_kwargs.action", f"must be 'continuous' for {algo}")
 
-    cls = _algo_class(algo)
+    cls = algo_class(algo)
     policy = _typed(data.get("policy", "MlpPolicy"), str, "policy", source)
     if policy not in cls.policy_aliases:
         raise _fail(
@@ -640,27 +635,6 @@ def available_configs() -> list[str]:
     return sorted(p.stem for p in CONFIG_DIR.glob("*.yaml") if p.stem.rsplit("_", 1)[-1] in ALGOS)
 
 
-def load_config_file(path: str | Path) -> tuple[dict[str, Any], dict[str, Any]]:
-    """Read a config YAML: ``(config mapping, run metadata)`` — the ``run`` section of a resolved
-    ``config.yaml`` is split off (checked-in configs have none).
-
-    Raises:
-        FileNotFoundError: no such file.
-        ValueError: not YAML, or not a mapping.
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"config file {str(path)!r} not found")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{path}: not valid YAML ({exc})") from None
-    if not isinstance(data, dict):
-        raise ConfigError(f"{path}: must hold a mapping of config keys")
-    run = data.pop("run", None) or {}
-    return data, run
-
-
 def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> dict[str, Any]:
     """Apply ``--set key.sub=value`` overrides (values parsed as YAML) to a config mapping.
 
@@ -798,24 +772,6 @@ def _tensorboard_dir(out: Path) -> str | None:
 # --------------------------------------------------------------------------------------------------
 # file naming
 # --------------------------------------------------------------------------------------------------
-
-_CHECKPOINT_RE = re.compile(r"^(?P<prefix>.+)_(?P<steps>\d+)_steps$")
-
-
-def sidecar_path(model_path: str | Path, kind: str) -> Path:
-    """Where the ``kind`` ("vecnormalize" or "replay_buffer") file of a model lives.
-
-    ``DIR/model.zip`` → ``DIR/vecnormalize.pkl``; SB3 checkpoints ``rl_model_N_steps.zip`` →
-    ``rl_model_vecnormalize_N_steps.pkl``; any other ``NAME.zip`` → ``NAME_vecnormalize.pkl``.
-    """
-    path = Path(model_path)
-    stem = path.name[: -len(".zip")] if path.name.endswith(".zip") else path.name
-    if path.name == FINAL_MODEL:
-        return path.with_name(f"{kind}.pkl")
-    match = _CHECKPOINT_RE.match(stem)
-    if match:
-        return path.with_name(f"{match['prefix']}_{kind}_{match['steps']}_steps.pkl")
-    return path.with_name(f"{stem}_{kind}.pkl")
 
 
 def model_timesteps(model_path: str | Path) -> int:
@@ -1135,7 +1091,7 @@ def _make_callbacks(
                 old.unlink(missing_ok=True)
 
     def model_steps(path: Path) -> int:
-        match = _CHECKPOINT_RE.match(path.stem)
+        match = CHECKPOINT_RE.match(path.stem)
         return int(match["steps"]) if match else -1
 
     episodes = EpisodeLogCallback(out / "train_episodes.csv")
@@ -1460,7 +1416,7 @@ def train(options: TrainOptions) -> TrainResult:
         run["overrides"] = list(options.overrides)
 
     set_random_seed(segment_seed)
-    cls = _algo_class(config.algo)
+    cls = algo_class(config.algo)
     stats = sidecar_path(checkpoint, "vecnormalize") if checkpoint is not None else None
     if stats is not None and config.normalize.enabled and not stats.is_file():
         raise FileNotFoundError(
