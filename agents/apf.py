@@ -613,7 +613,7 @@ class APFAgent(ClassicalAgent):
         self.params = self._fixed_params or APFParams.for_scenario(scenario)
         self.guidance = self._fixed_guidance or APFGuidance.for_scenario(scenario)
         self.mission = MissionPlan(scenario, cfg, self.ordering)
-        self.geometry = self.env._geometry
+        self.geometry = self.env.geometry
         self.inflate = cfg.chaser_radius
         self.goal_key: tuple | None = None
         self.virtual: list[VirtualPoint] = []

@@ -271,9 +271,17 @@ def test_capture_requires_distance_and_low_speed():
     assert info["targets_captured"] == 0
     # then come home to the dock slowly: success
     env.reset(seed=0, options={"scenario": scen, "chaser_state": [0.0, 92.0, 0.0, 0.0]})
-    env.step(np.zeros(2, dtype=np.float32))
-    env.unwrapped._state[:] = [0.0, 2.0, 0.0, -0.01]
-    _, reward, terminated, _, info = env.step(np.zeros(2, dtype=np.float32))
+    _, _, _, _, info = env.step(np.zeros(2, dtype=np.float32))
+    assert info["targets_captured"] == 1
+    # double integrator: 5 steps at -a then 5 at +a would cover a·dt²·5² = 90 m and stop 2 m
+    # from the dock (a = 0.036 m/s²); success comes once within 5 m of the dock at <= 0.5 m/s
+    for sign in [-1.0] * 5 + [1.0] * 5:
+        assert not info["is_success"]
+        _, reward, terminated, _, info = env.step(np.array([0.0, 0.72 * sign], dtype=np.float32))
+        if terminated:
+            break
+    position, velocity = info["chaser_state"][:2], info["chaser_state"][2:]
+    assert np.linalg.norm(position) <= 5.0 and np.linalg.norm(velocity) <= 0.5
     assert info["is_success"] and terminated
     assert info["reward_terms"]["success"] == env.config.reward_success
 
@@ -312,7 +320,7 @@ def test_progress_shaping_telescopes_to_potential_difference():
     gamma = 0.9
     env = DebrisFieldEnv(shaping_gamma=gamma, reward_progress=1.0, delta_v_budget=None)
     env.reset(seed=4)
-    phi0 = env._potential
+    phi0 = env.potential
     total, discount = 0.0, 1.0
     rng = np.random.default_rng(0)
     for _ in range(60):
@@ -321,7 +329,7 @@ def test_progress_shaping_telescopes_to_potential_difference():
         discount *= gamma
         if terminated:
             break
-    phi_end = 0.0 if terminated else env._potential
+    phi_end = 0.0 if terminated else env.potential
     assert total == pytest.approx(discount * phi_end - phi0, rel=1e-9, abs=1e-9)
 
 
@@ -332,7 +340,7 @@ def test_held_terminal_potential_telescopes_to_progress_made(gamma):
         shaping_gamma=gamma, shaping_terminal="hold", reward_progress=1.0, delta_v_budget=None
     )
     env.reset(seed=4)
-    phi0 = env._potential
+    phi0 = env.potential
     total, discount = 0.0, 1.0
     rng = np.random.default_rng(0)
     terminated = False
@@ -343,8 +351,8 @@ def test_held_terminal_potential_telescopes_to_progress_made(gamma):
         if terminated:
             break
     assert terminated  # random thrust ends the episode (a crash or leaving the bounds)
-    assert env._potential < -0.5  # far from done: the refund would have been large
-    assert total == pytest.approx(discount * env._potential - phi0, rel=1e-9, abs=1e-9)
+    assert env.potential < -0.5  # far from done: the refund would have been large
+    assert total == pytest.approx(discount * env.potential - phi0, rel=1e-9, abs=1e-9)
 
 
 def test_observation_is_normalised_and_named():
@@ -369,7 +377,7 @@ def test_obstacle_slots_hold_nearest_gaps():
     env = DebrisFieldEnv(obs_obstacles=4)
     obs, _ = env.reset(seed=2)
     values = dict(zip(env.observation_names(), obs))
-    geom = env._geometry
+    geom = env.geometry
     gaps = geom.signed_distance(np.zeros(2))[len(env.scenario.targets) :]
     half = env.scenario.size / 2
     expected = np.sort(gaps)[:4] / half
@@ -420,10 +428,10 @@ def test_bad_kwargs_raise_value_error_naming_the_key(kwargs, fragment):
 def test_bad_continuous_actions_raise(action):
     env = DebrisFieldEnv()
     env.reset(seed=0)
-    state = env._state.copy()
+    state = env.chaser_state
     with pytest.raises(ValueError, match="action"):
         env.step(action)
-    np.testing.assert_array_equal(env._state, state)  # nothing propagated
+    np.testing.assert_array_equal(env.chaser_state, state)  # nothing propagated
 
 
 @pytest.mark.parametrize("action", [5, -1, 2.5, np.array([1, 2])])
@@ -655,13 +663,13 @@ def assert_progress_telescopes(seed: int, steps: int, **kwargs) -> None:
     """With γ = 1 and 'hold' the progress terms of random flights sum to w · (Φ(end) − Φ(start))."""
     env = DebrisFieldEnv(shaping_gamma=1.0, shaping_terminal="hold", **kwargs)
     env.reset(seed=seed)
-    phi0, total, rng = env._potential, 0.0, np.random.default_rng(seed)
+    phi0, total, rng = env.potential, 0.0, np.random.default_rng(seed)
     for _ in range(steps):
         _, _, terminated, _, info = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
         total += info["reward_terms"]["progress"]
         if terminated:
             break
-    assert total == pytest.approx(env.config.reward_progress * (env._potential - phi0), rel=1e-9)
+    assert total == pytest.approx(env.config.reward_progress * (env.potential - phi0), rel=1e-9)
 
 
 def test_clearance_shaping_hand_computed():
@@ -673,10 +681,10 @@ def test_clearance_shaping_hand_computed():
     goal_gap = math.hypot(150.0, 100.0) - 5.0 - 1.0  # to the target, surface to surface
     clearance = (200.0 - 150.0) - 20.0 - 1.0  # 29 m to the obstacle circle
     expected = -(goal_gap / 500.0 + 1.0) - 2.0 * (1.0 - clearance / 50.0) ** 2
-    assert env._potential == pytest.approx(expected, rel=1e-12)
+    assert env.potential == pytest.approx(expected, rel=1e-12)
     # beyond the distance the term is zero: Φ as without it
     env.reset(options={"scenario": scen, "chaser_state": [0.0, 80.0, 0.0, 0.0]})
-    assert env._potential == pytest.approx(-((100.0 - 80.0 - 6.0) / 500.0 + 1.0), rel=1e-12)
+    assert env.potential == pytest.approx(-((100.0 - 80.0 - 6.0) / 500.0 + 1.0), rel=1e-12)
     # the nearest of several obstacles counts, polygons by their surface
     square = ((-10.0, -10.0), (10.0, -10.0), (10.0, 10.0), (-10.0, 10.0))
     scen = simple_scenario(
@@ -689,7 +697,7 @@ def test_clearance_shaping_hand_computed():
     goal_gap = math.hypot(70.0, 100.0) - 6.0
     clearance = (100.0 - 70.0) - 10.0 - 1.0  # 19 m to the square's right edge
     expected = -(goal_gap / 500.0 + 1.0) - 2.0 * (1.0 - clearance / 50.0) ** 2
-    assert env._potential == pytest.approx(expected, rel=1e-12)
+    assert env.potential == pytest.approx(expected, rel=1e-12)
     # with γ = 1 and 'hold' the progress terms still telescope to Φ(end) − Φ(start)
     assert_progress_telescopes(n_obstacles=60, seed=5, steps=80, **kwargs)
 
@@ -703,13 +711,13 @@ def test_closing_shaping_hand_computed():
     goal_gap = math.hypot(170.0, 100.0) - 6.0
     clearance = (200.0 - 170.0) - 20.0 - 1.0  # 9 m to the obstacle, closing at 2 m/s
     term = 2.0 * (2.0 - 0.5) / 5.0 * (1.0 - clearance / 20.0)
-    assert env._potential == pytest.approx(-(goal_gap / 500.0 + 1.0) - term, rel=1e-12)
+    assert env.potential == pytest.approx(-(goal_gap / 500.0 + 1.0) - term, rel=1e-12)
     # moving away from it: no term
     env.reset(options={"scenario": scen, "chaser_state": [170.0, 0.0, -2.0, 0.0]})
-    assert env._potential == pytest.approx(-(goal_gap / 500.0 + 1.0), rel=1e-12)
+    assert env.potential == pytest.approx(-(goal_gap / 500.0 + 1.0), rel=1e-12)
     # closing on the goal itself is the approach-speed term's business, not this one's
     env.reset(options={"scenario": scen, "chaser_state": [0.0, 88.0, 0.0, 2.0]})
-    assert env._potential == pytest.approx(-((100.0 - 88.0 - 6.0) / 500.0 + 1.0), rel=1e-12)
+    assert env.potential == pytest.approx(-((100.0 - 88.0 - 6.0) / 500.0 + 1.0), rel=1e-12)
     assert_progress_telescopes(n_obstacles=60, seed=9, steps=80, **kwargs)
 
 
@@ -737,8 +745,8 @@ def test_approach_speed_shaping_hand_computed():
     gap = 100.0 - 80.0 - 5.0 - 1.0  # chaser surface to target surface, m
     allowed = 0.5 + 0.01 * gap
     expected = -(gap / 500.0 + 1.0) - 2.0 * (3.0 - allowed) / 5.0  # the dock is the goal after
-    assert env._potential == pytest.approx(expected, rel=1e-12)
+    assert env.potential == pytest.approx(expected, rel=1e-12)
     env.reset(options={"scenario": scen, "chaser_state": [0.0, 80.0, 0.0, 0.5]})  # under it
-    assert env._potential == pytest.approx(-(gap / 500.0 + 1.0), rel=1e-12)
+    assert env.potential == pytest.approx(-(gap / 500.0 + 1.0), rel=1e-12)
     # with γ = 1 and 'hold', the progress terms still sum to Φ(end) − Φ(start)
     assert_progress_telescopes(seed=3, steps=60, **kwargs)

@@ -129,19 +129,14 @@ class DebrisFieldEnv(gym.Env):
         return np.asarray(self._trail)
 
     @property
-    def _state(self) -> np.ndarray:
-        """The chaser state itself (a view: writing to it moves the chaser)."""
-        return self._missions.state[0]
-
-    @property
-    def _potential(self) -> float:
-        """The shaping potential Φ of the current state."""
+    def potential(self) -> float:
+        """The shaping potential Φ of the current state (dimensionless, docs/environments.md)."""
         return float(self._missions.potential[0])
 
     @property
-    def _geometry(self) -> FieldGeometry:
-        """numpy / pymunk geometry of the current field, bodies inflated by the chaser radius
-        (built on first use; the planners' collision and clearance queries)."""
+    def geometry(self) -> FieldGeometry:
+        """Geometry of the current field, bodies inflated by the chaser radius (built on first
+        use): the clearance and collision queries planners share with the env."""
         if self._field_geometry is None:
             self._field_geometry = FieldGeometry(self.scenario, inflate=self.config.chaser_radius)
         return self._field_geometry
@@ -291,6 +286,7 @@ class DebrisFieldEnv(gym.Env):
             "collision": bool(m.collision[0]),
             "out_of_bounds": bool(m.out_of_bounds[0]),
             "is_success": bool(m.success[0]),
+            "applied_accel": m.accel[0].copy(),
             "reward_terms": terms,
         }
 

@@ -337,6 +337,7 @@ class DebrisFieldVectorEnv(VectorEnv):
             "collision": m.collision.copy(),
             "out_of_bounds": m.out_of_bounds.copy(),
             "is_success": m.success.copy(),
+            "applied_accel": m.accel.copy(),
         }
         info: dict[str, Any] = {}
         for key, value in values.items():
