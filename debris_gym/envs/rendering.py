@@ -9,7 +9,9 @@ only on the world's bounds, dimension and name and is drawn once; the *field* la
 target labels) is drawn on top of it once per scenario; each frame restores that cached picture
 and draws only the dynamic artists (targets, trail, chaser, thrust arrow, status numbers) on top
 ("blitting"). Frames are rendered off screen with Agg in both modes; ``"human"`` also shows them in
-a pyplot window.
+a pyplot window. Without a display (or with a non-interactive matplotlib backend) ``"human"`` keeps
+drawing off screen and says so once with a :class:`NoDisplayWarning`, as gymnasium's pygame envs do
+under SDL's dummy video driver, so headless checks such as ``check_env`` still run.
 
 Matplotlib is imported only when a :class:`Renderer` is built, so importing the env stays light.
 """
@@ -18,6 +20,7 @@ from __future__ import annotations
 
 import os
 import sys
+import warnings
 from typing import Any
 
 import numpy as np
@@ -81,17 +84,16 @@ def _import_matplotlib() -> Any:
     return matplotlib
 
 
-def _interactive_pyplot() -> Any:
-    """pyplot on an interactive backend, or a RuntimeError saying why there is none."""
-    _import_matplotlib()
-    hint = (
-        "render_mode='human' needs a display and an interactive matplotlib backend; "
-        "use render_mode='rgb_array' to get frames as arrays instead"
-    )
+class NoDisplayWarning(UserWarning):
+    """``render_mode="human"`` found no window to show frames in and draws them off screen."""
+
+
+def _window_pyplot() -> tuple[Any, str]:
+    """pyplot on an interactive backend and ``""``, or ``None`` and the reason there is none."""
     if sys.platform.startswith("linux") and not (
         os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
     ):
-        raise RuntimeError(f"{hint} (neither DISPLAY nor WAYLAND_DISPLAY is set)")
+        return None, "neither DISPLAY nor WAYLAND_DISPLAY is set"
     import matplotlib.pyplot as plt
 
     backend = str(plt.get_backend()).lower()
@@ -104,8 +106,19 @@ def _interactive_pyplot() -> Any:
 
         interactive = {b.lower() for b in rcsetup.interactive_bk}
     if backend not in interactive and not backend.startswith("module://"):
-        raise RuntimeError(f"{hint} (the matplotlib backend is {backend!r})")
-    return plt
+        return None, f"the matplotlib backend {backend!r} is not interactive"
+    return plt, ""
+
+
+def _warn_no_window(reason: str) -> None:
+    warnings.warn(
+        f"render_mode='human' cannot open a window ({reason}); frames are drawn off screen and "
+        "not shown. To see them, run with a display: set DISPLAY (a desktop session, `ssh -X`, "
+        "or `xvfb-run python ...`) and use an interactive matplotlib backend (e.g. "
+        "MPLBACKEND=TkAgg). To get the frames as arrays, use render_mode='rgb_array'.",
+        NoDisplayWarning,
+        stacklevel=2,
+    )
 
 
 class _Panel:
@@ -135,8 +148,9 @@ class Renderer:
         mode: ``"rgb_array"`` (return frames) or ``"human"`` (also show them in a window).
         fps: frame rate of the ``"human"`` window (it pauses ``1 / fps`` s per frame).
 
-    Raises:
-        RuntimeError: ``mode="human"`` without a display or an interactive matplotlib backend.
+    Warns:
+        NoDisplayWarning: ``mode="human"`` without a display or an interactive matplotlib
+            backend; frames are then drawn (and returned by :meth:`draw`) but not shown.
     """
 
     def __init__(self, mode: str, fps: int = 15) -> None:
@@ -147,7 +161,11 @@ class Renderer:
         self.mode = mode
         self.fps = fps
         _import_matplotlib()
-        self._plt = _interactive_pyplot() if mode == "human" else None
+        self._plt: Any = None
+        if mode == "human":
+            self._plt, reason = _window_pyplot()
+            if self._plt is None:
+                _warn_no_window(reason)
         self._scenario: Scenario | None = None
         self._layout_key: tuple[Any, ...] | None = None
         self._fig: Any = None
@@ -161,6 +179,11 @@ class Renderer:
         self._window_image: Any = None
 
     # --- public API ---------------------------------------------------------------------------
+
+    @property
+    def on_screen(self) -> bool:
+        """Whether frames are shown in a window (``"human"`` with a display)."""
+        return self._plt is not None
 
     def draw(
         self,
@@ -222,7 +245,7 @@ class Renderer:
         rgba = np.asarray(canvas.buffer_rgba())
         # Channel by channel: several times faster than copying the strided rgba[..., :3].
         frame = np.stack([rgba[..., 0], rgba[..., 1], rgba[..., 2]], axis=-1)
-        if self.mode == "human":
+        if self._plt is not None:
             self._show(frame)
         return frame
 
