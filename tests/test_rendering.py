@@ -243,3 +243,37 @@ def test_human_mode_window_path(monkeypatch: pytest.MonkeyPatch) -> None:
         assert env.render() is None
         env.close()
     assert not plt.fignum_exists(window.number)
+
+
+def test_record_video_writes_the_episode(tmp_path) -> None:
+    """``RecordVideo`` (needs the ``video`` extra) writes every frame of an episode to an mp4."""
+    pytest.importorskip("moviepy", reason="RecordVideo needs moviepy: pip install -e '.[video]'")
+    from gymnasium.wrappers import RecordVideo
+    from moviepy import VideoFileClip
+
+    steps = 12
+    env = gym.make(ENV_IDS[0], render_mode="rgb_array", max_episode_steps=steps)
+    folder = tmp_path / "videos"
+    env = RecordVideo(env, video_folder=str(folder), episode_trigger=lambda episode: True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # e.g. "zero frames to save" or a wrong frame type
+        env.reset(seed=0)
+        frame_shape = env.render().shape
+        truncated = terminated = False
+        taken = 0
+        while not (terminated or truncated):
+            _, _, terminated, truncated, _ = env.step(np.zeros(2, np.float32))
+            taken += 1
+        env.close()
+    assert truncated and taken == steps
+    videos = sorted(folder.iterdir())
+    assert [v.name for v in videos] == ["rl-video-episode-0.mp4"]
+    assert videos[0].stat().st_size > 1000
+    clip = VideoFileClip(str(videos[0]))
+    try:
+        assert tuple(clip.size) == (frame_shape[1], frame_shape[0])
+        assert clip.fps == env.metadata["render_fps"]
+        # The reset frame and one per step; moviepy's writer may leave out the last one.
+        assert sum(1 for _ in clip.iter_frames()) in (steps, steps + 1)
+    finally:
+        clip.close()
