@@ -220,29 +220,77 @@ def test_check_env_passes_headless_for_human_mode() -> None:
     assert int(out.stdout.split()[-1]) >= 1  # it said why nothing is shown
 
 
-def test_human_mode_window_path(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The human path (window, updates, close), with pyplot on Agg standing in for a display."""
-    import matplotlib.pyplot as plt
+HUMAN_WINDOW = """
+import sys
+import warnings
+import gymnasium as gym
+import matplotlib.pyplot as plt
+import numpy as np
+import debris_gym
+from debris_gym.envs import rendering
 
-    def agg_pyplot():
-        plt.switch_backend("agg")
-        return plt, ""
+if sys.argv[1] == "agg":  # the one private seam: pyplot on Agg stands in for a display
+    rendering._window_pyplot = lambda: (plt, "")
+    warnings.filterwarnings("ignore", message=".*non-interactive.*")
+warnings.simplefilter("error", rendering.NoDisplayWarning)
 
-    monkeypatch.setattr(rendering, "_window_pyplot", agg_pyplot)
-    env = gym.make(ENV_IDS[2], render_mode="human")
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message=".*non-interactive.*")
-        env.reset(seed=0)
-        renderer = env.unwrapped._renderer
-        window = renderer._window
-        assert window is not None and plt.fignum_exists(window.number)
-        env.step(np.ones(2, np.float32))
-        assert renderer._window is window  # updated in place, not reopened
-        shown = renderer._window_image.get_array()
-        _check_frame(np.asarray(shown))
-        assert env.render() is None
-        env.close()
-    assert not plt.fignum_exists(window.number)
+def window_image():
+    (number,) = plt.get_fignums()
+    (image,) = plt.figure(number).axes[0].images
+    return number, np.array(image.get_array())
+
+env = gym.make("DebrisGym/PaperField2D-v0", render_mode="human")
+reference = gym.make("DebrisGym/PaperField2D-v0", render_mode="rgb_array")
+try:
+    env.reset(seed=0)
+except rendering.NoDisplayWarning as warning:
+    print("skip:", warning)
+    raise SystemExit(0)
+reference.reset(seed=0)
+number, first = window_image()
+np.testing.assert_array_equal(first, reference.render())
+for _ in range(3):
+    env.step(np.ones(2, np.float32))
+    reference.step(np.ones(2, np.float32))
+again, shown = window_image()
+assert again == number  # updated in place, not reopened
+np.testing.assert_array_equal(shown, reference.render())
+assert not np.array_equal(shown, first)
+assert env.render() is None  # human mode shows, it does not return
+env.close()
+assert plt.get_fignums() == []
+print("ok", plt.get_backend())
+"""
+
+
+def _run_human_window(backend: str, environ: dict[str, str]) -> str:
+    """Run HUMAN_WINDOW in a fresh process: pyplot's backend is chosen once per process."""
+    out = subprocess.run(
+        [sys.executable, "-c", HUMAN_WINDOW, backend], env=environ, capture_output=True, text=True
+    )
+    assert out.returncode == 0, out.stderr
+    return out.stdout.strip().splitlines()[-1]
+
+
+def test_human_mode_window_shows_the_frames_on_agg() -> None:
+    """The window path (open, update in place, close) with pyplot on Agg standing in for a screen.
+
+    The window shows exactly the frames ``rgb_array`` returns for the same episode.
+    """
+    environ = {**os.environ, "MPLBACKEND": "agg"}
+    assert _run_human_window("agg", environ) == "ok agg"
+
+
+def test_human_mode_opens_a_real_window(display: str | None) -> None:
+    """The same on a real display (yours, or the Xvfb the ``display`` fixture starts)."""
+    if display is None:
+        pytest.skip("no display: install Xvfb (Debian package xvfb) to run the human window")
+    environ = {k: v for k, v in os.environ.items() if k != "MPLBACKEND"}
+    environ["DISPLAY"] = display
+    last = _run_human_window("auto", environ)
+    if last.startswith("skip:"):
+        pytest.skip(f"no interactive matplotlib backend: {last}")
+    assert last.startswith("ok ") and last != "ok agg"
 
 
 def test_record_video_writes_the_episode(tmp_path) -> None:
