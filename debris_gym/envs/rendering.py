@@ -10,8 +10,8 @@ target labels) is drawn on top of it once per scenario; each frame restores that
 and draws only the dynamic artists (targets, trail, chaser, thrust arrow, status numbers) on top
 ("blitting"). Frames are rendered off screen with Agg in both modes; ``"human"`` also shows them in
 a pyplot window. Without a display (or with a non-interactive matplotlib backend) ``"human"`` keeps
-drawing off screen and says so once with a :class:`NoDisplayWarning`, as gymnasium's pygame envs do
-under SDL's dummy video driver, so headless checks such as ``check_env`` still run.
+drawing off screen, like a pygame env under SDL's dummy video driver, and says so once with a
+:class:`NoDisplayWarning`; headless checks such as gymnasium's ``check_env`` then still run.
 
 Matplotlib is imported only when a :class:`Renderer` is built, so importing the env stays light.
 """
