@@ -152,16 +152,12 @@ def test_renderer_rejects_bad_arguments() -> None:
         rendering.Renderer("rgb_array", fps=0)
 
 
-def _headless(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.delenv("DISPLAY", raising=False)
-    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
-
-
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="display detection is Linux's")
 def test_human_mode_without_display_warns_and_draws_off_screen(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    _headless(monkeypatch)
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     env = gym.make(ENV_IDS[2], render_mode="rgb_array")
     env.reset(seed=0)
     base = env.unwrapped
