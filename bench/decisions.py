@@ -59,24 +59,16 @@ def agents_api() -> AgentsAPI:
     Raises:
         ImportError: the agents package (or something it needs) is missing.
     """
-    import agents
-    from agents.evaluation import (
-        PRETRAINED,
-        agent_env_options,
-        build_agent,
-        make_env,
-        parse_agent_spec,
-        run_episode,
-    )
+    from agents import BASELINES, evaluation
 
     return AgentsAPI(
-        tuple(agents.BASELINES),
-        PRETRAINED,
-        agent_env_options,
-        build_agent,
-        make_env,
-        parse_agent_spec,
-        run_episode,
+        baselines=tuple(BASELINES),
+        pretrained=evaluation.PRETRAINED,
+        agent_env_options=evaluation.agent_env_options,
+        build_agent=evaluation.build_agent,
+        make_env=evaluation.make_env,
+        parse_agent_spec=evaluation.parse_agent_spec,
+        run_episode=evaluation.run_episode,
     )
 
 

@@ -8,6 +8,7 @@ what was not measured and ``error: …`` where a measurement failed.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 from bench.config import CARTPOLE, DEFAULT_OBSTACLES, ID_2D, field_size_for
@@ -42,12 +43,18 @@ def format_report(
     machine = machine_description() if machine is None else machine
     lines = ["# DebrisGym benchmark", "", *machine]
     lines += [f"- Command: `{command}`", f"- Wall time of the run: {elapsed:.0f} s", ""]
-    lines += _single_lines(rows)
-    lines += _vector_lines(rows)
-    lines += _vector_scaling_lines(rows)
-    lines += _memory_lines(rows)
-    lines += _train_lines(rows)
-    lines += _decision_lines(rows)
+    tables: list[tuple[tuple[str, ...], Callable[[list[dict[str, Any]]], list[str]]]] = [
+        (("step", "scaling", "reset"), _single_lines),
+        (("vector",), _vector_lines),
+        (("vector_scaling",), _vector_scaling_lines),
+        (("memory",), _memory_lines),
+        (("train",), _train_lines),
+        (("decisions",), _decision_lines),
+    ]
+    for sections, table in tables:
+        chosen = [r for r in rows if r["section"] in sections]
+        if chosen:
+            lines += table(chosen)
     errors = [r for r in rows if r["error"]]
     if errors:
         lines += ["## Errors", ""]
@@ -59,11 +66,8 @@ def format_report(
 
 
 def _single_lines(rows: list[dict[str, Any]]) -> list[str]:
-    """The single-env step, scaling and reset tables."""
-    single = [r for r in rows if r["section"] in ("step", "scaling", "reset")]
-    if not single:
-        return []
-    repeats = max((r["repeats"] for r in single), default=0)
+    """The single-env step, scaling and reset tables of the rows of those sections."""
+    repeats = max((r["repeats"] for r in rows), default=0)
     lines = [
         f"Each cell: {repeats} interleaved repeats; *median* and *min* are µs per step over the "
         "repeats. Ratios come from the medians; in brackets the smallest and largest ratio of "
@@ -127,19 +131,16 @@ def _single_lines(rows: list[dict[str, Any]]) -> list[str]:
     return [*lines, ""]
 
 
-def _vector_lines(rows: list[dict[str, Any]]) -> list[str]:
-    vec = [r for r in rows if r["section"] == "vector"]
-    if not vec:
-        return []
+def _vector_lines(vec: list[dict[str, Any]]) -> list[str]:
+    """The vector throughput table and the goals it is held against."""
     warm = max(r["warmup_steps"] for r in vec)
     repeats = max(r["repeats"] for r in vec)
     sync = next((r for r in vec if r["level"] == "sync"), None)
     cart = next((r for r in vec if r["env_id"] == CARTPOLE), None)
     sync_n = sync["num_envs"] if sync else "–"
     cart_n = cart["num_envs"] if cart else "–"
-    lines = [
+    lines = _heading(
         "## Vector env throughput",
-        "",
         f"env-steps/s = vector steps × N / seconds; {repeats} interleaved repeats after {warm} "
         "warm-up steps from `reset(seed=0)` (steady state: episodes end and autoreset all the "
         "time). Autoresets run inside `step` and are included. Actions: uniform in [-0.05, 0.05] "
@@ -149,20 +150,15 @@ def _vector_lines(rows: list[dict[str, Any]]) -> list[str]:
         "steps its envs one after the other, so its env-steps/s does not depend on N). *× "
         f"CartPole* is env-steps/s over CartPole-v1's native vector env at N={cart_n}. In "
         "brackets: the smallest and largest ratio of two measurements taken in the same repeat.",
-        "",
         "| backend | env | N | steps/repeat | env-steps/s (median) | env-steps/s (best) "
         "| µs per env-step | episodes ended / 1000 env-steps | `reset(seed)` ms per sub-env "
         f"| × Sync (N={sync_n}) | × CartPole native (N={cart_n}) |",
         "|---|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|",
-    ]
+    )
     for row in vec:
         first = [BACKENDS.get(row["level"], row["level"]), _env_name(row), str(row["num_envs"])]
-        if row["error"] and not math.isfinite(row["env_steps_per_s"]):
-            lines.append(_error_row(first, row["error"], 7))
-            continue
         reset = "–" if row["level"] == "subproc" else _f(row["reset_ms_per_env"], 2)
-        cells = [
-            *first,
+        rest = [
             str(row["count"]),
             _f(row["env_steps_per_s"], 0),
             _f(row["env_steps_per_s_best"], 0),
@@ -172,7 +168,7 @@ def _vector_lines(rows: list[dict[str, Any]]) -> list[str]:
             _range(row, "ratio_sync"),
             _range(row, "ratio_cartpole", 4),
         ]
-        lines.append(_table_row(cells))
+        lines.append(_line(row, first, rest, "env_steps_per_s"))
 
     def native(n: int | None = None) -> list[dict[str, Any]]:
         return [
@@ -234,34 +230,26 @@ def _vector_lines(rows: list[dict[str, Any]]) -> list[str]:
     return [*lines, ""]
 
 
-def _vector_scaling_lines(rows: list[dict[str, Any]]) -> list[str]:
-    scal = [r for r in rows if r["section"] == "vector_scaling"]
-    if not scal:
-        return []
-    lines = [
+def _vector_scaling_lines(scal: list[dict[str, Any]]) -> list[str]:
+    """The vector env's table against the debris count."""
+    lines = _heading(
         f"## Vector env: scaling with debris count (`{ID_2D}`, native)",
-        "",
         "field_size = 1000 m · sqrt(max(1, n/20)). Timed right after `reset(seed=0)` (a few "
         "warm-up steps, then at most "
         f"{max(r['warmup_steps'] + r['count'] * r['repeats'] for r in scal)} steps in all), so "
         "this is the *step* cost with (almost) no autoresets; the reset cost per sub-env is the "
         "first `reset(seed=0)` of all N sub-envs divided by N. Cost is relative to 20 debris at "
         "the same N.",
-        "",
         "| n_obstacles | field_size (m) | N | steps/repeat | env-steps/s (median) "
         "| env-steps/s (best) | µs per env-step | episodes ended / 1000 env-steps "
         "| `reset(seed)` ms per sub-env | cost × 20 debris (same N) |",
         "|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|",
-    ]
+    )
     for row in scal:
         n = row["n_obstacles"]
         label = f"{n} (reference)" if n == DEFAULT_OBSTACLES else str(n)
         first = [label, _f(row["field_size"], 0), str(row["num_envs"])]
-        if row["error"] and not math.isfinite(row["env_steps_per_s"]):
-            lines.append(_error_row(first, row["error"], 6))
-            continue
-        cells = [
-            *first,
+        rest = [
             str(row["count"]),
             _f(row["env_steps_per_s"], 0),
             _f(row["env_steps_per_s_best"], 0),
@@ -270,14 +258,13 @@ def _vector_scaling_lines(rows: list[dict[str, Any]]) -> list[str]:
             _f(row["reset_ms_per_env"], 2),
             _range(row, "ratio"),
         ]
-        lines.append(_table_row(cells))
+        lines.append(_line(row, first, rest, "env_steps_per_s"))
     return [*lines, ""]
 
 
 def _memory_lines(rows: list[dict[str, Any]]) -> list[str]:
-    row = next((r for r in rows if r["section"] == "memory"), None)
-    if row is None:
-        return []
+    """The memory summary (of the first memory row) and its biggest arrays."""
+    row = rows[0]
     lines = [f"## Memory per sub-env (`{ID_2D}`, native, {DEFAULT_OBSTACLES} debris)", ""]
     if row["error"]:
         return [*lines, f"error: {row['error']}", ""]
@@ -323,13 +310,10 @@ def _memory_lines(rows: list[dict[str, Any]]) -> list[str]:
     return [*lines, ""]
 
 
-def _train_lines(rows: list[dict[str, Any]]) -> list[str]:
-    train = [r for r in rows if r["section"] == "train"]
-    if not train:
-        return []
-    lines = [
+def _train_lines(train: list[dict[str, Any]]) -> list[str]:
+    """The PPO throughput table and the goal it is held against."""
+    lines = _heading(
         f"## Training throughput (SB3 PPO on `{ID_2D}`)",
-        "",
         '`PPO("MlpPolicy", venv, n_steps, batch_size, n_epochs, device="cpu")`, torch with 1 '
         "thread. Timed: `model.learn(rollouts × n_steps × N, reset_num_timesteps=False)` after "
         "one warm-up rollout + update (which also did the env reset). The split: *env* = time "
@@ -337,19 +321,14 @@ def _train_lines(rows: list[dict[str, Any]]) -> list[str]:
         "`collect_rollouts` (policy forward, buffer, SB3 bookkeeping), *update* = the rest of "
         "`learn` (`train()`). *× Dummy* = end-to-end env-steps/s over the DummyVecEnv row's "
         "(paired range in brackets). The DummyVecEnv holds single envs made by `gym.make`.",
-        "",
         "| VecEnv | N | n_steps | batch | epochs | timed env-steps | env-steps/s end to end "
         "(median) | best | × Dummy | env % | policy & rest % | update % | rollout env-steps/s "
         "| env-only env-steps/s | policy forward ms (N obs) | episodes ended / 1000 |",
         "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|",
-    ]
+    )
     for row in train:
         first = [f"`{row['level']}`", str(row["num_envs"])]
-        if row["error"] and not math.isfinite(row["env_steps_per_s"]):
-            lines.append(_error_row(first, row["error"], 13))
-            continue
-        cells = [
-            *first,
+        rest = [
             str(row["n_steps"]),
             str(row["batch_size"]),
             str(row["n_epochs"]),
@@ -365,7 +344,7 @@ def _train_lines(rows: list[dict[str, Any]]) -> list[str]:
             _f(row["forward_ms"], 2),
             _f(row["ends_per_1000"], 2),
         ]
-        lines.append(_table_row(cells))
+        lines.append(_line(row, first, rest, "env_steps_per_s"))
     lines += ["", f"Goal ≥ {GOAL_TRAIN:,} env-steps/s end to end:", ""]
     for row in train:
         if row["level"] == "NativeVecEnv":
@@ -376,15 +355,12 @@ def _train_lines(rows: list[dict[str, Any]]) -> list[str]:
     return [*lines, ""]
 
 
-def _decision_lines(rows: list[dict[str, Any]]) -> list[str]:
-    decisions = [r for r in rows if r["section"] == "decisions"]
-    if not decisions:
-        return []
+def _decision_lines(decisions: list[dict[str, Any]]) -> list[str]:
+    """The decision-time table."""
     episodes = max((r["episodes"] for r in decisions), default=0)
     step_us = next((r["env_step_us"] for r in decisions if math.isfinite(r["env_step_us"])), None)
-    lines = [
+    lines = _heading(
         f"## Decision times (`{ID_2D}`)",
-        "",
         f"Every agent flies the same {episodes} mission(s) of the default evaluation (`python "
         f"evaluate.py`, reset seeds {DECISION_SEED}, {DECISION_SEED + 1}, …), mission by mission "
         "in turn, and every `agent.predict(obs, state, episode_start, deterministic=True)` call "
@@ -397,18 +373,13 @@ def _decision_lines(rows: list[dict[str, Any]]) -> list[str]:
         "`env.step` of the same env through `gym.make`"
         + (f" ({step_us:.1f} µs)" if step_us is not None else "")
         + ", timed between the missions in the same run.",
-        "",
         "| agent | missions | decisions | successes | p50 ms | p95 ms | max ms "
         "| first call ms | later calls p50 ms | p50 in env steps |",
         "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|",
-    ]
+    )
     for row in decisions:
         first = [f"`{row['agent']}`"]
-        if row["error"] and not math.isfinite(row["p50_ms"]):
-            lines.append(_error_row(first, row["error"], 8))
-            continue
-        cells = [
-            *first,
+        rest = [
             str(row["episodes"]),
             f"{row['decisions']:,}",
             str(row["successes"]),
@@ -419,18 +390,14 @@ def _decision_lines(rows: list[dict[str, Any]]) -> list[str]:
             _f(row["later_p50_ms"], 3),
             _f(row["p50_steps"], 1),
         ]
-        lines.append(_table_row(cells))
+        lines.append(_line(row, first, rest, "p50_ms"))
     return [*lines, ""]
 
 
 def _step_line(
     row: dict[str, Any], first: list[str], ratio: str, extra: list[str] | None = None
 ) -> str:
-    extra = extra or []
-    if row["error"] and not math.isfinite(row["median_us"]):
-        return _error_row(first, row["error"], 6 + len(extra))
-    cells = [
-        *first,
+    rest = [
         str(row["count"]),
         _f(row["median_us"], 2),
         _f(row["min_us"], 2),
@@ -438,9 +405,9 @@ def _step_line(
         _f(row["steps_per_s_wall"], 0),
         _f(row["resets_per_1000"], 2),
         ratio,
-        *extra,
+        *(extra or []),
     ]
-    return _table_row(cells)
+    return _line(row, first, rest, "median_us")
 
 
 def _name_row(row: dict[str, Any]) -> str:
@@ -483,8 +450,21 @@ def _verdict(value: float, goal: float, higher: bool = True) -> str:
     return f"{'met' if met else 'missed'} ({value / goal:.2f}× {what})"
 
 
+def _heading(title: str, text: str, header: str, align: str) -> list[str]:
+    """The lines that open a section: its title, a paragraph, a table's header and alignment."""
+    return [title, "", text, "", header, align]
+
+
 def _table_row(cells: list[str]) -> str:
     return "| " + " | ".join(cells) + " |"
+
+
+def _line(row: dict[str, Any], first: list[str], rest: list[str], measured: str) -> str:
+    """A table row of ``first`` and ``rest`` cells; where the measurement failed and left
+    ``row[measured]`` unmeasured, the error message and empty cells in place of ``rest``."""
+    if row["error"] and not math.isfinite(row[measured]):
+        return _error_row(first, row["error"], len(rest) - 1)
+    return _table_row([*first, *rest])
 
 
 def _error_row(first: list[str], error: str, blanks: int) -> str:
