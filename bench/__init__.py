@@ -2,8 +2,8 @@
 
 Run from the repo root::
 
-    python bench/run.py                       # every section (~5 min on a 2-core machine)
-    python bench/run.py --quick               # ~1-3 min, fewer / shorter repeats, smaller N
+    python bench/run.py                       # every section
+    python bench/run.py --quick               # fewer / shorter repeats, smaller N
     python bench/run.py --only vector,train   # some sections only
     python bench/run.py --out docs/bench_table.md
     python -m bench --quick                   # the same command line

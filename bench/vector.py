@@ -9,8 +9,8 @@ What is timed: ``venv.step(actions)`` with actions pre-generated as for the sing
 (N, …) batch per step. Autoresets happen inside ``step`` and are part of the time (they cannot be
 clocked apart); the rows count the episodes that ended in the timed windows. Every vector env
 first runs ``warmup_steps`` steps from ``reset(seed=0)``, so the timed windows are in the steady
-state where episodes end and restart all the time (all sub-envs start at the dock together, and
-the first episodes end only after about 100 steps).
+state where episodes end and restart all the time: all sub-envs start at the dock together, and
+no episode ends before the first missions have run their course.
 
 The :class:`VecMeasurement` and the row builder here also serve the ``scaling`` section
 (:mod:`bench.scaling`).
