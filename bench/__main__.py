@@ -4,4 +4,4 @@ import sys
 
 from bench.cli import main
 
-sys.exit(main(command="python -m bench"))
+sys.exit(main(command="python -m bench", prog="python -m bench"))

@@ -20,17 +20,19 @@ from debris_gym.files import write_atomic
 DESCRIPTION = "Step and reset throughput of the DebrisGym environments, relative to CartPole-v1."
 
 
-def main(argv: list[str] | None = None, command: str = "python bench/run.py") -> int:
+def main(
+    argv: list[str] | None = None, command: str = "python bench/run.py", prog: str | None = None
+) -> int:
     """Parse ``argv``, run the benchmark, print (and write) the report.
 
     Args:
         argv: the options (default: ``sys.argv[1:]``).
-        command: how the benchmark was started, for the report's "Command" line and the usage.
+        command: how the benchmark was started, for the report's "Command" line.
+        prog: the program's name in the usage (default: the script's file name).
 
     Returns:
         The exit status: 0, or 1 if a measurement failed (its row says why).
     """
-    prog = None if command == "python bench/run.py" else command
     parser = argparse.ArgumentParser(prog=prog, description=DESCRIPTION)
     parser.add_argument("--quick", action="store_true", help="fewer, shorter repeats, smaller N")
     parser.add_argument(

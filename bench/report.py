@@ -39,7 +39,18 @@ def format_report(
     elapsed: float,
     machine: list[str] | None = None,
 ) -> str:
-    """Markdown report: machine description, then one block of tables per section present."""
+    """Markdown report: machine description, then one block of tables per section present.
+
+    Args:
+        rows: rows of :func:`bench.suite.run`, of any sections.
+        command: the command line to quote in the header.
+        elapsed: wall time of the run (s).
+        machine: the header's machine lines (default: :func:`machine_description` now; the CLI
+            takes them before the run, so the load average is the one at its start).
+
+    Returns:
+        The report, ending in one newline; an "Errors" list closes it if any row has an error.
+    """
     machine = machine_description() if machine is None else machine
     lines = ["# DebrisGym benchmark", "", *machine]
     lines += [f"- Command: `{command}`", f"- Wall time of the run: {elapsed:.0f} s", ""]
