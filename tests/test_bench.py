@@ -1,35 +1,33 @@
-"""Smoke test of bench/run.py: every measurement of every section runs and lands in the report.
+"""Smoke test of the bench package: every measurement of every section runs and lands in the
+report, and the harness interleaves, isolates failures and tears down.
 
 No timing assertions: speeds on shared machines are noise; only their presence is checked. The
-vector, scaling, memory and training sections run at the tiny sizes of ``bench.TINY`` (a few
-envs, a few steps, a 256-step PPO learn).
+vector, scaling, memory and training sections run at the tiny sizes of ``bench.config.TINY`` (a
+few envs, a few steps, a 256-step PPO learn).
 """
 
 from __future__ import annotations
 
-import importlib.util
 import math
+import subprocess
 import sys
 from pathlib import Path
 
+import gymnasium as gym
+import numpy as np
 import pytest
 
-BENCH = Path(__file__).resolve().parents[1] / "bench" / "run.py"
+import bench
+from bench import cli, config, decisions, harness, memory, suite, vector
+from bench.config import CARTPOLE, DEBRIS_IDS, DEFAULT_OBSTACLES, ID_2D, ID_3D, TINY
+from debris_gym.files import write_atomic
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
-def bench():
-    spec = importlib.util.spec_from_file_location("debris_bench_run", BENCH)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up while being built
-    spec.loader.exec_module(module)
-    yield module
-    sys.modules.pop(spec.name, None)
-
-
-@pytest.fixture(scope="module")
-def all_rows(bench):
-    return bench.run(quick=True, steps=20, resets=1, progress=False, sizes=bench.TINY)
+def all_rows():
+    return bench.run(quick=True, steps=20, resets=1, progress=False, sizes=TINY)
 
 
 @pytest.fixture(scope="module")
@@ -41,8 +39,8 @@ def _finite_positive(x):
     return x is not None and math.isfinite(x) and x > 0
 
 
-def test_every_env_has_a_step_row_at_both_wrapper_levels(bench, rows):
-    for env_id in (*bench.DEBRIS_IDS, bench.CARTPOLE):
+def test_every_env_has_a_step_row_at_both_wrapper_levels(rows):
+    for env_id in (*DEBRIS_IDS, CARTPOLE):
         for level in ("make", "unwrapped"):
             found = [
                 r
@@ -56,71 +54,72 @@ def test_every_env_has_a_step_row_at_both_wrapper_levels(bench, rows):
             assert row["count"] == 20
             assert row["steps_per_s"] > 0 and math.isfinite(row["steps_per_s"])
             assert row["ratio"] > 0
-    cartpole = [r for r in rows if r["section"] == "step" and r["env_id"] == bench.CARTPOLE]
+    cartpole = [r for r in rows if r["section"] == "step" and r["env_id"] == CARTPOLE]
     assert all(r["ratio"] == pytest.approx(1.0) for r in cartpole)
 
 
-def test_variants_scaling_and_resets_are_measured(bench, rows):
+def test_variants_scaling_and_resets_are_measured(rows):
     variants = {r["variant"] for r in rows if r["section"] == "step"}
     assert {"observation=lidar", "action=discrete"} <= variants
     scaling = {r["n_obstacles"]: r for r in rows if r["section"] == "scaling"}
-    assert sorted(scaling) == sorted(bench.SCALING_COUNTS)
+    assert sorted(scaling) == sorted(config.SCALING_COUNTS)
     for n, row in scaling.items():
-        assert row["field_size"] == pytest.approx(bench.field_size_for(n))
+        assert row["field_size"] == pytest.approx(config.field_size_for(n))
         # A generator failure is reported in the row, not raised; either way the row exists.
         assert row["error"] is not None or row["steps_per_s"] > 0
     resets = {r["env_id"]: r for r in rows if r["section"] == "reset"}
-    assert set(resets) == {*bench.DEBRIS_IDS, bench.CARTPOLE}
+    assert set(resets) == {*DEBRIS_IDS, CARTPOLE}
     assert all(r["median_us"] > 0 for r in resets.values())
 
 
-def test_report_has_machine_header_and_a_line_per_row(bench, rows):
+def test_report_has_machine_header_and_a_line_per_row(rows):
     report = bench.format_report(rows, command="python bench/run.py --quick", elapsed=1.0)
     assert report.startswith("# DebrisGym benchmark")
     assert "- CPU: " in report and "gymnasium" in report and "pymunk" in report
-    for env_id in (*bench.DEBRIS_IDS, bench.CARTPOLE):
+    for env_id in (*DEBRIS_IDS, CARTPOLE):
         assert report.count(f"`{env_id}`") >= 3  # make, unwrapped, reset
     assert "| 1000 | 7,071 |" in report
 
 
-def test_write_atomic_replaces_the_file(bench, tmp_path):
+def test_write_atomic_replaces_the_file(tmp_path):
     out = tmp_path / "sub" / "table.md"
-    bench.write_atomic(str(out), "old\n")
-    bench.write_atomic(str(out), "new\n")
+    write_atomic(str(out), "old\n")
+    write_atomic(str(out), "new\n")
     assert out.read_text() == "new\n"
     assert [p.name for p in out.parent.iterdir()] == ["table.md"]  # no temp file left behind
 
 
-def test_sections_are_selectable(bench):
-    assert bench.SECTIONS == ("single", "vector", "scaling", "memory", "train", "decisions")
-    assert bench._sections(["train", "vector"]) == ("vector", "train")  # run order
-    assert bench._sections(None) == bench.SECTIONS
+def test_sections_are_selectable():
+    assert bench.SECTIONS is suite.SECTIONS
+    assert suite.SECTIONS == ("single", "vector", "scaling", "memory", "train", "decisions")
+    assert suite.choose_sections(["train", "vector"]) == ("vector", "train")  # run order
+    assert suite.choose_sections(None) == suite.SECTIONS
     with pytest.raises(ValueError, match="unknown section"):
-        bench._sections(["single", "nope"])
+        suite.choose_sections(["single", "nope"])
     rows = bench.run(
         quick=True,
         steps=3,
         progress=False,
         sections=["scaling"],
-        sizes={**bench.TINY, "scaling_rows": ((10, 2),)},
+        sizes={**TINY, "scaling_rows": ((10, 2),)},
     )
     assert {r["section"] for r in rows} == {"vector_scaling"}
     assert sorted(r["n_obstacles"] for r in rows) == [10, 20]  # the reference is added
 
 
-def test_vector_section_rows(bench, all_rows):
+def test_vector_section_rows(all_rows):
     vec = [r for r in all_rows if r["section"] == "vector"]
-    tiny = bench.TINY
+    tiny = TINY
     keys = {(r["level"], r["env_id"], r["variant"], r["num_envs"]) for r in vec}
-    expected = {("native", bench.CARTPOLE, "", tiny["cartpole_envs"])}
-    expected |= {("native", bench.ID_2D, "", n) for n in tiny["vector_envs"]}
-    expected |= {("native", bench.ID_3D, "", tiny["vector_variant_envs"])}
-    expected |= {("native", bench.ID_2D, "observation=lidar", tiny["vector_variant_envs"])}
-    expected |= {("sync", bench.ID_2D, "", tiny["sync_envs"])}
-    expected |= {("subproc", bench.ID_2D, "", n) for n in tiny["subproc_envs"]}
-    if bench.numba_threads() >= 2:  # the default env again, stepped by two threads
+    expected = {("native", CARTPOLE, "", tiny["cartpole_envs"])}
+    expected |= {("native", ID_2D, "", n) for n in tiny["vector_envs"]}
+    expected |= {("native", ID_3D, "", tiny["vector_variant_envs"])}
+    expected |= {("native", ID_2D, "observation=lidar", tiny["vector_variant_envs"])}
+    expected |= {("sync", ID_2D, "", tiny["sync_envs"])}
+    expected |= {("subproc", ID_2D, "", n) for n in tiny["subproc_envs"]}
+    if vector.numba_threads() >= 2:  # the default env again, stepped by two threads
         threaded = {tiny["cartpole_envs"], tiny["vector_envs"][-1]}
-        expected |= {("native", bench.ID_2D, "num_threads=2", n) for n in threaded}
+        expected |= {("native", ID_2D, "num_threads=2", n) for n in threaded}
     assert keys == expected
     for row in vec:
         assert row["error"] is None, row["error"]
@@ -129,7 +128,7 @@ def test_vector_section_rows(bench, all_rows):
         assert _finite_positive(row["env_steps_per_s"])
         assert row["env_steps_per_s_best"] >= row["env_steps_per_s"]
         assert row["ends_per_1000"] >= 0
-    native_2d = [r for r in vec if r["level"] == "native" and r["env_id"] == bench.ID_2D]
+    native_2d = [r for r in vec if r["level"] == "native" and r["env_id"] == ID_2D]
     assert all(_finite_positive(r["ratio_cartpole"]) for r in native_2d)
     same_env = [r for r in native_2d if not r["variant"] or r["variant"] == "num_threads=2"]
     assert all(_finite_positive(r["ratio_sync"]) for r in same_env)
@@ -137,27 +136,27 @@ def test_vector_section_rows(bench, all_rows):
     assert all(_finite_positive(r["ratio_sync"]) for r in subproc)
 
 
-def test_vector_scaling_rows(bench, all_rows):
+def test_vector_scaling_rows(all_rows):
     scaling = [r for r in all_rows if r["section"] == "vector_scaling"]
     pairs = {(r["n_obstacles"], r["num_envs"]) for r in scaling}
-    wanted = set(bench.TINY["scaling_rows"])
-    wanted |= {(bench.DEFAULT_OBSTACLES, n) for _, n in bench.TINY["scaling_rows"]}
+    wanted = set(TINY["scaling_rows"])
+    wanted |= {(DEFAULT_OBSTACLES, n) for _, n in TINY["scaling_rows"]}
     assert pairs == wanted
-    assert {n for n, _ in pairs} >= set(bench.SCALING_COUNTS)
+    assert {n for n, _ in pairs} >= set(config.SCALING_COUNTS)
     for row in scaling:
         assert row["error"] is None, row["error"]
-        assert row["field_size"] == pytest.approx(bench.field_size_for(row["n_obstacles"]))
+        assert row["field_size"] == pytest.approx(config.field_size_for(row["n_obstacles"]))
         assert _finite_positive(row["env_steps_per_s"])
         assert _finite_positive(row["reset_ms_per_env"])
         assert _finite_positive(row["ratio"])
-        if row["n_obstacles"] == bench.DEFAULT_OBSTACLES:
+        if row["n_obstacles"] == DEFAULT_OBSTACLES:
             assert row["ratio"] == pytest.approx(1.0)
 
 
-def test_memory_row(bench, all_rows):
+def test_memory_row(all_rows):
     (row,) = [r for r in all_rows if r["section"] == "memory"]
     assert row["error"] is None, row["error"]
-    small, large = bench.TINY["memory_envs"]
+    small, large = TINY["memory_envs"]
     assert (row["small_envs"], row["large_envs"]) == (small, large)
     assert set(row["rss_growth"]) == {small, large}
     assert math.isfinite(row["rss_per_env"])  # RSS moves in pages: at tiny N it may be 0
@@ -174,8 +173,8 @@ def test_memory_row(bench, all_rows):
     assert _finite_positive(row["python_bytes_per_env"]["rngs"])
 
 
-def test_memory_child_counts_every_array(bench):
-    out = bench.memory_child(2)
+def test_memory_child_counts_every_array():
+    out = memory.memory_child(2)
     assert out["num_envs"] == 2 and out["n_bodies"] >= 21
     obs = [a for a in out["arrays"] if a["observation_buffer"]]
     assert [a["name"] for a in obs] == ["_obs"]
@@ -184,7 +183,7 @@ def test_memory_child_counts_every_array(bench):
     assert out["rss_after_reset"] > 0
 
 
-def test_memory_child_counts_an_array_held_twice_once(bench, monkeypatch):
+def test_memory_child_counts_an_array_held_twice_once(monkeypatch):
     """Regression: MissionBatch kept a second reference to the vertex array, and the memory
     section counted it twice (9.9 instead of 5.4 KiB per sub-env)."""
     from debris_gym.envs import vector
@@ -197,21 +196,21 @@ def test_memory_child_counts_an_array_held_twice_once(bench, monkeypatch):
         return out
 
     monkeypatch.setattr(vector.DebrisFieldVectorEnv, "reset", reset_and_alias)
-    out = bench.memory_child(2)
+    out = memory.memory_child(2)
     names = [a["name"] for a in out["arrays"]]
     assert names.count("vertices") + names.count("alias_of_vertices") == 1
 
 
-def test_deep_size_counts_shared_objects_once(bench):
+def test_deep_size_counts_shared_objects_once():
     shared = tuple(float(i) for i in range(100))
-    one = bench._deep_size([shared])
-    assert bench._deep_size([shared, shared]) == one + 8  # one more list slot only
-    assert bench._deep_size(bench.np.zeros(1000)) >= 8000
+    one = memory.deep_size([shared])
+    assert memory.deep_size([shared, shared]) == one + 8  # one more list slot only
+    assert memory.deep_size(np.zeros(1000)) >= 8000
 
 
-def test_train_rows(bench, all_rows):
+def test_train_rows(all_rows):
     train = [r for r in all_rows if r["section"] == "train"]
-    tiny = bench.TINY
+    tiny = TINY
     assert [(r["level"], r["num_envs"]) for r in train] == [
         *(("NativeVecEnv", n) for n in tiny["train_envs"]),
         ("DummyVecEnv", tiny["dummy_envs"]),
@@ -229,26 +228,28 @@ def test_train_rows(bench, all_rows):
     assert all(_finite_positive(r["ratio_dummy"]) for r in train if r["level"] != "DummyVecEnv")
 
 
-def test_decision_rows(bench, all_rows):
-    decisions = [r for r in all_rows if r["section"] == "decisions"]
-    assert [r["agent"] for r in decisions] == bench.decision_agents()
-    assert "pretrained" in bench.decision_agents() and "apf-mpc" in bench.decision_agents()
-    limit = bench.TINY["decision_max_steps"]
-    for row in decisions:
+def test_decision_rows(all_rows):
+    timed = [r for r in all_rows if r["section"] == "decisions"]
+    assert [r["agent"] for r in timed] == decisions.decision_agents()
+    assert "pretrained" in decisions.decision_agents() and "apf-mpc" in decisions.decision_agents()
+    limit = TINY["decision_max_steps"]
+    for row in timed:
         assert row["error"] is None, row["error"]
-        assert row["episodes"] == bench.TINY["decision_episodes"]
+        assert row["episodes"] == TINY["decision_episodes"]
         assert 1 <= row["decisions"] <= limit * row["episodes"]
         assert 0 < row["p50_ms"] <= row["p95_ms"] <= row["max_ms"]
         assert 0 < row["first_ms"] <= row["max_ms"]
         assert _finite_positive(row["env_step_us"])
         assert row["p50_steps"] == pytest.approx(row["p50_ms"] * 1e3 / row["env_step_us"])
     # every agent flew the same missions: the same env-step reference in every row
-    assert len({r["env_step_us"] for r in decisions}) == 1
+    assert len({r["env_step_us"] for r in timed}) == 1
 
 
-def test_decision_agent_that_cannot_be_built_is_reported(bench, monkeypatch):
-    monkeypatch.setattr(bench, "decision_agents", lambda: ["zero", "ppo=/nonexistent/model.zip"])
-    rows = bench.run(steps=20, progress=False, sections=["decisions"], sizes=bench.TINY)
+def test_decision_agent_that_cannot_be_built_is_reported(monkeypatch):
+    monkeypatch.setattr(
+        decisions, "decision_agents", lambda: ["zero", "ppo=/nonexistent/model.zip"]
+    )
+    rows = bench.run(steps=20, progress=False, sections=["decisions"], sizes=TINY)
     zero, broken = rows
     assert zero["error"] is None and zero["decisions"] >= 1
     assert "nonexistent" in broken["error"] and math.isnan(broken["p50_ms"])
@@ -256,7 +257,7 @@ def test_decision_agent_that_cannot_be_built_is_reported(bench, monkeypatch):
     assert "| `ppo` | error: " in report and "## Errors" in report
 
 
-def test_report_has_every_section(bench, all_rows):
+def test_report_has_every_section(all_rows):
     report = bench.format_report(all_rows, command="python bench/run.py --quick", elapsed=1.0)
     for heading in (
         "## Single-env step cost",
@@ -278,7 +279,86 @@ def test_report_has_every_section(bench, all_rows):
     )
 
 
-def test_cli_rejects_unknown_sections(bench, capsys):
+def test_cli_rejects_unknown_sections(capsys):
     with pytest.raises(SystemExit):
-        bench.main(["--only", "single,bogus"])
+        cli.main(["--only", "single,bogus"])
     assert "unknown section" in capsys.readouterr().err
+
+
+class _Probe:
+    """A stand-in measurement that logs every call the harness makes."""
+
+    def __init__(self, name, log, fail_in=None, fail_with=RuntimeError):
+        self.name, self.log, self.error = name, log, None
+        self.fail_in, self.fail_with = fail_in, fail_with
+
+    def describe(self):
+        return self.name
+
+    def _call(self, what):
+        self.log.append((what, self.name))
+        if what == self.fail_in:
+            raise self.fail_with("boom")
+
+    def set_up(self):
+        self._call("set_up")
+
+    def measure(self, round_index):
+        self._call(f"measure {round_index}")
+
+    def tear_down(self):
+        self._call("tear_down")
+
+
+def test_harness_interleaves_rounds_and_drops_what_failed():
+    log = []
+    a, b, c = _Probe("a", log), _Probe("b", log, "set_up"), _Probe("c", log, "measure 0")
+    harness.interleave([a, b, c], 2, "test", progress=False)
+    assert log == [
+        ("set_up", "a"), ("set_up", "b"), ("set_up", "c"),
+        ("measure 0", "a"), ("measure 0", "c"),
+        ("measure 1", "a"),
+        ("tear_down", "a"), ("tear_down", "b"), ("tear_down", "c"),
+    ]  # fmt: skip
+    assert a.error is None
+    assert b.error == c.error == "RuntimeError: boom"
+
+
+def test_harness_tears_everything_down_when_interrupted():
+    log = []
+    a, b = _Probe("a", log), _Probe("b", log, "measure 0", KeyboardInterrupt)
+    with pytest.raises(KeyboardInterrupt):
+        harness.interleave([a, b], 3, "test", progress=False)
+    assert log[-2:] == [("tear_down", "a"), ("tear_down", "b")]
+    assert ("measure 1", "a") not in log
+
+
+def test_draw_actions_are_valid_for_every_kind_of_space():
+    rng = np.random.default_rng(0)
+    box = harness.draw_actions(gym.spaces.Box(-1, 1, (2,), np.float32), ID_2D, (50, 3), rng)
+    assert box.shape == (50, 3, 2) and box.dtype == np.float32
+    assert np.abs(box).max() <= config.THRUST
+    thrusts = harness.draw_actions(gym.spaces.Discrete(5), ID_2D, (2000,), rng)
+    assert set(np.unique(thrusts)) <= set(range(5))
+    assert np.mean(thrusts == 0) == pytest.approx(config.DISCRETE_COAST, abs=0.05)
+    cartpole = harness.draw_actions(gym.spaces.Discrete(2), CARTPOLE, (2000,), rng)
+    assert np.mean(cartpole == 0) == pytest.approx(0.5, abs=0.05)
+
+
+@pytest.mark.parametrize("entry", ["script", "module"])
+def test_both_entry_points_take_the_options(entry, tmp_path, monkeypatch):
+    if entry == "script":  # from another folder, with nothing on the path: the script finds it
+        monkeypatch.delenv("PYTHONPATH", raising=False)
+        args, cwd = [str(ROOT / "bench" / "run.py")], tmp_path
+    else:
+        args, cwd = ["-m", "bench"], ROOT
+    done = subprocess.run(
+        [sys.executable, *args, "--only", "single,bogus"],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    assert done.returncode == 2
+    assert "unknown section" in done.stderr and "--quick" in done.stderr

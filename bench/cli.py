@@ -1,0 +1,68 @@
+"""The command line: ``python bench/run.py [--quick] [--only SECTIONS] [--out FILE]``.
+
+``python -m bench`` takes the same options. The Markdown report goes to stdout (the progress
+bar to stderr) and, with ``--out``, atomically to a file; the exit status is 1 if any
+measurement failed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+from bench.machine import machine_description
+from bench.memory import memory_child
+from bench.report import format_report
+from bench.suite import SECTIONS, choose_sections, run
+from debris_gym.files import write_atomic
+
+DESCRIPTION = "Step and reset throughput of the DebrisGym environments, relative to CartPole-v1."
+
+
+def main(
+    argv: list[str] | None = None, command: str = "python bench/run.py", prog: str | None = None
+) -> int:
+    """Parse ``argv``, run the benchmark, print (and write) the report.
+
+    Args:
+        argv: the options (default: ``sys.argv[1:]``).
+        command: how the benchmark was started, for the report's "Command" line.
+        prog: the program's name in the usage (default: the script's file name).
+
+    Returns:
+        The exit status: 0, or 1 if a measurement failed (its row says why).
+    """
+    parser = argparse.ArgumentParser(prog=prog, description=DESCRIPTION)
+    parser.add_argument("--quick", action="store_true", help="fewer, shorter repeats, smaller N")
+    parser.add_argument(
+        "--only",
+        metavar="SECTIONS",
+        help=f"comma-separated sections to run, from: {','.join(SECTIONS)} (default: all). "
+        "single = single-env step, scaling and reset tables; scaling = the vector env "
+        "against the debris count",
+    )
+    parser.add_argument("--out", metavar="FILE", help="also write the Markdown report to FILE")
+    parser.add_argument("--memory-child", type=int, metavar="N", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.memory_child is not None:  # internal: one fresh-process memory measurement
+        print(json.dumps(memory_child(args.memory_child)))
+        return 0
+    try:
+        sections = choose_sections(args.only.split(",")) if args.only else SECTIONS
+    except ValueError as exc:
+        parser.error(str(exc))
+    command += " --quick" if args.quick else ""
+    if args.only:
+        command += f" --only {','.join(sections)}"
+    if args.out:
+        command += f" --out {args.out}"
+    machine = machine_description()  # taken before the run (load average at start)
+    start = time.perf_counter()
+    rows = run(quick=args.quick, sections=sections)
+    elapsed = time.perf_counter() - start
+    report = format_report(rows, command=command, elapsed=elapsed, machine=machine)
+    print(report, end="")
+    if args.out:
+        write_atomic(args.out, report)
+    return 1 if any(r["error"] for r in rows) else 0
