@@ -1,4 +1,5 @@
-"""Guidance baselines for the debris_gym environments, all behind one ``predict()`` interface.
+"""Guidance baselines and learned policies for the debris_gym environments, all behind one
+``predict()`` interface.
 
 ``make_agent(name, env, **params)`` builds a baseline by name:
 
@@ -13,45 +14,17 @@
 
 ``load_agent("ppo:runs/ppo/model.zip", env)`` loads a policy trained by ``train.py`` (``sac``,
 ``td3``, ``dqn`` likewise; ``load_agent("pretrained", env)`` the shipped one) behind the same
-interface; see :mod:`agents.learned`.
+interface; see :mod:`agents.policies.learned`.
+
+The package is layered, imports pointing one way: :mod:`agents.planners` (pure functions of a
+field) → :mod:`agents.control` (the MPC tracker, reference profiles) → :mod:`agents.policies`
+(every ``predict()`` agent and the registry) → :mod:`agents.experiments` (training, imitation,
+evaluation). ``import agents`` imports neither torch nor the experiment machinery.
 """
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from agents.policies.learned import observation_options
+from agents.policies.registry import BASELINES, load_agent, make_agent
 
-BASELINES: dict[str, str] = {
-    "zero": "agents.simple:ZeroAgent",
-    "random": "agents.simple:RandomAgent",
-    "apf": "agents.apf:APFAgent",
-    "apf-rrt": "agents.apf_rrt:APFRRTAgent",
-    "apf-mpc": "agents.apf_mpc:APFMPCAgent",
-    "astar": "agents.astar_agent:AStarAgent",
-}
-"""Baseline name → ``module:Class`` (imported on first use)."""
-
-
-def make_agent(name: str, env: Any, **params: Any) -> Any:
-    """Build the baseline ``name`` for ``env``; ``params`` go to its constructor.
-
-    Raises:
-        ValueError: unknown name (the message lists the known ones).
-    """
-    if name not in BASELINES:
-        raise ValueError(f"unknown agent {name!r}; known baselines: {', '.join(BASELINES)}")
-    module_name, class_name = BASELINES[name].split(":")
-    cls = getattr(importlib.import_module(module_name), class_name)
-    return cls(env, **params)
-
-
-def load_agent(spec: str, env: Any, **kwargs: Any) -> Any:
-    """Load a learned policy: ``"ppo:PATH"`` (or ``ppo=PATH``; ``sac``, ``td3``, ``dqn``) or
-    ``"pretrained"``, for ``env``. See :func:`agents.learned.load_agent` (imported on first use,
-    so ``import agents`` does not import torch)."""
-    from agents.learned import load_agent as _load_agent
-
-    return _load_agent(spec, env, **kwargs)
-
-
-__all__ = ["BASELINES", "load_agent", "make_agent"]
+__all__ = ["BASELINES", "load_agent", "make_agent", "observation_options"]

@@ -200,3 +200,25 @@ def closed_form_coast(state0: np.ndarray, n: float, t: float) -> np.ndarray:
     z = c * z0 + s / n * vz0
     vz = -n * s * z0 + c * vz0
     return np.array([x, y, z, vx, vy, vz])
+
+
+def cwh_acceleration(state: np.ndarray, n: float) -> np.ndarray:
+    """Natural (unforced) CWH acceleration (m/s²) of a state: the velocity rows of ``A x``.
+
+    The same ``A`` as :func:`cwh_matrices`, so an agent that cancels or predicts the orbital
+    dynamics uses exactly the model the env flies: ``[3n²x + 2nẏ, −2nẋ(, −n²z)]``.
+
+    Args:
+        state: (2d,) or a batch (..., 2d) of [position (m), velocity (m/s)], d = 2 or 3.
+        n: mean motion (rad/s), >= 0.
+
+    Returns:
+        (..., d) accelerations (m/s²).
+    """
+    x = np.asarray(state, dtype=float)
+    if x.ndim == 0 or x.shape[-1] not in (4, 6):
+        raise ValueError(f"state must have a last axis of 4 or 6 (dim 2 or 3), got {x.shape}")
+    dim = x.shape[-1] // 2
+    a, _ = cwh_matrices(n, dim)
+    # element-wise products summed in order (no BLAS): each term is rounded as when written out
+    return (a[dim:] * x[..., None, :]).sum(axis=-1)

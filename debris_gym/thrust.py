@@ -88,3 +88,35 @@ def _commanded_rows(actions, max_accel, box, out):
 def _rate_rows(accels, box, out):
     for k in range(accels.shape[0]):
         out[k] = delta_v_rate_row(accels[k], box)
+
+
+def action_for_accel(accel: np.ndarray, max_accel: float, model: str) -> np.ndarray:
+    """The normalised action that commands ``accel`` (m/s²): the inverse of
+    :func:`commanded_accel` inside the thrust limit, the nearest feasible command outside it.
+
+    "ball" scales a vector longer than ``max_accel`` back onto the limit (direction kept); "box"
+    clips each axis to ±``max_accel``.
+
+    Args:
+        accel: (..., d) desired accelerations (m/s²).
+        max_accel: thrust limit (m/s²), > 0.
+        model: "box" or "ball".
+
+    Returns:
+        (..., d) actions in [-1, 1] ("box") or in the unit ball ("ball").
+    """
+    box = _is_box(model)
+    if not (math.isfinite(max_accel) and max_accel > 0):
+        raise ValueError(f"max_accel must be finite and > 0 m/s², got {max_accel!r}")
+    a = np.asarray(accel, dtype=float) / max_accel
+    if a.ndim == 0:
+        raise ValueError("accel must be a vector (..., d) of accelerations, got a scalar")
+    if box:
+        return np.clip(a, -1.0, 1.0)
+    rows = a.reshape(-1, a.shape[-1])
+    out = rows.copy()
+    for k, row in enumerate(rows):
+        norm = float(np.linalg.norm(row))
+        if norm > 1.0:
+            out[k] = row / norm
+    return out.reshape(a.shape)

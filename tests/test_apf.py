@@ -1,6 +1,7 @@
-"""Tests of agents.apf and agents.apf_rrt: forces against hand values and an independent
-finite-difference gradient, the planners in open, one-obstacle and trap fields, and the agents
-flying the envs (default fields and pinned trap fields)."""
+"""Tests of the APF planners (agents.planners.apf, agents.planners.rrt) and agents: forces
+against hand values and an independent finite-difference gradient, the planners in open,
+one-obstacle and trap fields, and the agents flying the envs (default fields and pinned trap
+fields)."""
 
 from __future__ import annotations
 
@@ -12,17 +13,15 @@ import pytest
 
 import agents
 import debris_gym  # noqa: F401  (registers the IDs)
-from agents.apf import (
+from agents.planners.apf import (
     APFParams,
     apf_path,
     attractive_force,
-    cwh_accel,
     is_local_minimum,
     repulsive_force,
     total_force,
 )
-from agents.apf_rrt import apf_rrt_path
-from debris_gym.dynamics import cwh_matrices
+from agents.planners.rrt import apf_rrt_path
 from debris_gym.generators import paper_field
 from debris_gym.geometry import FieldGeometry
 from debris_gym.scenario import Body, Scenario
@@ -116,7 +115,7 @@ def _polygon_distance(p: np.ndarray, verts: np.ndarray) -> float:
 
 
 def _potential(x, goal, bodies, params, inflate, shield=0.0) -> float:
-    """Choset eq. 4.2-4.6 written out independently of agents.apf."""
+    """Choset eq. 4.2-4.6 written out independently of agents.planners.apf."""
     rho = float(np.linalg.norm(x - goal))
     if rho <= params.d_star:
         u_att = 0.5 * params.k_att * rho**2
@@ -181,13 +180,6 @@ def test_local_minimum_test_is_seed_003_eq_14():
     assert not is_local_minimum(f_att, np.array([-0.3, 0.0]), params)  # unbalanced
     assert not is_local_minimum(f_att, np.array([-0.5, 0.8]), params)  # not opposed
     assert not is_local_minimum(np.zeros(2), np.array([-1.0, 0.0]), params)
-
-
-@pytest.mark.parametrize("dim", [2, 3])
-def test_cwh_compensation_matches_the_dynamics_matrix(dim):
-    a, _ = cwh_matrices(N_LEO, dim)
-    state = np.random.default_rng(0).normal(scale=[300.0] * dim + [1.0] * dim)
-    np.testing.assert_allclose(cwh_accel(state, N_LEO), (a @ state)[dim:], rtol=1e-12)
 
 
 def test_params_validate_and_paper_values():

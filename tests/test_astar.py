@@ -1,4 +1,5 @@
-"""Tests of agents.astar: optimality against networkx Dijkstra, path validity, corner cutting."""
+"""Tests of agents.planners.grid_search (A* on a grid): optimality against networkx Dijkstra,
+path validity, corner cutting."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import networkx as nx
 import numpy as np
 import pytest
 
-from agents.astar import astar, path_cost
+from agents.planners.grid_search import astar, path_cost
 
 # --------------------------------------------------------------------------------------------------
 # independent reference: the same grid graph built cell by cell for networkx
@@ -115,7 +116,12 @@ def test_random_non_square_grids_match_dijkstra():
     for shape in [(1, 17), (23, 7), (3, 9, 5), (1, 1, 12)]:
         occ = rng.random(shape) < 0.2
         for diagonal in (True, False):
-            _compare_with_networkx(occ, diagonal, _random_pairs(rng, shape, 10))
+            # plus the two ends of the largest free region: a pair that must have a path
+            region = sorted(max(nx.connected_components(_grid_graph(occ, diagonal)), key=len))
+            pairs = [*_random_pairs(rng, shape, 10), (region[0], region[-1])]
+            found = _compare_with_networkx(occ, diagonal, pairs)
+            # each sample exercises both outcomes: paths found and refused
+            assert 0 < found < len(pairs), (shape, diagonal, found)
 
 
 # --------------------------------------------------------------------------------------------------

@@ -1,6 +1,7 @@
-"""Tests of the MPC tracker (agents.mpc), the A* planner (agents.astar_agent) and the APF-MPC / A*
-baselines: prediction against the env's propagator, thrust bounds, closed-loop behaviour in the
-env, keep-out constraints that matter, warm starts, and grid optimality against Dijkstra."""
+"""Tests of the MPC tracker (agents.control), the A* planner (agents.planners.astar) and the
+APF-MPC / A* baselines: prediction against the env's propagator, thrust bounds, closed-loop
+behaviour in the env, keep-out constraints that matter, warm starts, and grid optimality against
+Dijkstra."""
 
 from __future__ import annotations
 
@@ -14,10 +15,11 @@ from scipy.sparse.csgraph import dijkstra
 
 import debris_gym  # noqa: F401  (registers the IDs)
 from agents import make_agent
-from agents.apf_mpc import dejitter
-from agents.astar_agent import GridMap, astar_path
-from agents.mission import Goal
-from agents.mpc import MPCParams, MPCTracker, PathReference, ReferenceParams
+from agents.control.mpc import MPCParams, MPCTracker
+from agents.control.reference import PathReference, ReferenceParams
+from agents.planners.astar import GridMap, astar_path
+from agents.planners.mission import Goal
+from agents.planners.paths import dejitter
 from debris_gym.dynamics import discretize
 from debris_gym.envs import DebrisFieldEnv
 from debris_gym.generators import occupancy_grid

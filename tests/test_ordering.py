@@ -1,4 +1,5 @@
-"""Tests of agents.ordering: the polygon queue (seed paper 000, Alg. 1) and the shortest tour."""
+"""Tests of agents.planners.ordering: the polygon queue (seed paper 000, Alg. 1) and the shortest
+tour."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from agents.ordering import EXACT_MAX_N, polygon_order, shortest_order, tour_length
+from agents.planners.ordering import EXACT_MAX_N, polygon_order, shortest_order, tour_length
 
 # --------------------------------------------------------------------------------------------------
 # independent helpers

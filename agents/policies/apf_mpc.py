@@ -1,71 +1,37 @@
 """APF-MPC: an artificial-potential-field path tracked by a linear MPC on the CWH model.
 
 Reference: seed paper 000 (hybrid APF–MPC multi-target debris rendezvous): the targets are queued
-(:class:`~agents.mission.MissionPlan`), an APF path is planned between consecutive goals
-(:func:`agents.apf.apf_path`, eq. 1–6) and an MPC with horizon N = 20 and the cost of eq. 8
-tracks it (:class:`~agents.mpc.MPCTracker`, OSQP on the exact discretised CWH model).
+(:class:`~agents.planners.mission.MissionPlan`), an APF path is planned between consecutive goals
+(:func:`agents.planners.apf.apf_path`, eq. 1–6) and an MPC with horizon N = 20 and the cost of
+eq. 8 tracks it (:class:`~agents.control.mpc.MPCTracker`, OSQP on the exact discretised CWH
+model).
 
-Gradient-descent paths chatter: near a body lying straight in the way to the goal the descent
-zig-zags with its step length while it slides round. The path handed to the tracker is therefore
-de-jittered (:func:`dejitter`): from each kept point it jumps to the last later point within a few
-APF steps *in space* whose straight chord clears every body inflated like the tracker's keep-out.
-Over such short hops the path keeps its APF shape (its distance to the bodies), but loses the
-back-and-forth that would make the arc-length reference stall.
+The path handed to the tracker is de-jittered (:func:`agents.planners.paths.dejitter`): hops of a
+few APF steps whose straight chord clears every body inflated like the tracker's keep-out.
 
 APF descent can also stall in a local minimum. Then the agent keeps the path up to the stall and
-completes it with an A* path from the stall point to the goal (:func:`agents.astar_agent.
-astar_path`); if that fails too, with an A* path from the start; every such fallback is counted
-in ``agent.stats`` (``apf_stalls``, ``astar_fallbacks``).
+completes it with an A* path from the stall point to the goal
+(:func:`agents.planners.astar.astar_path`); if that fails too, with an A* path from the start;
+every such fallback is counted in ``agent.stats`` (``apf_stalls``, ``astar_fallbacks``).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
-from agents.apf import APFParams, apf_path
-from agents.astar_agent import GridMap, SegmentChecker, astar_path, default_cell
-from agents.mission import Goal
-from agents.mpc import MPCParams, MPCPathAgent, ReferenceParams
-from agents.planning import PlanResult
+from agents.control.mpc import MPCParams
+from agents.control.reference import ReferenceParams
+from agents.planners.apf import APFParams, apf_path
+from agents.planners.astar import GridMap, SegmentChecker, astar_path, default_cell
+from agents.planners.mission import Goal
+from agents.planners.paths import dejitter
+from agents.planners.result import PlanResult
+from agents.policies.tracking import MPCPathAgent
 from debris_gym.scenario import Scenario
 
-
-def dejitter(
-    points: np.ndarray, reach: float, clear: Callable[[np.ndarray, np.ndarray], bool]
-) -> np.ndarray:
-    """Drop back-and-forth detours from a dense path without changing its course.
-
-    From each kept point, jump to the highest-index later point within ``reach`` (m, straight
-    distance) whose chord ``clear(a, b)`` accepts (at most 8 candidates tried, farthest index
-    first); the next point is always allowed.
-
-    Args:
-        points: (K, dim) path (m).
-        reach: largest hop (m).
-        clear: collision test of a straight segment.
-
-    Returns:
-        (K', dim) sub-sequence of ``points`` with the same first and last point.
-    """
-    pts = np.asarray(points, dtype=float)
-    if len(pts) <= 2:
-        return pts
-    out = [pts[0]]
-    i, last = 0, len(pts) - 1
-    while i < last:
-        dist = np.linalg.norm(pts[i + 1 :] - pts[i], axis=1)
-        within = np.flatnonzero(dist <= reach) + i + 1
-        j = i + 1
-        for c in within[::-1][:8]:
-            if c == i + 1 or clear(pts[i], pts[c]):
-                j = int(c)
-                break
-        out.append(pts[j])
-        i = j
-    return np.asarray(out)
+__all__ = ["APFMPCAgent"]
 
 
 class APFMPCAgent(MPCPathAgent):

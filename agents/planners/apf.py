@@ -1,5 +1,6 @@
-"""Artificial potential field (APF): Khatib's potentials, a gradient-descent path planner, and an
-agent that flies the potential gradient under CWH dynamics.
+"""Artificial potential field (APF): Khatib's potentials and forces, the local-minimum test, and a
+gradient-descent path planner (the agent that flies the gradient is
+:class:`agents.policies.apf.APFAgent`).
 
 References:
     * O. Khatib, "Real-time obstacle avoidance for manipulators and mobile robots", IJRR 5(1),
@@ -10,7 +11,7 @@ References:
     * Seed paper 000 (APF-MPC debris rendezvous) eq. 1-6: the same potentials, descent with step
       ε = 0.01 for 400 steps per segment, influence distance 1 (:meth:`APFParams.paper`).
     * Seed paper 003 (improved APF) eq. 2-5 and the local-minimum test eq. 14
-      (:func:`is_local_minimum`); its RRT escape lives in :mod:`agents.apf_rrt`.
+      (:func:`is_local_minimum`); its RRT escape lives in :mod:`agents.planners.rrt`.
     * S. S. Ge, Y. J. Cui, "New potential functions for mobile robot path planning", IEEE T-RA
       16(5), 2000 — optional goal shielding of the repulsion (``goal_shield``), which removes the
       "goal non-reachable with obstacles nearby" equilibrium.
@@ -32,9 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.base import ClassicalAgent
-from agents.mission import Goal, MissionPlan
-from agents.planning import PlanResult
+from agents.planners.result import PlanResult
 from debris_gym.geometry import FieldGeometry
 from debris_gym.scenario import Scenario
 
@@ -218,7 +217,7 @@ def _virtual_terms(
     return potential, force
 
 
-def _repulsion(
+def repulsion(
     x: np.ndarray,
     gaps: np.ndarray,
     normals: np.ndarray,
@@ -228,7 +227,19 @@ def _repulsion(
     goal: np.ndarray | None,
     virtual: Sequence[VirtualPoint],
 ) -> tuple[float, np.ndarray]:
-    """Total repulsive potential and force, with Ge-Cui goal shielding when enabled."""
+    """Total repulsive potential (m²/s²) and force (m/s²) at ``x``, with Ge-Cui goal shielding
+    when enabled.
+
+    Args:
+        x: position (m).
+        gaps: signed distance (m) from ``x`` to each body, un-inflated.
+        normals: (n_bodies, dim) unit outward normals at ``x`` (∇ of each gap).
+        params: gains and distances.
+        active: (n_bodies,) which bodies repel (:func:`active_mask`).
+        inflate: distance (m) added to every body, e.g. the chaser's radius.
+        goal: the goal (m), used only when ``params.goal_shield`` > 0.
+        virtual: extra repulsive points (position, influence radius).
+    """
     potential, force = _body_terms(gaps, normals, params, active, inflate)
     if virtual:
         pv, fv = _virtual_terms(x, virtual, params)
@@ -245,7 +256,8 @@ def _repulsion(
     return potential, force
 
 
-def _active_mask(n_bodies: int, ignore: Iterable[int]) -> np.ndarray:
+def active_mask(n_bodies: int, ignore: Iterable[int]) -> np.ndarray:
+    """(n_bodies,) booleans: True for every body that repels, False for the ``ignore``d ones."""
     mask = np.ones(n_bodies, dtype=bool)
     for i in ignore:
         mask[int(i)] = False
@@ -275,9 +287,9 @@ def repulsive_potential(
     """
     x = np.asarray(x, float)
     gaps, normals = geometry.gaps_and_normals(x)
-    active = _active_mask(geometry.n_bodies, ignore)
+    active = active_mask(geometry.n_bodies, ignore)
     goal_arr = None if goal is None else np.asarray(goal, float)
-    return _repulsion(x, gaps, normals, params, active, inflate, goal_arr, virtual)[0]
+    return repulsion(x, gaps, normals, params, active, inflate, goal_arr, virtual)[0]
 
 
 def repulsive_force(
@@ -295,9 +307,9 @@ def repulsive_force(
     """
     x = np.asarray(x, float)
     gaps, normals = geometry.gaps_and_normals(x)
-    active = _active_mask(geometry.n_bodies, ignore)
+    active = active_mask(geometry.n_bodies, ignore)
     goal_arr = None if goal is None else np.asarray(goal, float)
-    return _repulsion(x, gaps, normals, params, active, inflate, goal_arr, virtual)[1]
+    return repulsion(x, gaps, normals, params, active, inflate, goal_arr, virtual)[1]
 
 
 def total_force(
@@ -314,9 +326,9 @@ def total_force(
     x = np.asarray(x, float)
     goal = np.asarray(goal, float)
     gaps, normals = geometry.gaps_and_normals(x)
-    active = _active_mask(geometry.n_bodies, ignore)
+    active = active_mask(geometry.n_bodies, ignore)
     f_att = attractive_force(x, goal, params)
-    f_rep = _repulsion(x, gaps, normals, params, active, inflate, goal, virtual)[1]
+    f_rep = repulsion(x, gaps, normals, params, active, inflate, goal, virtual)[1]
     return f_att + f_rep, f_att, f_rep
 
 
@@ -339,8 +351,9 @@ def is_local_minimum(f_att: np.ndarray, f_rep: np.ndarray, params: APFParams) ->
 # --- the planner -------------------------------------------------------------------------------
 
 
-class _Descent:
-    """Gradient descent on the total potential toward one goal; shared by the APF planners.
+class Descent:
+    """Gradient descent on the total potential toward one goal; shared by the APF planners
+    (:func:`apf_path`, :func:`agents.planners.rrt.apf_rrt_path`, which adds virtual points).
 
     Keeps the path collision-free by construction: a step never exceeds half the current physical
     clearance (clearance is 1-Lipschitz, so the segment cannot reach a body).
@@ -358,14 +371,14 @@ class _Descent:
         self.params = params
         self.goal = goal
         self.inflate = inflate
-        self.active = _active_mask(geometry.n_bodies, ignore)
+        self.active = active_mask(geometry.n_bodies, ignore)
         self.virtual: list[VirtualPoint] = []
 
     def forces(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
         """(F_att, F_rep, physical clearance (m)) at ``x``; ignored bodies count for clearance."""
         gaps, normals = self.geometry.gaps_and_normals(x)
         f_att = attractive_force(x, self.goal, self.params)
-        f_rep = _repulsion(
+        f_rep = repulsion(
             x, gaps, normals, self.params, self.active, self.inflate, self.goal, self.virtual
         )[1]
         clearance = float(gaps.min()) - self.inflate if gaps.size else math.inf
@@ -471,7 +484,7 @@ def apf_path(
     goal = np.asarray(goal, dtype=float)
     if x.shape != (scenario.dim,) or goal.shape != (scenario.dim,):
         raise ValueError(f"start and goal must have shape ({scenario.dim},)")
-    descent = _Descent(geometry, params, goal, ignore, inflate)
+    descent = Descent(geometry, params, goal, ignore, inflate)
     points = [x]
     status, stall_point, min_clear = descent.run(points, params.max_steps)
     stalled = stall_point is not None
@@ -486,333 +499,17 @@ def apf_path(
     return PlanResult(status == "arrived", waypoints, PlanResult.path_length(waypoints), info)
 
 
-# --- the agent ---------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class APFGuidance:
-    """How :class:`APFAgent` turns the potential into thrust (SI units; LEO defaults).
-
-    Attributes:
-        damping: velocity damping k_d (1/s) in a = F − k_d v; the cruise speed is about
-            ‖F_att‖max / k_d = k_att·d_star / k_d.
-        brake_fraction: share β of the thrust limit the braking speed limits assume.
-        stall_time: window (s) over which APF-RRT looks for a local minimum: no progress
-            toward the goal, and the window-mean forces pass the eq. 14 test.
-        stall_progress: goal-distance decrease (m) over ``stall_time`` that counts as progress.
-    """
-
-    damping: float = 0.0167
-    brake_fraction: float = 0.5
-    stall_time: float = 300.0
-    stall_progress: float = 5.0
-
-    def scaled(self, length: float, accel: float) -> APFGuidance:
-        """Rescale for a world ``length`` times larger and thrust ``accel`` times stronger."""
-        time = math.sqrt(length / accel)
-        return dataclasses.replace(
-            self,
-            damping=self.damping / time,
-            stall_time=self.stall_time * time,
-            stall_progress=self.stall_progress * length,
-        )
-
-    @classmethod
-    def for_scenario(cls, scenario: Scenario, **overrides: Any) -> APFGuidance:
-        """Defaults scaled from the LEO field to ``scenario``."""
-        base = cls(**overrides)
-        return base.scaled(scenario.size / LEO_LENGTH, scenario.max_accel / LEO_ACCEL)
-
-
-def braking_speed(distance: float, decel: float, dt: float) -> float:
-    """Largest speed (m/s) from which a chaser that reacts one step late can still stop within
-    ``distance`` (m) at deceleration ``decel`` (m/s²): v·dt + v²/(2·decel) = distance."""
-    if distance <= 0.0:
-        return 0.0
-    lag = decel * dt
-    return -lag + math.sqrt(lag * lag + 2.0 * decel * distance)
-
-
-def cwh_accel(state: np.ndarray, n: float) -> np.ndarray:
-    """The CWH acceleration of an uncontrolled chaser (m/s²): [3n²x + 2nẏ, −2nẋ(, −n²z)]."""
-    d = len(state) // 2
-    x, v = state[:d], state[d:]
-    out = np.empty(d)
-    out[0] = 3.0 * n * n * x[0] + 2.0 * n * v[1]
-    out[1] = -2.0 * n * v[0]
-    if d == 3:
-        out[2] = -n * n * x[2]
-    return out
-
-
-def prioritised_sum(first: np.ndarray, second: np.ndarray, limit: float) -> np.ndarray:
-    """``first`` + λ·``second`` with the largest λ ∈ [0, 1] that keeps the norm ≤ ``limit``
-    (``first`` alone scaled down if it already exceeds it)."""
-    n1 = float(np.linalg.norm(first))
-    if n1 >= limit:
-        return first * (limit / n1)
-    total = first + second
-    if float(total @ total) <= limit * limit:
-        return total
-    # ‖first + λ second‖ = limit: a λ² + b λ + c = 0 with the positive root.
-    a = float(second @ second)
-    b = 2.0 * float(first @ second)
-    c = n1 * n1 - limit * limit
-    lam = (-b + math.sqrt(max(b * b - 4.0 * a * c, 0.0))) / (2.0 * a)
-    return first + min(max(lam, 0.0), 1.0) * second
-
-
-class APFAgent(ClassicalAgent):
-    """Flies the mission on the potential gradient ("apf").
-
-    Each step, toward the current goal (the approach point of the next target, then the dock):
-
-    * a_nom = F_att + F_rep − D·v: the APF force as an acceleration (the current goal target does
-      not repel; every other body, captured targets included, does, with the chaser's radius and
-      the margin added), damped so the chaser settles instead of orbiting. D is light along the
-      motion and stiff along the normals of nearby bodies (see ``_damping``), so a stiff
-      repulsion sampled every dt cannot set up a limit cycle;
-    * a braking speed limit toward the goal, v ≤ √(2βa·ρ) (one step of lag included), so the
-      chaser stops at the approach point well below the capture speed;
-    * the same limit on the closing speed toward every nearby body and the world bounds, as
-      constraints: braking now where a limit is already exceeded, and the APF term projected so
-      that it cannot push a closing speed past its limit on the next step (a potential alone does
-      not know the chaser's stopping distance);
-    * the CWH acceleration [3n²x + 2nẏ, −2nẋ(, −n²z)] is cancelled, so the potential alone
-      shapes the motion (the debris is frozen in LVLH).
-
-    Braking and the CWH compensation take the thrust first; the APF term gets what is left of the
-    thrust limit (:func:`prioritised_sum`). A local minimum stops the chaser for good: that is
-    APF's known failure, which :class:`agents.apf_rrt.APFRRTAgent` repairs.
-
-    Args:
-        env: the DebrisGym env.
-        params: potential parameters; default :meth:`APFParams.for_scenario` of each field.
-        guidance: control gains; default :meth:`APFGuidance.for_scenario`.
-        ordering: target order, "shortest", "polygon" or "nearest" (see :class:`MissionPlan`).
-    """
-
-    name = "apf"
-
-    def __init__(
-        self,
-        env: Any,
-        params: APFParams | None = None,
-        guidance: APFGuidance | None = None,
-        ordering: str = "shortest",
-    ) -> None:
-        super().__init__(env)
-        self._fixed_params = params
-        self._fixed_guidance = guidance
-        self.ordering = ordering
-
-    # --- episode set-up -------------------------------------------------------------------------
-
-    def plan(self, scenario: Scenario) -> None:
-        cfg = self.env.config
-        self.params = self._fixed_params or APFParams.for_scenario(scenario)
-        self.guidance = self._fixed_guidance or APFGuidance.for_scenario(scenario)
-        self.mission = MissionPlan(scenario, cfg, self.ordering)
-        self.geometry = self.env.geometry
-        self.inflate = cfg.chaser_radius
-        self.goal_key: tuple | None = None
-        self.virtual: list[VirtualPoint] = []
-
-    # --- one step ------------------------------------------------------------------------------
-
-    def current_goal(self, pos: np.ndarray) -> Goal | None:
-        """The mission's current goal, or None when everything is done."""
-        return self.mission.current_goal(self.env.captured, pos)
-
-    def attractor(self, pos: np.ndarray, goal: Goal) -> np.ndarray:
-        """The point the attractive field pulls toward (APF-RRT swaps in RRT waypoints)."""
-        del pos
-        return goal.point
-
-    def act(self) -> np.ndarray:
-        state = self.env.chaser_state
-        d = self.env.dim
-        pos, vel = state[:d], state[d:]
-        goal = self.current_goal(pos)
-        compensation = -cwh_accel(state, self.env.scenario.mean_motion)
-        if goal is None:  # mission over: hold still
-            accel = prioritised_sum(compensation, -vel / self.env.scenario.dt, self._limit())
-            return self.accel_to_action(accel)
-        key = (goal.kind, goal.index)
-        if key != self.goal_key:
-            self.goal_key = key
-            self.on_new_goal(goal)
-        ignore = () if goal.index is None else (goal.index,)
-        aim = self.attractor(pos, goal)
-        gaps, normals = self.geometry.gaps_and_normals(pos)
-        active = _active_mask(self.geometry.n_bodies, ignore)
-        f_att = attractive_force(pos, aim, self.params)
-        f_rep = _repulsion(
-            pos, gaps, normals, self.params, active, self.inflate, aim, self.active_virtual()
-        )[1]
-        f_rep *= self.repulsion_scale()
-        self.observe_forces(pos, vel, goal, f_att, f_rep)
-        nominal = f_att + f_rep + self._damping(pos, vel, aim, gaps, normals, active)
-        nominal += self._goal_braking(pos, vel, aim)
-        toward, allowed = self._closing_limits(pos, vel, gaps, normals, active)
-        # brake now where the closing speed already exceeds the limit ...
-        braking = np.minimum(allowed, 0.0) @ toward  # (negative) · toward: away
-        # ... and keep the APF term from pushing any closing speed past its limit next step
-        limit = self._limit()
-        nominal *= min(1.0, limit / max(float(np.linalg.norm(nominal)), 1e-300))
-        nominal = limit_closing(nominal, toward, np.maximum(allowed - toward @ braking, 0.0))
-        safety = compensation + braking
-        return self.accel_to_action(prioritised_sum(safety, nominal, limit))
-
-    # --- hooks for APF-RRT ---------------------------------------------------------------------
-
-    def on_new_goal(self, goal: Goal) -> None:
-        """Called when the mission moves on to a new goal."""
-        self.virtual = []
-
-    def observe_forces(
-        self, pos: np.ndarray, vel: np.ndarray, goal: Goal, f_att: np.ndarray, f_rep: np.ndarray
-    ) -> None:
-        """Called every step with the forces (APF-RRT watches for local minima here)."""
-
-    def active_virtual(self) -> list[VirtualPoint]:
-        """Virtual repulsive points in force now."""
-        return self.virtual
-
-    def repulsion_scale(self) -> float:
-        """Scale of the repulsion now (APF-RRT weakens it on a collision-checked route)."""
-        return 1.0
-
-    # --- helpers -------------------------------------------------------------------------------
-
-    def _limit(self) -> float:
-        return self.env.scenario.max_accel
-
-    def _decel(self) -> float:
-        return self.guidance.brake_fraction * self.env.scenario.max_accel
-
-    def _damping(
-        self,
-        pos: np.ndarray,
-        vel: np.ndarray,
-        aim: np.ndarray,
-        gaps: np.ndarray,
-        normals: np.ndarray,
-        active: np.ndarray,
-    ) -> np.ndarray:
-        """Damping acceleration −D·v (m/s²).
-
-        D = k_d·I, raised along the normal of every body whose repulsion has stiffness
-        s = ∂F/∂d (1/s²) to max(2√s, 0.6·s·dt) — critical damping, and at least what keeps the
-        sampled-data loop stable (a spring s under zero-order hold every dt needs damping
-        c > s·dt/2) — and isotropically to 2√ζ inside d*. Eigenvalues are capped at 1.6/dt.
-        Sliding along a surface stays lightly damped.
-        """
-        p = self.params
-        dt = self.env.scenario.dt
-        cap = 1.6 / dt
-        base = self.guidance.damping
-        if float(np.linalg.norm(aim - pos)) <= p.d_star:
-            base = max(base, 2.0 * math.sqrt(p.k_att), 0.6 * p.k_att * dt)
-        base = min(base, cap)
-        d = gaps - self.inflate - p.margin
-        near = np.flatnonzero(active & (d <= p.d0))
-        if near.size == 0:
-            return -base * vel
-        dn = np.maximum(d[near], MIN_CLEARANCE_FRACTION * p.d0)
-        stiffness = p.k_rep * (3.0 / dn**4 - 2.0 / (p.d0 * dn**3)).clip(0.0)
-        wanted = np.maximum(2.0 * np.sqrt(stiffness), 0.6 * dt * stiffness)
-        extra = (wanted - base).clip(0.0)
-        if not extra.any():
-            return -base * vel
-        n = normals[near]
-        matrix = base * np.eye(len(vel)) + (n.T * extra) @ n
-        values, vectors = np.linalg.eigh(matrix)
-        matrix = (vectors * np.minimum(values, cap)) @ vectors.T
-        return -matrix @ vel
-
-    def _goal_braking(self, pos: np.ndarray, vel: np.ndarray, aim: np.ndarray) -> np.ndarray:
-        """Cuts the speed down to the braking limit for the distance left to the goal."""
-        dt = self.env.scenario.dt
-        speed = float(np.linalg.norm(vel))
-        limit = braking_speed(float(np.linalg.norm(aim - pos)), self._decel(), dt)
-        if speed <= limit or speed == 0.0:
-            return np.zeros_like(vel)
-        return -(speed - limit) / dt * vel / speed
-
-    def _closing_limits(
-        self,
-        pos: np.ndarray,
-        vel: np.ndarray,
-        gaps: np.ndarray,
-        normals: np.ndarray,
-        active: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Closing-speed limits toward the bodies within d₀ and the world bounds.
-
-        The closing speed toward a body after the next step must not exceed the speed from
-        which the chaser can still stop (:func:`braking_speed`) before the body's margin. The
-        goal target (not repelled) counts too: the chaser must stop a quarter of the capture
-        depth short of its surface, inside the capture zone.
-
-        Returns:
-            (unit directions toward each body or bound (k, dim), the largest net acceleration
-            along each (k,) (m/s²); negative means the chaser must brake now).
-        """
-        scen, dt = self.env.scenario, self.env.scenario.dt
-        p = self.params
-        decel = self._decel()
-        buffer = np.where(active, p.margin, 0.25 * self.env.config.capture_radius)
-        clear = gaps - self.inflate - buffer
-        near = clear <= p.d0
-        dirs = [-normals[near]]
-        room = [clear[near]]
-        low, high = scen.low + p.margin, scen.high - p.margin
-        eye = np.eye(len(pos))
-        for axis in range(len(pos)):
-            for wall, sign in ((low[axis], -1.0), (high[axis], 1.0)):
-                gap = sign * (wall - pos[axis])
-                if gap <= p.d0:
-                    dirs.append(sign * eye[axis][None])
-                    room.append(np.array([gap]))
-        toward = np.concatenate(dirs)
-        lag = decel * dt
-        limit = -lag + np.sqrt(lag * lag + 2.0 * decel * np.maximum(np.concatenate(room), 0.0))
-        return toward, (limit - toward @ vel) / dt
-
-
-def limit_closing(accel: np.ndarray, toward: np.ndarray, allowed: np.ndarray) -> np.ndarray:
-    """Remove from ``accel`` the part along each unit direction ``toward[i]`` beyond
-    ``allowed[i]`` >= 0: a few rounds of projection onto the most violated half-space, then a
-    uniform scale-down that makes every constraint hold (zero always does)."""
-    out = np.array(accel, dtype=float)
-    if toward.size == 0:
-        return out
-    for _ in range(8):
-        excess = toward @ out - allowed
-        worst = int(np.argmax(excess))
-        if excess[worst] <= 1e-15:
-            return out
-        out -= excess[worst] * toward[worst]
-    along = toward @ out
-    over = along > allowed
-    if over.any():
-        out *= float(np.min(allowed[over] / along[over]))
-    return out
-
-
 __all__ = [
-    "APFAgent",
-    "APFGuidance",
+    "MIN_CLEARANCE_FRACTION",
     "APFParams",
+    "Descent",
+    "VirtualPoint",
+    "active_mask",
     "apf_path",
     "attractive_force",
     "attractive_potential",
-    "braking_speed",
-    "cwh_accel",
     "is_local_minimum",
-    "limit_closing",
-    "prioritised_sum",
+    "repulsion",
     "repulsive_force",
     "repulsive_potential",
     "total_force",

@@ -19,6 +19,7 @@ returns a :class:`LearnedAgent`; ``load_agent("pretrained", env)`` the policy sh
 from __future__ import annotations
 
 import pickle
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -41,6 +42,9 @@ __all__ = [
     "LearnedAgent",
     "load_agent",
     "observation_options",
+    "pretrained_path",
+    "read_vecnormalize",
+    "run_config_path",
 ]
 
 OBSERVATION_KEYS = (
@@ -52,7 +56,7 @@ it was trained with."""
 
 PRETRAINED = "pretrained"
 
-PRETRAINED_DIR = Path(__file__).resolve().parent / "pretrained"
+PRETRAINED_DIR = Path(__file__).resolve().parent.parent / "pretrained"
 """Package data: the shipped policies (and their VecNormalize statistics)."""
 
 PRETRAINED_POLICIES: dict[str, tuple[str, str]] = {
@@ -177,7 +181,7 @@ def _observation_hint(path: Path) -> str:
     if options:
         return (
             f"the run was trained with env options {options}: make the env with them, e.g. "
-            "gym.make(env_id, **agents.learned.observation_options(spec, env_id)) "
+            "gym.make(env_id, **agents.observation_options(spec, env_id)) "
             "(evaluate.py does this itself)"
         )
     return (
@@ -234,16 +238,34 @@ def _trained_with_normalization(path: Path) -> bool | None:
 
 
 def _load_normalizer(path: Path, observation_space: spaces.Space) -> Any:
+    """The frozen VecNormalize statistics beside model ``path``, or None when the model reads raw
+    observations.
+
+    Raises:
+        FileNotFoundError: the run normalised observations but the statistics file is missing.
+        ValueError: the statistics file is unreadable, not VecNormalize statistics, or of
+            another observation shape.
+    """
     stats = sidecar_path(path, "vecnormalize")
     if not stats.is_file():
-        if _trained_with_normalization(path):
+        trained = _trained_with_normalization(path)
+        if trained:
             raise FileNotFoundError(
-                f"{path} was trained with VecNormalize observations but its statistics "
-                f"{stats.name} are missing next to it"
+                f"{path} was trained with VecNormalize observations but its statistics file "
+                f"{stats} is missing; copy the run's {stats.name} (train.py writes it beside "
+                "every model it saves) next to the model — without it the policy would see raw "
+                "observations it was never trained on"
+            )
+        if trained is None:
+            warnings.warn(
+                f"{path}: no VecNormalize statistics ({stats}) and no run config.yaml to tell "
+                "whether the run normalised observations; the policy gets raw observations. If "
+                f"it was trained with VecNormalize, put its statistics file at {stats}",
+                UserWarning,
+                stacklevel=3,
             )
         return None
-    with open(stats, "rb") as fh:
-        normalizer = pickle.load(fh)
+    normalizer = read_vecnormalize(stats)
     normalizer.training = False  # never update the statistics at evaluation
     if not normalizer.norm_obs:
         return None
@@ -252,6 +274,33 @@ def _load_normalizer(path: Path, observation_space: spaces.Space) -> Any:
         raise ValueError(
             f"{stats}: VecNormalize statistics of shape {mean_shape} do not fit observations of "
             f"shape {observation_space.shape}"
+        )
+    return normalizer
+
+
+def read_vecnormalize(stats: Path) -> Any:
+    """Unpickle the VecNormalize statistics file ``stats`` (no venv attached).
+
+    Raises:
+        ValueError: the file is empty, truncated, not a pickle, or holds something other than
+            Stable-Baselines3 VecNormalize statistics (the message names the file).
+    """
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    fix = (
+        "re-copy it from the training run (train.py writes it beside every model it saves), or "
+        "delete it if the run did not normalise observations"
+    )
+    try:
+        with open(stats, "rb") as fh:
+            normalizer = pickle.load(fh)
+    except Exception as exc:  # a damaged pickle fails in many ways (EOFError, UnpicklingError, …)
+        raise ValueError(
+            f"{stats}: not readable VecNormalize statistics ({type(exc).__name__}: {exc}); {fix}"
+        ) from None
+    if not isinstance(normalizer, VecNormalize):
+        raise ValueError(
+            f"{stats}: holds a {type(normalizer).__name__}, not VecNormalize statistics; {fix}"
         )
     return normalizer
 

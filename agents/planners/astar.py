@@ -1,7 +1,8 @@
-"""A* grid planner on the debris field, and the "astar" baseline (A* path + the MPC tracker).
+"""A* grid planner on the debris field: field → occupancy grid → A* cell path → shortcut waypoints
+(the "astar" baseline flies it with the MPC tracker: :class:`agents.policies.astar.AStarAgent`).
 
 Reference: seed paper 000, Algorithm 3 ("Simplified A*"), its grid baseline; the search itself is
-:func:`agents.astar.astar` (optimal, 8-/26-connected, no corner cutting).
+:func:`agents.planners.grid_search.astar` (optimal, 8-/26-connected, no corner cutting).
 
 The field is rasterised on cell centres like :func:`debris_gym.generators.occupancy_grid` (centre
 of cell i along an axis at ``low + (i + ½)·cell``), but with one inflation per body, so the goal
@@ -23,14 +24,12 @@ from typing import Any
 
 import numpy as np
 
-from agents.astar import astar, path_cost
-from agents.mission import Goal
-from agents.mpc import MPCParams, MPCPathAgent, ReferenceParams
-from agents.planning import PlanResult
+from agents.planners.grid_search import astar, path_cost
+from agents.planners.result import PlanResult
 from debris_gym.geometry import FieldGeometry
 from debris_gym.scenario import Scenario
 
-__all__ = ["AStarAgent", "GridMap", "SegmentChecker", "astar_path", "default_cell"]
+__all__ = ["GridMap", "SegmentChecker", "astar_path", "default_cell"]
 
 
 def default_cell(scenario: Scenario) -> float:
@@ -257,70 +256,3 @@ def astar_path(
     info["raw_waypoints"] = raw
     waypoints = _shortcut(grid, raw, infl) if len(raw) > 2 else raw
     return PlanResult(True, waypoints, PlanResult.path_length(waypoints), info)
-
-
-class AStarAgent(MPCPathAgent):
-    """A* grid path + the same MPC tracker as APF-MPC ("astar").
-
-    Args:
-        env: the DebrisGym env (``action="continuous"``).
-        cell: grid cell (m); None: :func:`default_cell` (4 m in 2D, 25 m in 3D on 1 km fields).
-        margin: safety margin (m) on top of the chaser radius for the obstacles; None: the
-            tracker's keep-out margin. The goal target is inflated by the chaser radius only.
-        mpc: MPC tracker parameters (the same defaults as "apf-mpc").
-        reference: speed profile of the reference.
-        ordering: "shortest", "polygon" or "nearest" target order (see :class:`MissionPlan`).
-        replan_distance: deviation from the path (m) that triggers a re-plan; None: 2 % of the
-            world size.
-
-    The grid is searched with conservative rasterisation first; if that closes every route (a
-    coarse cell can seal a narrow gap), once more with cell centres only, counted in
-    ``stats["exact_grid_retries"]`` (the tracker's keep-out still guards that path).
-    """
-
-    name = "astar"
-
-    def __init__(
-        self,
-        env: Any,
-        cell: float | None = None,
-        margin: float | None = None,
-        mpc: MPCParams | None = None,
-        reference: ReferenceParams | None = None,
-        *,
-        ordering: str = "shortest",
-        replan_distance: float | None = None,
-    ) -> None:
-        super().__init__(env, mpc, reference, ordering=ordering, replan_distance=replan_distance)
-        self.cell = cell
-        self.margin = margin
-        self.grid: GridMap | None = None
-
-    def prepare(self, scenario: Scenario) -> None:
-        cell = self.cell if self.cell is not None else default_cell(scenario)
-        if self.grid is None or self.grid.scenario is not scenario or self.grid.cell != cell:
-            self.grid = GridMap(scenario, cell)
-        self.stats.update(exact_grid_retries=0)
-
-    def plan_path(self, start: np.ndarray, goal: Goal) -> PlanResult:
-        cfg = self.env.config
-        margin = self.margin if self.margin is not None else self.tracker.keepout_margin
-        inflate = self.grid.body_inflation(
-            cfg.chaser_radius + margin, goal.index, cfg.chaser_radius
-        )
-        result = None
-        for conservative in (True, False):
-            result = astar_path(
-                self.env.scenario,
-                start,
-                goal.point,
-                cell=self.grid.cell,
-                inflate=inflate,
-                min_inflate=cfg.chaser_radius,
-                conservative=conservative,
-                grid=self.grid,
-            )
-            if result.success:
-                break
-            self.stats["exact_grid_retries"] += 1
-        return result

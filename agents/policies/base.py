@@ -19,6 +19,7 @@ import numpy as np
 
 from debris_gym.envs import DebrisFieldEnv
 from debris_gym.scenario import Scenario
+from debris_gym.thrust import action_for_accel
 
 
 def unwrap(env: Any) -> DebrisFieldEnv:
@@ -100,9 +101,6 @@ class ClassicalAgent:
     # --- helpers for subclasses ---------------------------------------------------------------
 
     def accel_to_action(self, accel: np.ndarray) -> np.ndarray:
-        """Acceleration (m/s²) → normalised action, respecting the env's thrust model."""
-        a = np.asarray(accel, dtype=float) / self.env.scenario.max_accel
-        if self.env.config.thrust_model == "ball":
-            norm = float(np.linalg.norm(a))
-            return a / norm if norm > 1.0 else a
-        return np.clip(a, -1.0, 1.0)
+        """Acceleration (m/s²) → normalised action, by the env's own inverse thrust model
+        (:func:`debris_gym.thrust.action_for_accel`)."""
+        return action_for_accel(accel, self.env.scenario.max_accel, self.env.config.thrust_model)

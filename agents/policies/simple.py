@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.base import ClassicalAgent
+from agents.policies.base import ClassicalAgent
 
 
 class ZeroAgent(ClassicalAgent):

@@ -1,13 +1,13 @@
 """The mission a classical agent flies: the visiting order and the current goal.
 
-Targets are visited in the shortest closed-tour order from the dock (``agents.ordering``), or the
-env's queue order when ``target_order="queued"``, then the dock if a return is required. With
-``ordering="nearest"`` the current goal is the one the env itself names (its ``obs_goal`` and
-shaping): the uncaptured target whose surface is nearest the chaser *now*, re-chosen at every
-call, so it can change mid-leg; the later ones follow greedily. A goal is
-an *approach point*: the chaser position from which a target counts as reached — half the capture
-depth outside the target's surface, on the side facing the chaser — or the dock itself.
-"""
+Targets are visited in the shortest closed-tour order from the dock
+(:mod:`agents.planners.ordering`), or the env's queue order when ``target_order="queued"``, then
+the dock if a return is required. With ``ordering="nearest"`` the current goal is the one the env
+itself names (its ``obs_goal`` and shaping): the uncaptured target whose surface is nearest the
+chaser *now*, re-chosen at every call, so it can change mid-leg; the later ones follow greedily.
+A goal is an *approach point*: the chaser position from which a target counts as reached — half
+the capture depth outside the target's surface, on the side facing the chaser — or the dock
+itself."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from agents.ordering import polygon_order, shortest_order
+from agents.planners.ordering import polygon_order, shortest_order
 from debris_gym.config import EnvConfig
 from debris_gym.scenario import Scenario
 

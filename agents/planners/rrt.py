@@ -1,4 +1,5 @@
-"""APF with local-minimum detection and an RRT escape that places virtual repulsive points.
+"""RRT, and the APF planner that escapes local minima with an RRT and virtual repulsive points
+(the agent that does the same in flight is :class:`agents.policies.apf_rrt.APFRRTAgent`).
 
 Reference: seed paper 003 (improved APF for spacecraft), §2.2 and §3:
 
@@ -29,17 +30,8 @@ from typing import Any
 
 import numpy as np
 
-from agents.apf import (
-    LEO_LENGTH,
-    APFAgent,
-    APFGuidance,
-    APFParams,
-    VirtualPoint,
-    _Descent,
-    is_local_minimum,
-)
-from agents.mission import Goal
-from agents.planning import PlanResult
+from agents.planners.apf import LEO_LENGTH, APFParams, Descent, VirtualPoint
+from agents.planners.result import PlanResult
 from debris_gym.geometry import FieldGeometry
 from debris_gym.scenario import Scenario
 
@@ -301,7 +293,7 @@ def apf_rrt_path(
 ) -> PlanResult:
     """APF descent that escapes local minima with an RRT and virtual repulsive points.
 
-    Arguments as :func:`agents.apf.apf_path`, plus:
+    Arguments as :func:`agents.planners.apf.apf_path`, plus:
 
     Args:
         rng: random generator for the RRT (default: ``numpy.random.default_rng(0)``).
@@ -321,7 +313,7 @@ def apf_rrt_path(
     if x.shape != (scenario.dim,) or goal.shape != (scenario.dim,):
         raise ValueError(f"start and goal must have shape ({scenario.dim},)")
     ignore = tuple(int(i) for i in ignore)
-    descent = _Descent(geometry, params, goal, ignore, inflate)
+    descent = Descent(geometry, params, goal, ignore, inflate)
     checkers: dict[tuple, EdgeChecker] = {}
     points = [x]
     info: dict[str, Any] = {"escapes": 0, "stall_points": [], "rrt_nodes": 0}
@@ -331,7 +323,7 @@ def apf_rrt_path(
         status, stall, _ = descent.run(points, budget)
         if status == "arrived" or stall is None or info["escapes"] >= rrt.max_escapes:
             break
-        escape = _escape_route(
+        escape = escape_route(
             geometry, points[-1], goal, inflate, ignore, params, rrt, rng, checkers
         )
         info["rrt_nodes"] += escape.info["nodes"]
@@ -364,7 +356,7 @@ def _route_spacing(params: APFParams) -> float:
     return params.step_size if params.normalized_step else 100.0 * params.step_size
 
 
-def _escape_route(
+def escape_route(
     geometry: FieldGeometry,
     start: np.ndarray,
     goal: np.ndarray,
@@ -394,164 +386,14 @@ def _escape_route(
     return PlanResult(found.success, found.waypoints, found.cost, {"nodes": nodes})
 
 
-# --- the agent ---------------------------------------------------------------------------------
-
-
-class APFRRTAgent(APFAgent):
-    """APF agent that escapes local minima with an RRT ("apf-rrt"; seed 003 §3).
-
-    A local minimum is declared when the goal distance has not dropped by ``stall_progress`` over
-    the last ``stall_time`` and the forces averaged over that window pass the eq. 14 test
-    (:func:`~agents.apf.is_local_minimum`; the average also catches a chaser that chatters in
-    the minimum instead of stopping). Then an RRT is grown from the chaser to the goal, a
-    virtual repulsive point is placed at the stall point, and the RRT waypoints become the
-    attractor (one at a time) until the exit waypoint (:func:`exit_index`); APF then continues to
-    the goal, the virtual point in force. Virtual points are cleared when the mission moves on.
-
-    Args:
-        env: the DebrisGym env.
-        params, guidance, ordering: as :class:`APFAgent`.
-        rrt: RRT parameters; default :meth:`RRTParams.for_scenario`.
-        seed: seed of the RRT's generator (re-seeded every episode, so episodes are repeatable).
-    """
-
-    name = "apf-rrt"
-
-    def __init__(
-        self,
-        env: Any,
-        params: APFParams | None = None,
-        guidance: APFGuidance | None = None,
-        ordering: str = "shortest",
-        rrt: RRTParams | None = None,
-        seed: int = 0,
-    ) -> None:
-        super().__init__(env, params, guidance, ordering)
-        self._fixed_rrt = rrt
-        self.seed = seed
-
-    def plan(self, scenario: Scenario) -> None:
-        super().plan(scenario)
-        self.rrt = self._fixed_rrt or RRTParams.for_scenario(scenario)
-        self.rng = np.random.default_rng(self.seed)
-        self.escapes = 0
-        self.stall_points: list[np.ndarray] = []
-        self._checkers: dict[tuple, EdgeChecker] = {}
-        self._reset_goal_state()
-
-    def _reset_goal_state(self) -> None:
-        self.route: np.ndarray | None = None  # RRT waypoints being followed
-        self.route_index = 0
-        self.route_exit = 0
-        self.route_history: list[float] = []
-        self.goal_escapes = 0
-        self.history: list[tuple[float, np.ndarray, np.ndarray]] = []
-        self.stall_steps = max(1, round(self.guidance.stall_time / self.env.scenario.dt))
-
-    def on_new_goal(self, goal: Goal) -> None:
-        super().on_new_goal(goal)
-        self._reset_goal_state()
-
-    def attractor(self, pos: np.ndarray, goal: Goal) -> np.ndarray:
-        if self.route is None:
-            return goal.point
-        last = len(self.route) - 1
-        while self.route_index < last and (
-            float(np.linalg.norm(self.route[self.route_index] - pos)) <= self.rrt.waypoint_tol
-        ):
-            if self.route_index >= self.route_exit:
-                self._leave_route()
-                return goal.point
-            self.route_index += 1
-            self.route_history = []
-        if self.route_index < last:
-            return self.route[self.route_index]
-        # the last leg aims at the goal's current approach point (the RRT's goal was the one on
-        # the side the chaser faced when it got stuck); APF takes over close to it
-        if float(np.linalg.norm(goal.point - pos)) <= self.rrt.waypoint_tol:
-            self._leave_route()
-        return goal.point
-
-    def repulsion_scale(self) -> float:
-        return 1.0 if self.route is None else self.rrt.route_repulsion
-
-    def active_virtual(self) -> list[VirtualPoint]:
-        # on the RRT route the route leads out of the trap; the virtual points act after it
-        return self.virtual if self.route is None else []
-
-    def _leave_route(self) -> None:
-        """Past the exit waypoint (or stuck on the route): APF takes over."""
-        self.route = None
-        self.history = []
-
-    def observe_forces(
-        self, pos: np.ndarray, vel: np.ndarray, goal: Goal, f_att: np.ndarray, f_rep: np.ndarray
-    ) -> None:
-        g = self.guidance
-        w = self.stall_steps
-        if self.route is not None:
-            # stuck short of a waypoint (the repulsion holds the chaser off it): skip it
-            aim = goal.point if self.route_index == len(self.route) - 1 else None
-            aim = self.route[self.route_index] if aim is None else aim
-            self.route_history.append(float(np.linalg.norm(aim - pos)))
-            hist = self.route_history
-            if len(hist) > w and hist[-1 - w] - hist[-1] < g.stall_progress:
-                if self.route_index >= self.route_exit:
-                    self._leave_route()
-                else:
-                    self.route_index += 1
-                    self.route_history = []
-            return
-        self.history.append((float(np.linalg.norm(goal.point - pos)), f_att, f_rep))
-        if len(self.history) <= w:
-            return
-        del self.history[: -w - 1]
-        if self.history[0][0] - self.history[-1][0] >= g.stall_progress:
-            return
-        # eq. 14 on the window-mean forces: a chaser chattering in a minimum still passes
-        mean_att = np.mean([h[1] for h in self.history], axis=0)
-        mean_rep = np.mean([h[2] for h in self.history], axis=0)
-        if not is_local_minimum(mean_att, mean_rep, self.params):
-            return
-        if self.goal_escapes >= self.rrt.max_escapes:
-            return
-        self._escape(pos, goal)
-
-    def _escape(self, pos: np.ndarray, goal: Goal) -> None:
-        ignore = () if goal.index is None else (goal.index,)
-        found = _escape_route(
-            self.geometry,
-            pos,
-            goal.point,
-            self.inflate,
-            ignore,
-            self.params,
-            self.rrt,
-            self.rng,
-            self._checkers,
-        )
-        self.history = []
-        if not found.success:
-            return
-        self.goal_escapes += 1
-        self.escapes += 1
-        self.stall_points.append(pos.copy())
-        vp = virtual_point(pos, goal.point, self.rrt)
-        self.virtual.append(vp)
-        self.route = found.waypoints
-        self.route_index = 1
-        self.route_exit = exit_index(
-            found.waypoints, pos, goal.point, vp[1], self.guidance.stall_progress
-        )
-        self.route_history = []
-
-
 __all__ = [
-    "APFRRTAgent",
     "EdgeChecker",
     "RRTParams",
     "apf_rrt_path",
+    "densify",
+    "escape_route",
     "exit_index",
     "rrt_path",
     "shortcut",
+    "virtual_point",
 ]

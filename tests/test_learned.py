@@ -1,0 +1,173 @@
+"""agents.policies.learned: a model's VecNormalize statistics are restored or their absence is
+refused / warned about, damaged statistics give a clear error, and loading a policy never imports
+the training code (nor does ``import agents`` import torch)."""
+
+from __future__ import annotations
+
+import os
+import pickle
+import shutil
+import subprocess
+import sys
+import textwrap
+import warnings
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+pytest.importorskip("stable_baselines3")
+
+import agents
+import debris_gym  # noqa: F401  (registers the IDs)
+
+ENV_ID = "DebrisGym/Rendezvous2D-v0"
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def saved_run(tmp_path_factory) -> Path:
+    """A run directory with an untrained tiny PPO model, its VecNormalize statistics (moved
+    away from the initial ones) and a config.yaml saying the run normalised observations."""
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    out = tmp_path_factory.mktemp("run")
+    venv = VecNormalize(DummyVecEnv([lambda: gym.make(ENV_ID)]), norm_reward=False)
+    venv.reset()
+    for _ in range(20):  # statistics that differ from the initial mean 0 / variance 1
+        venv.step(np.array([venv.action_space.sample()]))
+    model = PPO("MlpPolicy", venv, n_steps=16, batch_size=16, policy_kwargs={"net_arch": [8]})
+    model.save(out / "model.zip")
+    venv.save(out / "vecnormalize.pkl")
+    venv.close()
+    (out / "config.yaml").write_text("normalize:\n  enabled: true\n  norm_obs: true\n")
+    return out
+
+
+def _copy_model(run: Path, dest: Path, config: str | None) -> Path:
+    dest.mkdir()
+    shutil.copy(run / "model.zip", dest / "model.zip")
+    if config is not None:
+        (dest / "config.yaml").write_text(config)
+    return dest / "model.zip"
+
+
+def test_a_model_with_its_statistics_normalises_observations(saved_run):
+    env = gym.make(ENV_ID)
+    agent = agents.load_agent(f"ppo:{saved_run / 'model.zip'}", env)
+    with open(saved_run / "vecnormalize.pkl", "rb") as fh:
+        stats = pickle.load(fh)
+    obs, _ = env.reset(seed=0)
+    want = np.clip(
+        (obs - stats.obs_rms.mean) / np.sqrt(stats.obs_rms.var + stats.epsilon),
+        -stats.clip_obs,
+        stats.clip_obs,
+    )
+    np.testing.assert_allclose(agent.normalize(obs), want, rtol=1e-5, atol=1e-6)
+    assert not np.allclose(agent.normalize(obs), obs)  # the statistics really act
+    env.close()
+
+
+def test_missing_statistics_of_a_normalised_run_are_refused(saved_run, tmp_path):
+    model = _copy_model(saved_run, tmp_path / "bare", "normalize:\n  enabled: true\n")
+    env = gym.make(ENV_ID)
+    with pytest.raises(FileNotFoundError) as err:
+        agents.load_agent(f"ppo:{model}", env)
+    message = str(err.value)
+    assert str(tmp_path / "bare" / "vecnormalize.pkl") in message and "copy" in message
+    env.close()
+
+
+def test_missing_statistics_of_an_unknown_run_are_warned_about(saved_run, tmp_path):
+    model = _copy_model(saved_run, tmp_path / "alone", None)
+    env = gym.make(ENV_ID)
+    with pytest.warns(UserWarning, match="raw observations") as record:
+        agent = agents.load_agent(f"ppo:{model}", env)
+    assert str(tmp_path / "alone" / "vecnormalize.pkl") in str(record[0].message)
+    assert agent.obs_normalizer is None
+    env.close()
+
+
+def test_a_run_without_normalisation_loads_silently(saved_run, tmp_path):
+    model = _copy_model(saved_run, tmp_path / "raw", "normalize:\n  enabled: false\n")
+    env = gym.make(ENV_ID)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        agent = agents.load_agent(f"ppo:{model}", env)
+    assert agent.obs_normalizer is None
+    obs, _ = env.reset(seed=0)
+    np.testing.assert_array_equal(agent.normalize(obs), obs)
+    env.close()
+
+
+@pytest.mark.parametrize("damage", ["empty", "truncated", "garbage", "wrong_object"])
+def test_damaged_statistics_give_an_error_naming_the_file(saved_run, tmp_path, damage):
+    model = _copy_model(saved_run, tmp_path / damage, "normalize:\n  enabled: true\n")
+    stats = model.with_name("vecnormalize.pkl")
+    good = (saved_run / "vecnormalize.pkl").read_bytes()
+    content = {
+        "empty": b"",
+        "truncated": good[: len(good) // 2],
+        "garbage": b"this is not a pickle at all",
+        "wrong_object": pickle.dumps({"obs_rms": None}),
+    }[damage]
+    stats.write_bytes(content)
+    env = gym.make(ENV_ID)
+    with pytest.raises(ValueError, match="VecNormalize statistics") as err:
+        agents.load_agent(f"ppo:{model}", env)
+    assert str(stats) in str(err.value)
+    env.close()
+
+
+def _run(code: str) -> str:
+    result = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code)],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+        timeout=300,
+    )
+    assert result.returncode == 0, result.stderr
+    return result.stdout
+
+
+def test_import_agents_imports_neither_torch_nor_training_code():
+    out = _run(
+        """
+        import sys
+        import agents
+        heavy = ("torch", "stable_baselines3", "agents.experiments", "agents.training")
+        print(sorted(m for m in heavy if m in sys.modules))
+        try:
+            agents.load_agent("ppo:/nonexistent/model.zip", None)
+        except FileNotFoundError:
+            pass
+        print(sorted(m for m in heavy if m in sys.modules))
+        """
+    )
+    assert out.split("\n")[:2] == ["[]", "[]"]
+
+
+def test_loading_and_running_a_policy_never_imports_training_code(saved_run):
+    out = _run(
+        f"""
+        import sys
+        import gymnasium as gym
+        import debris_gym
+        import agents.policies.learned
+        print(sorted(m for m in sys.modules if m.startswith(("agents.experiments",
+                                                              "agents.training", "torch"))))
+        import agents
+        env = gym.make("{ENV_ID}")
+        agent = agents.load_agent("ppo:{saved_run / "model.zip"}", env)
+        obs, _ = env.reset(seed=0)
+        agent.predict(obs)
+        print("torch" in sys.modules)
+        print(sorted(m for m in sys.modules if m.startswith(("agents.experiments",
+                                                              "agents.training"))))
+        """
+    )
+    assert out.split("\n")[:3] == ["[]", "True", "[]"]
