@@ -44,6 +44,17 @@ TINY = {
 }
 
 
+@pytest.fixture(autouse=True)
+def one_torch_thread():
+    """One torch thread, as imitate() uses: under pytest -n 2 more threads only contend."""
+    import torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_nearest_ordering_names_the_envs_own_goal(seed):
     """MissionPlan(ordering="nearest") picks the target the env's obs_goal shows, wherever the
