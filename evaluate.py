@@ -14,15 +14,26 @@ debris field comes from that seed. Outputs in --out DIR:
   trajectories_epNNN.png    all agents' trajectories over the field, first --plots episodes
   paper_table.md/.json      with --paper: seed 000's Table I beside our measurements
 
-Agents: baseline names (see --agents), ALGO=PATH for a learned policy (ppo, sac, td3, dqn), or
-'pretrained' (the policy shipped for the env, see docs/training.md). Learned agents are
-loaded with agents.load_agent; models trained by train.py restore their VecNormalize statistics.
+Agents (--agents, comma-separated):
+  apf, astar, ...           a baseline by name
+  ALGO=PATH or ALGO:PATH    a policy trained by train.py, ALGO one of ppo, sac, td3, dqn
+                            (models restore their VecNormalize statistics)
+  pretrained                the policy shipped for the env (see docs/training.md)
+  LABEL=MODULE:ATTR         your own policy, labelled LABEL: ATTR in module MODULE (a dotted
+                            name importable from the current directory or PYTHONPATH, not
+                            a file path) is a policy object with SB3's predict(obs, state,
+                            episode_start, deterministic), or a factory ATTR(env) -> policy
+  MODULE:ATTR               the same, labelled ATTR
+The colon of ALGO:PATH and MODULE:ATTR is told apart by the word before it: ppo, sac, td3 and dqn
+name an algorithm, anything else a module. From Python, evaluate_agents() also takes policy
+objects: see agents.experiments.evaluation and docs/training.md.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -33,11 +44,10 @@ examples:
   python evaluate.py --agents apf,apf-mpc,astar --episodes 50 --seed 100 --out runs/cmp
   python evaluate.py --env DebrisGym/Rendezvous3D-v0 --env-kwargs '{"n_obstacles": 40}'
   python evaluate.py --agents apf,ppo=runs/ppo/model.zip
+  python evaluate.py --agents apf,mine=my_pkg.my_mod:make_policy   # your own policy
   python evaluate.py --paper --out runs/paper          # seed 000 Table I, ours beside theirs
 """
 
-DEFAULT_ENV = "DebrisGym/Rendezvous2D-v0"
-DEFAULT_EPISODES = 20
 DEFAULT_OUT = "runs/eval"
 
 
@@ -76,6 +86,7 @@ def _json_object(text: str) -> dict[str, Any]:
 
 def build_parser() -> argparse.ArgumentParser:
     from agents import BASELINES
+    from agents.experiments.evaluation.command import DEFAULT_ENV, DEFAULT_EPISODES
 
     parser = argparse.ArgumentParser(
         prog="evaluate.py",
@@ -95,7 +106,8 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="LIST",
         help="comma-separated agents: baselines "
         + ", ".join(BASELINES)
-        + "; ALGO=PATH for a learned policy (ppo, sac, td3, dqn); 'pretrained'. Default: every "
+        + "; ALGO=PATH for a learned policy (ppo, sac, td3, dqn); 'pretrained'; "
+        "LABEL=MODULE:ATTR for your own policy object or factory (see above). Default: every "
         "baseline, plus 'pretrained' when a pretrained policy is available",
     )
     parser.add_argument(
@@ -157,157 +169,32 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _note(text: str) -> None:
-    print(f"note: {text}", file=sys.stderr)
-
-
-def _default_agents(
-    env_id: str, env_kwargs: dict[str, Any], max_steps: int | None
-) -> tuple[list[str], dict[str, str]]:
-    """Every baseline, and 'pretrained' if agents.load_agent exists and can load it.
-
-    Returns the agent names and {skipped agent: reason}.
-    """
-    import agents
-    from agents.evaluation import PRETRAINED, agent_env_options, make_env
-
-    names = list(agents.BASELINES)
-    load_agent = getattr(agents, "load_agent", None)
-    if load_agent is None:
-        reason = (
-            "learned agents arrive with the training issue (agents.load_agent does not exist yet)"
-        )
-    else:
-        env = make_env(env_id, {**env_kwargs, **agent_env_options(PRETRAINED, env_id)}, max_steps)
-        try:
-            load_agent(PRETRAINED, env)
-        except (FileNotFoundError, NotImplementedError, ValueError, KeyError) as exc:
-            reason = f"no pretrained policy for {env_id} ({exc})"
-        else:
-            return [*names, PRETRAINED], {}
-        finally:
-            env.close()
-    _note(f"skipped 'pretrained' — {reason}")
-    return names, {PRETRAINED: reason}
-
-
-def _usable(
-    specs: list, explicit: bool, parser: argparse.ArgumentParser, flag: str, make_env: Any
-) -> tuple:
-    """Check each agent can be built: an error naming it if listed explicitly, else a note.
-
-    Learned and pretrained agents are loaded once here (``make_env(spec)`` gives the env), so a
-    wrong file, a space mismatch or a missing pretrained policy fails before any episode runs.
-    """
-    from agents.evaluation import build_agent, check_agent_available
-
-    keep, skipped = [], {}
-    for spec in specs:
-        try:
-            check_agent_available(spec)
-            if spec.kind != "baseline":
-                env = make_env(spec)
-                try:
-                    build_agent(spec, env)
-                finally:
-                    env.close()
-        except (ImportError, FileNotFoundError, NotImplementedError, ValueError) as exc:
-            if explicit:
-                parser.error(f"argument {flag}: {exc}")
-            _note(f"skipped — {exc}")
-            skipped[spec.label] = str(exc)
-            continue
-        keep.append(spec)
-    return keep, skipped
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    if os.getcwd() not in sys.path:  # MODULE:ATTR agents import from where the user stands
+        sys.path.insert(0, os.getcwd())
 
-    import gymnasium as gym
+    from agents.experiments.evaluation.command import EvaluateOptions, UsageError, run_evaluation
 
-    from agents import BASELINES
-    from agents import evaluation as ev
-
-    env_kwargs = args.env_kwargs or {}
-    if args.paper:
-        for flag, value in (("--env", args.env), ("--agents", args.agents)):
-            if value is not None:
-                parser.error(f"argument {flag}: not allowed with --paper (it fixes the env/agents)")
-        if args.episodes is not None:
-            parser.error("argument --episodes: not allowed with --paper (its world is fixed)")
-        env_id, episodes = ev.PAPER_ENV_ID, 1
-    else:
-        env_id = args.env or DEFAULT_ENV
-        episodes = args.episodes or DEFAULT_EPISODES
-
-    try:  # validate the env ID and its keyword arguments before any agent runs
-        ev.make_env(env_id, env_kwargs, args.max_steps).close()
-    except gym.error.Error as exc:
-        parser.error(f"argument --env: {exc}")
-    except (TypeError, ValueError) as exc:
-        parser.error(f"argument --env-kwargs: {exc}")
-
-    explicit = args.agents is not None
-    unregistered: dict[str, str] = {}
-    if args.paper:
-        agent_text: list[str] | str = [a for a in ev.PAPER_AGENTS if a in BASELINES]
-        for name in sorted(set(ev.PAPER_AGENTS) - set(agent_text)):
-            unregistered[name] = f"agent {name!r} is not in agents.BASELINES"
-            _note(f"skipped — {unregistered[name]}")
-    elif explicit:
-        agent_text = args.agents
-    else:
-        agent_text, unregistered = _default_agents(env_id, env_kwargs, args.max_steps)
-    try:
-        specs = ev.parse_agent_specs(agent_text) if agent_text else []
-    except ValueError as exc:
-        parser.error(f"argument --agents: {exc}")
-    specs, skipped = _usable(
-        specs, explicit, parser, "--agents",
-        lambda spec: ev.make_env(
-            env_id, {**env_kwargs, **ev.agent_env_options(spec, env_id)}, args.max_steps
-        ),
-    )  # fmt: skip
-    skipped = {**unregistered, **skipped}
-    if not specs:
-        flag = "--paper" if args.paper else "--agents"
-        parser.error(f"argument {flag}: none of its agents can be built (see the notes above)")
-
-    labels = [spec.label for spec in specs]
-    if args.reference is not None and args.reference not in labels:
-        parser.error(
-            f"argument --reference: {args.reference!r} is not an evaluated agent; "
-            f"agents: {', '.join(labels)}"
-        )
-
-    results = ev.evaluate_agents(
-        env_id,
-        specs,
-        episodes=episodes,
+    options = EvaluateOptions(
+        out=args.out,
+        env=args.env,
+        agents=args.agents,
+        episodes=args.episodes,
         seed=args.seed,
-        env_kwargs=env_kwargs,
+        plots=args.plots,
+        env_kwargs=args.env_kwargs,
+        max_steps=args.max_steps,
+        reference=args.reference,
         progress=not args.no_progress,
-        max_episode_steps=args.max_steps,
+        paper=args.paper,
     )
-    summary = ev.summarize(results, reference=args.reference)
-    if skipped:
-        summary["skipped"] = skipped
-    written = ev.write_outputs(results, args.out, plots=args.plots, summary=summary)
-
-    print(ev.summary_markdown(summary), end="")
-    if args.paper:
-        table = ev.paper_table(results, skipped)
-        text = ev.paper_table_markdown(table)
-        for name, content in (("paper_table.md", text), ("paper_table.json", ev.to_json(table))):
-            ev.write_atomic(args.out / name, content)
-            written.append(args.out / name)
-        print("\nSeed 000 Table I, paper vs ours:\n")
-        print(text, end="")
-    print(f"\nwrote {len(written)} files to {args.out}/ ({results.elapsed:.1f} s):")
-    for path in written:
-        print(f"  {path}")
+    try:
+        text = run_evaluation(options)
+    except UsageError as exc:
+        parser.error(f"argument {exc.flag}: {exc}")
+    print(text, end="")
     return 0
 
 

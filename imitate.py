@@ -6,8 +6,8 @@ policy is refit on all the data. Settings come from agents/configs/<env>_imitati
 --config FILE) with --set overrides. Outputs in --out DIR: model.zip + vecnormalize.pkl (an SB3
 PPO model: evaluate it with evaluate.py --agents ppo=DIR/model.zip), config.yaml,
 imitation_log.json (per round: the policy's success rate on its rollouts, data set size, losses,
-wall times) and imitation_curve.png. The library is agents/imitation.py; docs/training.md has
-the measured runs.
+wall times) and imitation_curve.png. The library is agents/experiments/imitation/;
+docs/training.md has the measured runs.
 """
 
 from __future__ import annotations
@@ -63,7 +63,8 @@ def main(argv: list[str] | None = None) -> int:
     # Ctrl-C must reach Python even when the parent ignores SIGINT; SIGTERM is treated alike.
     signal.signal(signal.SIGINT, signal.default_int_handler)
     signal.signal(signal.SIGTERM, signal.default_int_handler)
-    from agents.imitation import imitate, load_imitation_config
+    from agents.experiments.imitation.config import load_imitation_config
+    from agents.experiments.imitation.run import imitate
 
     try:
         config = load_imitation_config(args.env, args.config, args.overrides, args.seed)

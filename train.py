@@ -5,7 +5,7 @@ overrides. Outputs in --out DIR: model.zip (+ vecnormalize.pkl), config.yaml (th
 and this command line), learning_curve.png, train_log.json (wall time, env-steps/s),
 evaluations.npz and best_model.zip (held-out seeds >= 1,000,000), checkpoints/, tb/ (TensorBoard).
 Ctrl-C saves DIR/checkpoints/interrupted.zip; --resume DIR continues from the latest checkpoint.
-The library is agents/training.py; docs/training.md explains the configs.
+The library is agents/experiments/training/; docs/training.md explains the configs.
 """
 
 from __future__ import annotations
@@ -37,7 +37,8 @@ def _int(text: str, low: int) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from agents.training import ALGOS, available_configs
+    from agents.experiments.training.config import available_configs
+    from agents.policies.model_files import ALGOS
 
     parser = argparse.ArgumentParser(
         prog="train.py",
@@ -93,8 +94,8 @@ def build_parser() -> argparse.ArgumentParser:
         type=lambda t: _int(t, 1),
         default=1,
         metavar="N",
-        help="torch CPU threads (default: 1; on a shared 2-core machine 2 threads made PPO "
-        "6-9x slower, see docs/training.md)",
+        help="torch CPU threads (default: 1; more threads compete with the envs for the cores, "
+        "see docs/training.md)",
     )
     parser.add_argument("--device", default="cpu", help="torch device (default: cpu)")
     return parser
@@ -109,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGINT, signal.default_int_handler)
     signal.signal(signal.SIGTERM, signal.default_int_handler)
 
-    from agents.training import TrainOptions, train
+    from agents.experiments.training.run import TrainOptions, train
 
     options = TrainOptions(
         out=args.out,

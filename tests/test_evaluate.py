@@ -1,4 +1,5 @@
-"""evaluate.py and agents.evaluation: same scenarios, statistics, output files, CLI errors."""
+"""evaluate.py and agents.experiments.evaluation: same scenarios, statistics, output files, CLI
+errors, your own policies."""
 
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ import pytest
 from scipy import stats
 
 import agents
-from agents import evaluation as ev
+from agents.experiments import evaluation as ev
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "evaluate.py"
@@ -223,6 +224,29 @@ def test_fuel_is_rebuilt_when_the_delta_v_budget_cuts_the_last_burn():
     assert rec.metrics.fuel == pytest.approx(rec.delta_v)  # Σ|u_i|·dt, the last burn cut
 
 
+def test_recorded_accelerations_are_the_commanded_ones_without_a_budget():
+    """No spurious budget cut: the recorded acceleration is exactly max_accel times the action
+    (scaled onto the unit ball), even where Δv summed over steps loses its last bits."""
+    from debris_gym.thrust import commanded_accel
+
+    env = gym.make("DebrisGym/Rendezvous2D-v0", **SMALL)
+    random_agent = agents.make_agent("random", env)
+    actions = []
+
+    class Recorder:
+        def predict(self, observation, **kwargs):
+            action, state = random_agent.predict(observation, **kwargs)
+            actions.append(action)
+            return action, state
+
+    rec = ev.run_episode(env, Recorder(), "random", 0, seed=0)
+    max_accel = env.unwrapped.scenario.max_accel
+    expected = commanded_accel(np.array(actions, dtype=float), max_accel, "ball")
+    assert rec.steps > 10
+    assert np.array_equal(rec.trajectory.accelerations, expected)
+    env.close()
+
+
 def test_summary_statistics(results):
     summary = ev.summarize(results)
     rnd = summary["agents"]["random"]
@@ -317,25 +341,124 @@ def test_agent_spec_parsing():
         ev.parse_agent_spec("nope")
 
 
-def test_learned_agents_wait_for_load_agent(monkeypatch, tmp_path):
-    monkeypatch.delattr(agents, "load_agent", raising=False)
+def test_learned_agents_are_loaded_by_load_agent(monkeypatch, tmp_path):
     model = tmp_path / "model.zip"
-    model.write_bytes(b"")
     spec = ev.parse_agent_spec(f"ppo={model}")
-    with pytest.raises(NotImplementedError, match="training issue"):
+    with pytest.raises(FileNotFoundError, match="not found"):
         ev.check_agent_available(spec)
-    env = gym.make("DebrisGym/Rendezvous2D-v0", **SMALL)
-    with pytest.raises(NotImplementedError, match="training issue"):
-        ev.build_agent(spec, env)
-    with pytest.raises(NotImplementedError, match="training issue"):
-        ev.build_agent("pretrained", env)
+    model.write_bytes(b"")
+    ev.check_agent_available(spec)
     calls = []
-    monkeypatch.setattr(
-        agents, "load_agent", lambda s, e: calls.append(s) or "policy", raising=False
-    )
+    monkeypatch.setattr(agents, "load_agent", lambda s, e: calls.append(s) or "policy")
+    env = gym.make("DebrisGym/Rendezvous2D-v0", **SMALL)
     assert ev.build_agent(spec, env) == "policy"
-    assert calls == [f"ppo:{model}"]
+    assert ev.build_agent("pretrained", env) == "policy"
+    assert calls == [f"ppo:{model}", "pretrained"]
     env.close()
+
+
+# --- your own policy: objects, factories and MODULE:ATTR ---------------------------------------
+
+
+class _Hover:
+    """A policy written in the test: never thrusts, so it must fly exactly like ``zero``."""
+
+    def __init__(self, shape):
+        self.shape = shape
+        self.calls = 0
+
+    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+        self.calls += 1
+        return np.zeros(self.shape, dtype=np.float32), state
+
+
+def _flights(results, label):
+    return [r.trajectory.positions for r in results.for_agent(label)]
+
+
+def test_policy_objects_and_factories_fly_like_the_baseline_they_copy():
+    hover = _Hover((2,))
+    res = ev.evaluate_agents(
+        "DebrisGym/Rendezvous2D-v0",
+        {"zero": "zero", "object": hover, "factory": lambda env: _Hover(env.action_space.shape)},
+        episodes=2, seed=3, env_kwargs=SMALL, progress=False, max_episode_steps=25,
+    )  # fmt: skip
+    assert [s.label for s in res.agents] == ["zero", "object", "factory"]
+    assert [s.kind for s in res.agents] == ["baseline", "object", "object"]
+    assert hover.calls == sum(r.steps for r in res.for_agent("object")) == 2 * 25
+    for label in ("object", "factory"):
+        for mine, ref in zip(_flights(res, label), _flights(res, "zero"), strict=True):
+            assert np.array_equal(mine, ref)
+    assert [r.delta_v for r in res.for_agent("factory")] == [0.0, 0.0]
+
+
+def test_module_attr_specs_parse_apart_from_learned_paths():
+    mine = ev.parse_agent_spec("mine=example_policies:make_policy")
+    assert (mine.kind, mine.name, mine.label) == ("python", "example_policies:make_policy", "mine")
+    short = ev.parse_agent_spec("example_policies:CoastPolicy")
+    assert (short.kind, short.label) == ("python", "CoastPolicy")
+    learned = ev.parse_agent_spec("PPO:runs/a=b/model.zip")  # the algorithm decides, not "="
+    assert (learned.kind, learned.name, learned.path) == ("learned", "ppo", "runs/a=b/model.zip")
+    with pytest.raises(ValueError, match="MODULE:ATTR"):
+        ev.parse_agent_spec("mine=my-file.py:make")
+
+
+@pytest.mark.parametrize("attr", ["make_policy", "CoastPolicy"])
+def test_module_attr_factory_and_class_build_a_policy(attr):
+    env = gym.make("DebrisGym/Rendezvous2D-v0", **SMALL)
+    policy = ev.build_agent(f"example_policies:{attr}", env)
+    obs, _ = env.reset(seed=0)
+    action, _ = policy.predict(obs)
+    assert action.shape == env.action_space.shape and not action.any()
+    env.close()
+
+
+@pytest.mark.parametrize(
+    ("spec", "error", "text"),
+    [
+        ("mine=no_such_module_xyz:make", ImportError, "'no_such_module_xyz' cannot be imported"),
+        ("mine=example_policies:missing", ImportError, "has no attribute 'missing'"),
+        ("mine=example_policies:NOT_A_POLICY", TypeError, "no predict"),
+        ("mine=example_policies:make_nothing", TypeError, "no predict"),
+    ],
+)
+def test_module_attr_problems_are_named(spec, error, text):
+    env = gym.make("DebrisGym/Rendezvous2D-v0", **SMALL)
+    with pytest.raises(error, match=re.escape(text)):
+        ev.build_agent(spec, env)
+    env.close()
+
+
+def test_a_mapping_value_without_predict_or_call_is_refused():
+    with pytest.raises(TypeError, match=r"'mine'.*no predict"):
+        ev.parse_agent_specs({"mine": 3.5})
+
+
+def test_script_evaluates_a_module_attr_policy_from_the_current_directory(tmp_path):
+    out = tmp_path / "eval"
+    proc = subprocess.run(
+        [
+            sys.executable, str(SCRIPT), "--agents", "zero,mine=example_policies:make_policy",
+            "--episodes", "1", "--env-kwargs", json.dumps(SMALL), "--max-steps", "20",
+            "--plots", "0", "--no-progress", "--out", str(out),
+        ],
+        cwd=Path(__file__).parent, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    rows = {r["agent"]: r for r in csv.DictReader(open(out / "episodes.csv", newline=""))}
+    assert set(rows) == {"zero", "mine"}
+    assert rows["mine"]["delta_v"] == "0.0" and rows["mine"]["steps"] == "20"
+    assert rows["mine"]["path_length"] == rows["zero"]["path_length"]
+
+
+def test_script_names_a_broken_module_attr_agent(tmp_path):
+    proc = subprocess.run(
+        [sys.executable, str(SCRIPT), "--agents", "mine=example_policies:NOT_A_POLICY",
+         "--out", str(tmp_path / "out")],
+        cwd=Path(__file__).parent, capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert proc.returncode == 2
+    assert "argument --agents" in proc.stderr and "no predict" in proc.stderr
 
 
 def test_plot_is_a_png_for_3d(tmp_path):

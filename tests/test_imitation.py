@@ -1,5 +1,5 @@
-"""agents.imitation and imitate.py: the expert's goal rule, the numpy actor, the fit, the config
-checks and a tiny end-to-end run evaluated by evaluate.py."""
+"""agents.experiments.imitation and imitate.py: the expert's goal rule, the numpy actor, the fit,
+the config checks, a tiny run in-process and (slow) one through imitate.py and evaluate.py."""
 
 from __future__ import annotations
 
@@ -18,7 +18,15 @@ from hypothesis import strategies as st
 pytest.importorskip("stable_baselines3")
 
 import agents
-from agents import imitation as im
+from agents.experiments.imitation.config import ImitationConfig, load_imitation_config
+from agents.experiments.imitation.fitting import (
+    export_actor,
+    fit,
+    make_model,
+    set_observation_stats,
+)
+from agents.experiments.imitation.run import imitate, run_config_yaml
+from agents.experiments.training.config import available_configs
 from agents.mission import MissionPlan
 from debris_gym.envs import DebrisFieldEnv
 
@@ -34,6 +42,17 @@ TINY = {
     "max_episode_steps": 25,
     "net_arch": (16, 16),
 }
+
+
+@pytest.fixture(autouse=True)
+def one_torch_thread():
+    """One torch thread, as imitate() uses: under pytest -n 2 more threads only contend."""
+    import torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
@@ -99,8 +118,8 @@ def test_apf_mpc_with_the_envs_goal_completes_a_mission():
 
 
 def _tiny_model(**kwargs):
-    config = im.ImitationConfig(**{**TINY, **kwargs})
-    model, venv = im.make_model(config)
+    config = ImitationConfig(**{**TINY, **kwargs})
+    model, venv = make_model(config)
     return config, model, venv
 
 
@@ -109,11 +128,11 @@ def test_numpy_actor_matches_the_saved_sb3_policy(tmp_path):
     config, model, venv = _tiny_model()
     rng = np.random.default_rng(0)
     data = rng.normal(size=(500, venv.observation_space.shape[0])).astype(np.float32) * 3.0
-    im.set_observation_stats(venv, data)
-    actor = im.export_actor(model, venv, config.activation_fn)
+    set_observation_stats(venv, data)
+    actor = export_actor(model, venv, config.activation_fn)
     model.save(tmp_path / "model.zip")
     venv.save(str(tmp_path / "vecnormalize.pkl"))
-    (tmp_path / "config.yaml").write_text(im._run_config_yaml(config))
+    (tmp_path / "config.yaml").write_text(run_config_yaml(config))
     env = gym.make(ENV_ID, **config.env_kwargs)
     learned = agents.load_agent(f"ppo:{tmp_path / 'model.zip'}", env)
     obs = data[:50] * 4.0  # some beyond the clip range
@@ -128,10 +147,10 @@ def test_fit_learns_a_known_map():
     rng = np.random.default_rng(1)
     obs = rng.normal(size=(8000, venv.observation_space.shape[0])).astype(np.float32)
     target = np.clip(0.4 * obs[:, :2], -1, 1).astype(np.float32)
-    im.set_observation_stats(venv, obs)
-    losses = im.fit(model, venv, obs, target, 40, config, rng)
+    set_observation_stats(venv, obs)
+    losses = fit(model, venv, obs, target, 40, config, rng)
     assert losses[-1] < 0.1 * losses[0]
-    actor = im.export_actor(model, venv, config.activation_fn)
+    actor = export_actor(model, venv, config.activation_fn)
     test = rng.normal(size=(500, obs.shape[1])).astype(np.float32)
     truth = np.clip(0.4 * test[:, :2], -1, 1)
     rms = float(np.sqrt(np.mean((actor(test) - truth) ** 2)))
@@ -142,15 +161,15 @@ def test_config_errors_name_the_key():
     with pytest.raises(
         ValueError, match=r"unknown key 'dagger_round' \(did you mean 'dagger_rounds'"
     ):
-        im.ImitationConfig.from_dict({"dagger_round": 3})
+        ImitationConfig.from_dict({"dagger_round": 3})
     with pytest.raises(ValueError, match=r"dagger_beta=1.5 is out of range; allowed: \[0, 1\]"):
-        im.ImitationConfig.from_dict({"dagger_beta": 1.5})
+        ImitationConfig.from_dict({"dagger_beta": 1.5})
     with pytest.raises(ValueError, match="n_obstacles"):
-        im.ImitationConfig.from_dict({"env_kwargs": {"n_obstacles": -1}})
+        ImitationConfig.from_dict({"env_kwargs": {"n_obstacles": -1}})
     with pytest.raises(ValueError, match="action"):
-        im.ImitationConfig.from_dict({"env_kwargs": {"action": "discrete"}})
+        ImitationConfig.from_dict({"env_kwargs": {"action": "discrete"}})
     with pytest.raises(ValueError, match="activation_fn"):
-        im.ImitationConfig.from_dict({"activation_fn": "swish"})
+        ImitationConfig.from_dict({"activation_fn": "swish"})
 
 
 @settings(max_examples=40, deadline=None)
@@ -160,29 +179,48 @@ def test_config_errors_name_the_key():
 )
 def test_counts_below_one_are_refused(key, value):
     with pytest.raises(ValueError, match=rf"{key}={value} is out of range; allowed: >= 1"):
-        im.ImitationConfig(**{key: value})
+        ImitationConfig(**{key: value})
 
 
 @settings(max_examples=20, deadline=None)
 @given(st.floats(allow_nan=True, allow_infinity=True).filter(lambda x: not 0 <= x <= 1))
 def test_beta_outside_the_unit_interval_is_refused(beta):
     with pytest.raises(ValueError, match="dagger_beta"):
-        im.ImitationConfig(dagger_beta=beta)
+        ImitationConfig(dagger_beta=beta)
 
 
 def test_checked_in_recipe_loads():
     """The recipe loads; train.py does not list it among its own configs (regression: its
     config test read every YAML in agents/configs as a training config)."""
-    from agents.training import available_configs
-
     assert "rendezvous2d_imitation" not in available_configs()
-    config = im.load_imitation_config(ENV_ID)
+    config = load_imitation_config(ENV_ID)
     assert config.expert == "apf-mpc" and config.expert_kwargs["ordering"] == "nearest"
     assert config.env_kwargs["obs_goal"] is True
     with pytest.raises(FileNotFoundError, match="no imitation config"):
-        im.load_imitation_config("DebrisGym/Rendezvous3D-v0")
+        load_imitation_config("DebrisGym/Rendezvous3D-v0")
 
 
+def test_tiny_run_in_process_writes_a_policy_that_loads(tmp_path):
+    """The library call behind imitate.py: a loadable model, its statistics and its logs."""
+    config = ImitationConfig(**TINY)
+    lines = []
+    log = imitate(config, tmp_path / "run", log=lines.append, progress=False, command="test")
+    assert [r["round"] for r in log["rounds"]] == [0, 1]
+    assert lines[0].startswith("round 0 (apf-mpc flew 2 episodes)")
+    assert log["rounds"][1]["dataset"] > log["rounds"][0]["dataset"] > 0
+    for name in ("model.zip", "vecnormalize.pkl", "config.yaml", "imitation_log.json",
+                 "imitation_curve.png"):  # fmt: skip
+        assert (tmp_path / "run" / name).is_file(), name
+    env = gym.make(ENV_ID, **config.env_kwargs)
+    policy = agents.load_agent(f"ppo:{tmp_path / 'run' / 'model.zip'}", env)
+    obs, _ = env.reset(seed=0)
+    assert env.action_space.contains(policy.predict(obs)[0])
+    env.close()
+    with pytest.raises(FileExistsError, match="already holds a run"):
+        imitate(config, tmp_path / "run", log=lines.append, progress=False)
+
+
+@pytest.mark.slow
 def test_tiny_run_end_to_end(tmp_path):
     """imitate.py writes a loadable model; evaluate.py flies it; a second run refuses the dir."""
     out = tmp_path / "run"
@@ -216,13 +254,14 @@ def test_tiny_run_end_to_end(tmp_path):
 
 def test_expert_settings_are_checked_up_front():
     with pytest.raises(ValueError, match="unknown agent 'apf-mcp'"):
-        im.ImitationConfig.from_dict({"expert": "apf-mcp"})
+        ImitationConfig.from_dict({"expert": "apf-mcp"})
     with pytest.raises(ValueError, match="cruise_speed must be > 0"):
-        im.ImitationConfig.from_dict({"expert_kwargs": {"reference": {"cruise_speed": -1}}})
+        ImitationConfig.from_dict({"expert_kwargs": {"reference": {"cruise_speed": -1}}})
     with pytest.raises(ValueError, match="expert_kwargs"):
-        im.ImitationConfig.from_dict({"expert_kwargs": {"horizon": 3}})
+        ImitationConfig.from_dict({"expert_kwargs": {"horizon": 3}})
 
 
+@pytest.mark.slow
 def test_ctrl_c_stops_the_run_and_its_workers(tmp_path):
     """SIGINT during a DAgger round: exit status 130, no model written, the rollout workers
     stopped (regression: SIGINT ignored by a background parent; workers printed tracebacks)."""

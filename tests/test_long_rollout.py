@@ -1,4 +1,5 @@
-"""Long random-action rollouts: no NaN or inf anywhere, and no memory growth."""
+"""Long random-action rollouts: no NaN or inf anywhere, and no memory growth (``slow``; a short
+rollout per env stays in the default run)."""
 
 from __future__ import annotations
 
@@ -39,6 +40,17 @@ def run_random(env_id: str, steps: int, seed: int = 0) -> tuple[int, list[int]]:
     return episodes, samples
 
 
+@pytest.mark.parametrize(
+    "env_id",
+    ["DebrisGym/Rendezvous2D-v0", "DebrisGym/Rendezvous3D-v0", "DebrisGym/PaperField2D-v0"],
+)
+def test_short_random_rollout_stays_finite(env_id):
+    """The default run's short version of the long rollouts below (finite values only)."""
+    episodes, _ = run_random(env_id, 3_000, seed=1)
+    assert episodes >= 1
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "env_id, steps",
     [

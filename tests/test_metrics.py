@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from agents.metrics import (
+from agents.experiments.evaluation.metrics import (
     fuel,
     max_acceleration_deceleration,
     path_length,

@@ -47,7 +47,11 @@ def test_adapter_matches_sb3_dummy_vec_env():
 def test_ppo_learns_a_few_steps_on_the_native_vector_env():
     venv = NativeVecEnv("DebrisGym/Rendezvous2D-v0", num_envs=8)
     model = PPO("MlpPolicy", venv, n_steps=16, batch_size=64, n_epochs=1, seed=0, device="cpu")
+    before = [p.detach().clone() for p in model.policy.parameters()]
     model.learn(256)
+    assert model.num_timesteps == 256
+    after = list(model.policy.parameters())
+    assert any(not (a == b).all() for a, b in zip(after, before))  # the update reached the net
     obs = venv.reset()
     actions, _ = model.predict(obs, deterministic=True)
     assert actions.shape == (8, 2) and np.all(np.isfinite(actions))

@@ -1,5 +1,9 @@
-"""train.py and agents.training / agents.learned: tiny runs of every algorithm, resume, Ctrl-C,
-config validation, and learned agents behind the shared predict() interface."""
+"""train.py, agents.experiments.training and agents.learned: tiny runs of every algorithm,
+resume, Ctrl-C, config validation, and learned agents behind the shared predict() interface.
+
+The script runs of the off-policy algorithms, the Ctrl-C run and the cut-log resume are marked
+``slow``; the default run keeps a script run of PPO, its resume, and in-process runs of the others.
+"""
 
 from __future__ import annotations
 
@@ -24,8 +28,22 @@ import yaml
 pytest.importorskip("stable_baselines3")
 
 import agents
-from agents import training as tr
+from agents.experiments.config_files import CONFIG_DIR, apply_overrides
+from agents.experiments.training.checkpoints import (
+    find_latest_checkpoint,
+    interrupts_deferred,
+    model_timesteps,
+)
+from agents.experiments.training.config import (
+    OFF_POLICY,
+    TrainConfig,
+    available_configs,
+    default_config_path,
+)
+from agents.experiments.training.run import TrainOptions, train
 from agents.learned import LearnedAgent
+from agents.policies.model_files import load_config_file, sidecar_path
+from debris_gym.files import save_atomic
 
 ROOT = Path(__file__).resolve().parents[1]
 TRAIN = ROOT / "train.py"
@@ -38,12 +56,12 @@ TINY = [
     "--set", "checkpoint.freq=128", "--set", "env_kwargs.max_episode_steps=40",
     "--set", "env_kwargs.n_obstacles=5",
 ]  # fmt: skip
-OFF_POLICY = ["buffer_size=2000", "learning_starts=32", "batch_size=32", "gradient_steps=1"]
+OFF_POLICY_SETS = ["buffer_size=2000", "learning_starts=32", "batch_size=32", "gradient_steps=1"]
 ALGO_SETS = {
     "ppo": ["n_steps=32", "batch_size=32", "n_epochs=1"],
-    "sac": OFF_POLICY,
-    "td3": OFF_POLICY,
-    "dqn": [*OFF_POLICY, "target_update_interval=64"],
+    "sac": OFF_POLICY_SETS,
+    "td3": OFF_POLICY_SETS,
+    "dqn": [*OFF_POLICY_SETS, "target_update_interval=64"],
 }
 SUBPROCESS_ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
 
@@ -107,15 +125,15 @@ def trained_by_script(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
-    """algo → run directory of a tiny in-process ``agents.training.train`` run."""
+    """algo → run directory of a tiny in-process :func:`train` run."""
 
     def get(algo: str) -> Path:
         if algo not in _LIBRARY_RUNS:
             out = tmp_path_factory.mktemp(f"lib_{algo}") / "run"
             args = tiny_args(algo)
             overrides = [args[i + 1] for i, a in enumerate(args) if a == "--set"]
-            result = tr.train(
-                tr.TrainOptions(
+            result = train(
+                TrainOptions(
                     out=out, algo=algo, overrides=overrides, timesteps=256, n_envs=2, seed=3,
                     progress=False, argv=["test"],
                 )
@@ -130,7 +148,10 @@ def trained(tmp_path_factory):
 # --- train.py end to end ------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("algo", ["ppo", "sac", "td3", "dqn"])
+@pytest.mark.parametrize(
+    "algo",
+    ["ppo", *(pytest.param(a, marks=pytest.mark.slow) for a in ("sac", "td3", "dqn"))],
+)
 def test_train_writes_a_run_that_evaluate_py_flies(
     algo, trained_by_script, evaluate_cli, tmp_path, capsys
 ):
@@ -140,14 +161,14 @@ def test_train_writes_a_run_that_evaluate_py_flies(
         assert (out / name).is_file(), name
     assert (out / "vecnormalize.pkl").is_file()  # every checked-in config normalises obs
     assert (out / "learning_curve.png").read_bytes().startswith(b"\x89PNG")
-    assert tr.model_timesteps(out / "model.zip") >= 256
+    assert model_timesteps(out / "model.zip") >= 256
     checkpoints = list((out / "checkpoints").glob("rl_model_*_steps.zip"))
     assert checkpoints
     for ckpt in checkpoints:  # each with its VecNormalize stats beside it, no scratch files
-        assert tr.sidecar_path(ckpt, "vecnormalize").is_file(), ckpt
-    latest = max(checkpoints, key=tr.model_timesteps)
-    buffer = tr.sidecar_path(latest, "replay_buffer").is_file()
-    assert buffer == (algo in tr.OFF_POLICY)  # small buffers go with the latest checkpoint
+        assert sidecar_path(ckpt, "vecnormalize").is_file(), ckpt
+    latest = max(checkpoints, key=model_timesteps)
+    buffer = sidecar_path(latest, "replay_buffer").is_file()
+    assert buffer == (algo in OFF_POLICY)  # small buffers go with the latest checkpoint
     assert (out / "best_model_vecnormalize.pkl").is_file()
     assert not list(out.rglob(".*tmp*"))
 
@@ -159,7 +180,7 @@ def test_train_writes_a_run_that_evaluate_py_flies(
     log = json.loads((out / "train_log.json").read_text())
     assert log["status"] == "completed" and log["env_steps_per_s"] > 0
     with np.load(out / "evaluations.npz") as data:
-        assert data["timesteps"][-1] == tr.model_timesteps(out / "model.zip")
+        assert data["timesteps"][-1] == model_timesteps(out / "model.zip")
         assert data["results"].shape[1] == 2 and "successes" in data
 
     args = [
@@ -181,10 +202,23 @@ def test_train_writes_a_run_that_evaluate_py_flies(
     assert summary["agents"][algo]["decision_ms_p50"] > 0
 
 
+@pytest.mark.parametrize("algo", ["sac", "td3", "dqn"])
+def test_off_policy_runs_keep_their_replay_buffer_and_statistics(algo, trained):
+    out = trained(algo)
+    assert model_timesteps(out / "model.zip") >= 256
+    assert (out / "vecnormalize.pkl").is_file() and (out / "replay_buffer.pkl").is_file()
+    checkpoints = sorted((out / "checkpoints").glob("rl_model_*_steps.zip"), key=model_timesteps)
+    assert checkpoints and all(sidecar_path(c, "vecnormalize").is_file() for c in checkpoints)
+    buffers = [c for c in checkpoints if sidecar_path(c, "replay_buffer").is_file()]
+    assert buffers == checkpoints[-1:]  # only the latest checkpoint keeps its buffer
+    config = yaml.safe_load((out / "config.yaml").read_text())
+    assert config["algo"] == algo and config["run"]["seed"] == 3
+
+
 def test_resume_adds_timesteps(trained_by_script, train_cli, tmp_path, capsys):
     out = tmp_path / "run"
     shutil.copytree(trained_by_script("ppo"), out)
-    before = tr.model_timesteps(out / "model.zip")
+    before = model_timesteps(out / "model.zip")
     for argv, message in (
         (["--resume", str(out)], "pass --timesteps N to train N more"),  # budget reached
         (["--resume", str(out), "--seed", "1"], "--seed cannot be combined with --resume"),
@@ -196,7 +230,7 @@ def test_resume_adds_timesteps(trained_by_script, train_cli, tmp_path, capsys):
 
     proc = run_train(["--resume", str(out), "--timesteps", "128", "--no-progress"])
     assert proc.returncode == 0, proc.stdout + proc.stderr
-    after = tr.model_timesteps(out / "model.zip")
+    after = model_timesteps(out / "model.zip")
     assert after >= before + 128
     log = json.loads((out / "train_log.json").read_text())
     assert [s["start_timesteps"] for s in log["segments"]] == [0, before]
@@ -208,6 +242,7 @@ def test_resume_adds_timesteps(trained_by_script, train_cli, tmp_path, capsys):
     assert steps == sorted(steps) and steps[0] < before < steps[-1] == after
 
 
+@pytest.mark.slow
 def test_resume_survives_an_evaluation_log_cut_short(trained_by_script, tmp_path):
     """Regression: a run stopped mid-evaluation left evaluations.npz with fewer ``successes``
     than ``timesteps``, and ``--resume`` failed with an IndexError."""
@@ -218,7 +253,7 @@ def test_resume_survives_an_evaluation_log_cut_short(trained_by_script, tmp_path
     assert len(arrays["timesteps"]) >= 2
     arrays["successes"] = arrays["successes"][:-1]
     np.savez(out / "evaluations.npz", **arrays)
-    before = tr.model_timesteps(out / "model.zip")
+    before = model_timesteps(out / "model.zip")
     proc = run_train(["--resume", str(out), "--timesteps", "128", "--no-progress"])
     assert proc.returncode == 0, proc.stdout + proc.stderr
     with np.load(out / "evaluations.npz", allow_pickle=True) as data:
@@ -229,6 +264,7 @@ def test_resume_survives_an_evaluation_log_cut_short(trained_by_script, tmp_path
     assert not list(out.glob(".evaluations*"))  # no scratch or temporary files left
 
 
+@pytest.mark.slow
 def test_ctrl_c_leaves_a_checkpoint_that_resumes(tmp_path):
     out = tmp_path / "run"
     args = [a if a != "256" else "10000000" for a in tiny_args("ppo")]  # far too long to finish
@@ -257,14 +293,14 @@ def test_ctrl_c_leaves_a_checkpoint_that_resumes(tmp_path):
         interrupted.is_file() and (out / "checkpoints" / "interrupted_vecnormalize.pkl").is_file()
     )
     assert not (out / "model.zip").exists()
-    steps = tr.model_timesteps(interrupted)
-    assert steps > 0 and tr.find_latest_checkpoint(out) == interrupted
+    steps = model_timesteps(interrupted)
+    assert steps > 0 and find_latest_checkpoint(out) == interrupted
     log = json.loads((out / "train_log.json").read_text())
     assert log["status"] == "interrupted"
 
     proc2 = run_train(["--resume", str(out), "--timesteps", "64", "--no-progress"])
     assert proc2.returncode == 0, proc2.stdout + proc2.stderr
-    assert tr.model_timesteps(out / "model.zip") >= steps + 64
+    assert model_timesteps(out / "model.zip") >= steps + 64
 
 
 def test_ctrl_c_during_a_save_waits_for_the_whole_file(tmp_path):
@@ -285,12 +321,12 @@ def test_ctrl_c_during_a_save_waits_for_the_whole_file(tmp_path):
 
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # xdist may change it
     try:
-        with pytest.raises(KeyboardInterrupt), tr._interrupts_deferred():
-            tr.save_atomic(path, save)
+        with pytest.raises(KeyboardInterrupt), interrupts_deferred():
+            save_atomic(path, save)
         # under an ignoring handler (the final save) the block runs as it is and raises nothing
         signal.signal(signal.SIGINT, signal.SIG_IGN)
-        with tr._interrupts_deferred():
-            tr.save_atomic(tmp_path / "final.zip", save)
+        with interrupts_deferred():
+            save_atomic(tmp_path / "final.zip", save)
     finally:
         signal.signal(signal.SIGINT, previous)
     assert reached == [True, True]
@@ -302,20 +338,20 @@ def test_ctrl_c_during_a_save_waits_for_the_whole_file(tmp_path):
 
 
 def base_config(algo: str = "ppo") -> dict:
-    data, _ = tr.load_config_file(tr.default_config_path(ENV_ID, algo))
+    data, _ = load_config_file(default_config_path(ENV_ID, algo))
     return data
 
 
 def test_checked_in_configs_are_valid():
-    names = tr.available_configs()
+    names = available_configs()
     for required in ("rendezvous2d_ppo", "rendezvous2d_sac", "rendezvous2d_td3",
                      "rendezvous2d_dqn", "rendezvous3d_ppo", "paperfield2d_ppo"):  # fmt: skip
         assert required in names
     for name in names:
-        path = tr.CONFIG_DIR / f"{name}.yaml"
-        data, _ = tr.load_config_file(path)
-        config = tr.TrainConfig.from_dict(data, str(path))
-        assert tr.default_config_path(config.env_id, config.algo) == path
+        path = CONFIG_DIR / f"{name}.yaml"
+        data, _ = load_config_file(path)
+        config = TrainConfig.from_dict(data, str(path))
+        assert default_config_path(config.env_id, config.algo) == path
         assert config.version >= 1
         if config.algo == "ppo":
             assert config.normalize.enabled
@@ -347,34 +383,32 @@ def test_config_errors_name_the_key(change, match):
     for key, value in change.items():
         data[key] = {**data[key], **value} if isinstance(value, dict) and key in data else value
     with pytest.raises(ValueError, match=match):
-        tr.TrainConfig.from_dict(data, "test.yaml")
+        TrainConfig.from_dict(data, "test.yaml")
 
 
 def test_config_algorithm_must_fit_the_action_space():
     data = base_config("dqn")
     data["env_kwargs"] = {}
     with pytest.raises(ValueError, match=r"env_kwargs.action' must be 'discrete' for dqn"):
-        tr.TrainConfig.from_dict(data, "dqn.yaml")
+        TrainConfig.from_dict(data, "dqn.yaml")
 
 
 def test_overrides_and_numbers():
-    data = tr.apply_overrides(
+    data = apply_overrides(
         base_config(),
         ["algo_kwargs.learning_rate=3e-4", "normalize.enabled=false", "env_kwargs.dim=3"],
     )
-    config = tr.TrainConfig.from_dict(data)
+    config = TrainConfig.from_dict(data)
     assert config.algo_kwargs["learning_rate"] == 3e-4  # YAML reads "3e-4" as a string
     assert config.normalize.enabled is False and config.env_kwargs["dim"] == 3
     with pytest.raises(ValueError, match="KEY=VALUE"):
-        tr.apply_overrides({}, ["novalue"])
+        apply_overrides({}, ["novalue"])
 
 
 def test_sidecar_names():
-    assert tr.sidecar_path("d/model.zip", "vecnormalize") == Path("d/vecnormalize.pkl")
-    assert tr.sidecar_path("d/best_model.zip", "vecnormalize") == Path(
-        "d/best_model_vecnormalize.pkl"
-    )
-    assert tr.sidecar_path("d/rl_model_1024_steps.zip", "replay_buffer") == Path(
+    assert sidecar_path("d/model.zip", "vecnormalize") == Path("d/vecnormalize.pkl")
+    assert sidecar_path("d/best_model.zip", "vecnormalize") == Path("d/best_model_vecnormalize.pkl")
+    assert sidecar_path("d/rl_model_1024_steps.zip", "replay_buffer") == Path(
         "d/rl_model_replay_buffer_1024_steps.pkl"
     )
 
@@ -527,10 +561,10 @@ def test_curriculum_switches_the_training_env(train_cli, tmp_path, capsys):
     ],
 )
 def test_bad_curricula_are_refused(stages, message):
-    data, _ = tr.load_config_file(tr.default_config_path(ENV_ID, "ppo"))
-    data = tr.apply_overrides(data, [f"curriculum={stages}"])
+    data, _ = load_config_file(default_config_path(ENV_ID, "ppo"))
+    data = apply_overrides(data, [f"curriculum={stages}"])
     with pytest.raises(ValueError, match=re.escape(message)):
-        tr.TrainConfig.from_dict(data, "test")
+        TrainConfig.from_dict(data, "test")
 
 
 def test_a_policy_trained_with_other_observation_options_flies_beside_the_baselines(

@@ -1,0 +1,92 @@
+"""Evaluate agents on the same seeded scenarios: episode records, summaries, tables and plots.
+
+The library behind ``evaluate.py``, one job per module:
+
+============  ======================================================================
+specs         what to evaluate: baseline names, ``ppo=PATH``, ``pretrained``, your own
+              ``LABEL=MODULE:ATTR`` or a policy object; building each for an env
+runner        flying every agent on the same seeded episodes (:func:`evaluate_agents`)
+records       what a run produced (episode records, trajectories, the whole run)
+metrics       seed 000 Table I metrics of a trajectory
+statistics    Wilson and t intervals, per-agent summaries, Δv paired by seed
+report        the Markdown table, strict JSON, episodes.csv, writing the files
+plots         trajectory plots
+paper         seed 000 Table I beside ours (``--paper``)
+command       ``evaluate.py`` once its arguments are parsed
+============  ======================================================================
+
+Your own policy, from Python::
+
+    from agents.experiments.evaluation import evaluate_agents, summarize, summary_markdown
+
+    results = evaluate_agents(
+        "DebrisGym/Rendezvous2D-v0",
+        {"apf": "apf", "mine": MyPolicy()},  # or a factory: {"mine": lambda env: MyPolicy(env)}
+        episodes=20,
+        seed=0,
+    )
+    print(summary_markdown(summarize(results)))
+
+A policy is anything with SB3's ``predict(obs, state=None, episode_start=None,
+deterministic=True) -> (action, state)``.
+"""
+
+from agents.experiments.evaluation.records import (
+    CSV_COLUMNS,
+    EpisodeRecord,
+    EvaluationResults,
+    Trajectory,
+    scenario_fingerprint,
+)
+from agents.experiments.evaluation.report import (
+    episodes_csv,
+    summary_markdown,
+    to_json,
+    write_outputs,
+)
+from agents.experiments.evaluation.runner import evaluate_agents, make_env, run_episode
+from agents.experiments.evaluation.specs import (
+    LEARNED_ALGOS,
+    PRETRAINED,
+    AgentSpec,
+    agent_env_options,
+    build_agent,
+    check_agent_available,
+    parse_agent_spec,
+    parse_agent_specs,
+)
+from agents.experiments.evaluation.statistics import (
+    CONFIDENCE,
+    paired_delta_v,
+    summarize,
+    t_interval,
+    wilson_interval,
+)
+
+__all__ = [
+    "CONFIDENCE",
+    "CSV_COLUMNS",
+    "LEARNED_ALGOS",
+    "PRETRAINED",
+    "AgentSpec",
+    "EpisodeRecord",
+    "EvaluationResults",
+    "Trajectory",
+    "agent_env_options",
+    "build_agent",
+    "check_agent_available",
+    "episodes_csv",
+    "evaluate_agents",
+    "make_env",
+    "paired_delta_v",
+    "parse_agent_spec",
+    "parse_agent_specs",
+    "run_episode",
+    "scenario_fingerprint",
+    "summarize",
+    "summary_markdown",
+    "t_interval",
+    "to_json",
+    "wilson_interval",
+    "write_outputs",
+]

@@ -1,0 +1,162 @@
+"""Reports of an evaluation: the Markdown table, strict JSON, the episodes CSV, and the files.
+
+Outputs are written atomically (:func:`debris_gym.files.write_atomic`: a temporary file in the
+same directory, then :func:`os.replace`): ``episodes.csv``, ``summary.json``, ``summary.md`` and
+``trajectories_epNNN.png``.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+import json
+import math
+import os
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from agents.experiments.evaluation.plots import plot_episode
+from agents.experiments.evaluation.records import CSV_COLUMNS, EpisodeRecord, EvaluationResults
+from agents.experiments.evaluation.statistics import summarize
+from debris_gym.files import write_atomic
+
+__all__ = ["episodes_csv", "format_number", "summary_markdown", "to_json", "write_outputs"]
+
+
+def format_number(value: Any, digits: int = 3) -> str:
+    """``value`` for a table: 3 significant digits (``digits``), ``—`` for None and non-finite."""
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "—"
+    if isinstance(value, float):
+        return f"{value:.{digits}g}" if abs(value) < 10**digits else f"{value:.0f}"
+    return str(value)
+
+
+def _with_ci(entry: dict[str, Any], key: str, digits: int = 3) -> str:
+    lo, hi = entry.get(f"{key}_ci95", (None, None))
+    text = format_number(entry[key], digits)
+    if lo is None or hi is None:
+        return text
+    return f"{text} [{format_number(lo, digits)}, {format_number(hi, digits)}]"
+
+
+def summary_markdown(summary: dict[str, Any]) -> str:
+    """The summary as a Markdown table, one row per agent, 95 % intervals in brackets."""
+    n = summary["episodes"]
+    lines = [
+        f"Env `{summary['env_id']}`"
+        + (f" with `{json.dumps(summary['env_kwargs'])}`" if summary["env_kwargs"] else "")
+        + (
+            f", time limit {summary['max_episode_steps']} steps"
+            if summary.get("max_episode_steps")
+            else ""
+        )
+        + f"; {n} episode{'s' if n != 1 else ''} per agent, "
+        + (
+            f"reset seeds {summary['seed']}…{summary['seed'] + n - 1}."
+            if n > 1
+            else f"reset seed {summary['seed']}."
+        ),
+        "",
+        "| agent | success | targets captured | Δv [m/s] | time [s] | path [m] | collision "
+        "| min clearance [m] | decision p50 / p95 [ms] |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for label, e in summary["agents"].items():
+        captured = _with_ci(e, "targets_captured_mean")
+        if e.get("n_targets") is not None:
+            captured += f" / {e['n_targets']}"
+        lines.append(
+            f"| {label} | {_with_ci(e, 'success_rate', 2)} | {captured} "
+            f"| {_with_ci(e, 'delta_v_mean')} | {_with_ci(e, 'time_mean')} "
+            f"| {_with_ci(e, 'path_length_mean')} | {_with_ci(e, 'collision_rate', 2)} "
+            f"| {format_number(e['min_clearance_min'])} "
+            f"| {format_number(e['decision_ms_p50'])} / {format_number(e['decision_ms_p95'])} |"
+        )
+    lines += [
+        "",
+        "Brackets: 95 % confidence intervals — Wilson score for rates, Student t for means "
+        "(means are over all episodes, failed ones included).",
+    ]
+    paired = summary.get("paired_delta_v") or {}
+    if paired.get("agents"):
+        ref = paired["reference"]
+        lines += [
+            "",
+            f"Δv on the missions both complete, paired with {ref} by seed:",
+            "",
+            f"| agent | both complete | agent Δv [m/s] | {ref} Δv [m/s] | agent − {ref} [m/s] |",
+            "|---|---|---|---|---|",
+        ]
+        for label, e in paired["agents"].items():
+            lines.append(
+                f"| {label} | {e['both_succeeded']} / {n} | {format_number(e['delta_v_mean'])} "
+                f"| {format_number(e['reference_delta_v_mean'])} "
+                f"| {_with_ci(e, 'difference_mean')} |"
+            )
+    return "\n".join(lines) + "\n"
+
+
+def _json_safe(value: Any) -> Any:
+    """Replace non-finite floats by None (JSON has no NaN/inf) and numpy scalars by Python ones."""
+    if isinstance(value, dict):
+        return {str(k): _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def to_json(data: Any) -> str:
+    """Strict JSON text (non-finite numbers become null), indented, with a final newline."""
+    return json.dumps(_json_safe(data), indent=2, ensure_ascii=False, allow_nan=False) + "\n"
+
+
+def episodes_csv(records: Iterable[EpisodeRecord]) -> str:
+    """``episodes.csv`` text: a header and one row per record (trajectories left out)."""
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(CSV_COLUMNS)
+    names = [f.name for f in dataclasses.fields(EpisodeRecord) if f.metadata.get("csv")]
+    for r in records:
+        row = []
+        for name in names:
+            value = getattr(r, name)
+            row.append(repr(value) if isinstance(value, float) else value)
+        writer.writerow(row)
+    return buf.getvalue()
+
+
+def write_outputs(
+    results: EvaluationResults,
+    out_dir: str | os.PathLike[str],
+    plots: int = 3,
+    summary: dict[str, Any] | None = None,
+) -> list[Path]:
+    """Write episodes.csv, summary.json, summary.md and ``plots`` trajectory PNGs into out_dir.
+
+    Returns the paths written, in that order. ``out_dir`` is created if needed.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    summary = summarize(results) if summary is None else summary
+    written = []
+    for name, text in (
+        ("episodes.csv", episodes_csv(results.records)),
+        ("summary.json", to_json(summary)),
+        ("summary.md", summary_markdown(summary)),
+    ):
+        write_atomic(out / name, text)
+        written.append(out / name)
+    for i in range(min(max(plots, 0), results.episodes)):
+        path = out / f"trajectories_ep{i:03d}.png"
+        write_atomic(path, plot_episode(results, i))
+        written.append(path)
+    return written

@@ -1,0 +1,226 @@
+"""Run agents on the same seeded episodes and record what they flew.
+
+Every agent flies the same episodes: episode ``i`` starts with ``env.reset(seed=seed + i)``, and
+the field comes from the reset seed, so all agents meet the same debris fields (checked after
+every run through a fingerprint of each scenario).
+
+Decision time is measured with :func:`time.perf_counter` around each ``predict`` call (ms). A
+classical agent plans inside its first ``predict`` of an episode, so that call includes planning.
+The accelerations recorded are the env's own ``info["applied_accel"]`` (after its thrust limit and
+Δv-budget cut), so the metrics see exactly what was flown.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Iterable, Mapping
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import debris_gym  # noqa: F401  (registers the DebrisGym IDs)
+from agents.experiments.evaluation.metrics import trajectory_metrics
+from agents.experiments.evaluation.records import (
+    EpisodeRecord,
+    EvaluationResults,
+    Trajectory,
+    scenario_fingerprint,
+)
+from agents.experiments.evaluation.specs import (
+    AgentSpec,
+    agent_env_options,
+    build_agent,
+    parse_agent_specs,
+)
+from debris_gym.scenario import Scenario
+
+__all__ = ["evaluate_agents", "make_env", "run_episode"]
+
+
+def _outcome(info: dict[str, Any], truncated: bool) -> str:
+    if info["is_success"]:
+        return "success"
+    if info["collision"]:
+        return "collision"
+    if info["out_of_bounds"]:
+        return "out_of_bounds"
+    if truncated:
+        return "time_limit"
+    return "delta_v_budget"
+
+
+def run_episode(env: gym.Env, agent: Any, label: str, episode: int, seed: int) -> EpisodeRecord:
+    """Fly one episode of ``agent`` from ``env.reset(seed=seed)``; return its record."""
+    base = env.unwrapped
+    obs, info = env.reset(seed=seed)
+    scenario = base.scenario
+    d = base.dim
+    states = [np.asarray(info["chaser_state"], dtype=float)]
+    accels: list[np.ndarray] = []
+    decision_ms: list[float] = []
+    total_reward = 0.0
+    state = None
+    done = truncated = False
+    first = True
+    clock = time.perf_counter
+    while not done:
+        start = clock()
+        action, state = agent.predict(
+            obs, state=state, episode_start=np.array([first]), deterministic=True
+        )
+        decision_ms.append((clock() - start) * 1e3)
+        first = False
+        obs, reward, terminated, truncated, info = env.step(action)
+        total_reward += float(reward)
+        accels.append(np.asarray(info["applied_accel"], dtype=float))
+        states.append(np.asarray(info["chaser_state"], dtype=float))
+        done = terminated or truncated
+    state_arr = np.array(states)
+    trajectory = Trajectory(
+        positions=state_arr[:, :d],
+        velocities=state_arr[:, d:],
+        accelerations=np.array(accels).reshape(-1, d),
+        decision_ms=np.array(decision_ms),
+        dt=float(scenario.dt),
+        collision_point=state_arr[-1, :d].copy() if info["collision"] else None,
+        thrust_model=base.config.thrust_model,
+    )
+    metrics = trajectory_metrics(
+        trajectory.positions,
+        trajectory.velocities,
+        trajectory.accelerations,
+        trajectory.dt,
+        trajectory.thrust_model,
+    )
+    ms = trajectory.decision_ms
+    return EpisodeRecord(
+        agent=label,
+        episode=episode,
+        seed=seed,
+        success=bool(info["is_success"]),
+        outcome=_outcome(info, bool(truncated)),
+        targets_captured=int(info["targets_captured"]),
+        n_targets=int(info["n_targets"]),
+        collision=bool(info["collision"]),
+        out_of_bounds=bool(info["out_of_bounds"]),
+        delta_v=float(info["delta_v"]),
+        time=float(info["time"]),
+        steps=len(ms),
+        path_length=metrics.path_length,
+        min_clearance=float(info["min_clearance"]),
+        decision_ms_p50=float(np.percentile(ms, 50)),
+        decision_ms_p95=float(np.percentile(ms, 95)),
+        decision_ms_max=float(ms.max()),
+        episode_return=total_reward,
+        smoothness=metrics.smoothness,
+        max_acceleration=metrics.max_acceleration,
+        max_deceleration=metrics.max_deceleration,
+        total_curvature=metrics.total_curvature,
+        scenario_id=scenario_fingerprint(scenario),
+        trajectory=trajectory,
+        scenario=scenario,
+    )
+
+
+def make_env(
+    env_id: str, env_kwargs: dict[str, Any] | None = None, max_episode_steps: int | None = None
+) -> gym.Env:
+    """``gym.make(env_id, **env_kwargs)``, with the time limit overridden if given."""
+    kwargs = dict(env_kwargs or {})
+    if max_episode_steps is not None:
+        if int(max_episode_steps) < 1:
+            raise ValueError(f"max_episode_steps must be >= 1, got {max_episode_steps}")
+        kwargs["max_episode_steps"] = int(max_episode_steps)
+    return gym.make(env_id, **kwargs)
+
+
+def evaluate_agents(
+    env_id: str,
+    agent_specs: str | Iterable[str | AgentSpec] | Mapping[str, Any],
+    episodes: int,
+    seed: int,
+    env_kwargs: dict[str, Any] | None = None,
+    progress: bool = True,
+    max_episode_steps: int | None = None,
+) -> EvaluationResults:
+    """Fly every agent on the same ``episodes`` seeded scenarios.
+
+    Episode ``i`` of every agent starts with ``env.reset(seed=seed + i)``. Each agent gets its own
+    env (``gym.make(env_id, **env_kwargs)``), built once and reset per episode; a learned agent's
+    env also gets the observation options it was trained with (:func:`agent_env_options`).
+
+    Args:
+        env_id: a registered ID, e.g. ``"DebrisGym/Rendezvous2D-v0"``.
+        agent_specs: what to evaluate (see :mod:`agents.experiments.evaluation.specs`): a
+            comma-separated string (``"apf,ppo=runs/ppo/model.zip"``), a list of specs, or a
+            mapping ``{label: spec}`` whose values may also be your own policy objects (anything
+            with SB3's ``predict``) or factories ``f(env) -> policy``, e.g.
+            ``{"apf": "apf", "mine": MyPolicy()}``.
+        episodes: episodes per agent, >= 1.
+        seed: seed of episode 0.
+        env_kwargs: keyword arguments for ``gym.make``.
+        progress: show a tqdm bar over agent × episode on stderr.
+        max_episode_steps: override the registration's time limit (steps).
+
+    Raises:
+        ValueError: bad arguments.
+        RuntimeError: two agents met different scenarios in the same episode (a bug).
+    """
+    from tqdm import tqdm
+
+    if isinstance(episodes, bool) or int(episodes) != episodes or episodes < 1:
+        raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
+    specs = parse_agent_specs(agent_specs)
+    env_kwargs = dict(env_kwargs or {})
+    records: list[EpisodeRecord] = []
+    time_limit = max_episode_steps
+    start = time.perf_counter()
+    bar = tqdm(
+        total=len(specs) * episodes,
+        desc="evaluate",
+        unit="ep",
+        file=sys.stderr,
+        disable=not progress,
+        dynamic_ncols=True,
+    )
+    try:
+        for spec in specs:
+            kwargs = {**env_kwargs, **agent_env_options(spec, env_id)}
+            env = make_env(env_id, kwargs, max_episode_steps)
+            if env.spec is not None:
+                time_limit = env.spec.max_episode_steps
+            try:
+                agent = build_agent(spec, env)
+                for i in range(episodes):
+                    bar.set_postfix_str(f"{spec.label} ep {i}", refresh=False)
+                    records.append(run_episode(env, agent, spec.label, i, seed + i))
+                    bar.update()
+            finally:
+                env.close()
+    finally:
+        bar.close()
+    scenarios = _check_same_scenarios(records, episodes)
+    return EvaluationResults(
+        env_id=env_id,
+        env_kwargs=env_kwargs,
+        episodes=int(episodes),
+        seed=int(seed),
+        max_episode_steps=time_limit,
+        agents=specs,
+        records=records,
+        scenarios=scenarios,
+        elapsed=time.perf_counter() - start,
+    )
+
+
+def _check_same_scenarios(records: list[EpisodeRecord], episodes: int) -> list[Scenario]:
+    scenarios: list[Scenario] = []
+    for i in range(episodes):
+        group = [r for r in records if r.episode == i]
+        ids = {r.scenario_id for r in group}
+        if len(ids) != 1:
+            raise RuntimeError(f"agents met different scenarios in episode {i}: {sorted(ids)}")
+        scenarios.append(group[0].scenario)
+    return scenarios

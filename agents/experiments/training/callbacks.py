@@ -1,0 +1,350 @@
+"""The SB3 callbacks of a training run: curriculum stages, the episode log, held-out evaluation,
+the best model and pruned checkpoints — each saving its files atomically.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import sys
+import time
+import zipfile
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from stable_baselines3.common.callbacks import (
+    BaseCallback,
+    CheckpointCallback,
+    EvalCallback,
+    ProgressBarCallback,
+)
+
+from agents.experiments.training.checkpoints import (
+    CHECKPOINT_PREFIX,
+    SIDECARS,
+    checkpoint_steps,
+    interrupts_deferred,
+    save_model_files,
+)
+from agents.experiments.training.config import EVAL_SEED, TrainConfig
+from agents.policies.model_files import sidecar_path
+from debris_gym.files import save_atomic
+
+__all__ = [
+    "CurriculumCallback",
+    "EpisodeLogCallback",
+    "HeldOutEvalCallback",
+    "PruningCheckpointCallback",
+    "SaveBestCallback",
+    "close_progress_bar",
+    "make_callbacks",
+]
+
+
+class CurriculumCallback(BaseCallback):
+    """Before each rollout, give the training env the options of the current stage.
+
+    Args:
+        config: the run's config (its ``curriculum`` stages).
+        seed: base seed; stage ``k``'s fields are seeded from ``seed + k``.
+    """
+
+    def __init__(self, config: TrainConfig, seed: int) -> None:
+        super().__init__()
+        self.config = config
+        self.seed = seed
+        self.current: int | None = None
+
+    def _on_rollout_start(self) -> None:
+        from debris_gym.integrations.sb3 import NativeVecEnv
+
+        config = self.config
+        stage = config.stage(self.num_timesteps)
+        if stage == self.current:
+            return
+        kwargs = config.stage_env_kwargs(stage)
+        holder = self.training_env  # VecNormalize → VecMonitor → NativeVecEnv
+        while not isinstance(holder.venv, NativeVecEnv):
+            holder = holder.venv
+        holder.venv.close()
+        holder.venv = NativeVecEnv(config.env_id, config.n_envs, **kwargs)
+        self.training_env.seed(self.seed + stage)
+        # SB3 keeps the rollout's starting point on the model; a new env needs a fresh one
+        self.model._last_obs = self.training_env.reset()
+        self.model._last_episode_starts = np.ones(config.n_envs, dtype=bool)
+        self.current = stage
+        final = stage == len(config.curriculum)
+        what = "the final task" if final else f"until {config.curriculum[stage]['until']:,}"
+        print(
+            f"curriculum: stage {stage} ({what}) from step {self.num_timesteps:,}: "
+            f"{config.curriculum[stage]['env_kwargs'] if not final else config.env_kwargs}",
+            flush=True,
+        )
+
+    def _on_step(self) -> bool:
+        return True
+
+
+class EpisodeLogCallback(BaseCallback):
+    """Append every finished training episode (VecMonitor's ``info["episode"]``) to a CSV.
+
+    Args:
+        path: the CSV (``DIR/train_episodes.csv``); its header is written if it is new.
+    """
+
+    columns = ("timesteps", "return", "length", "is_success", "targets_captured", "wall_s")
+
+    def __init__(self, path: Path) -> None:
+        super().__init__()
+        self.path = path
+        self.rows: list[tuple] = []
+        self.start = time.perf_counter()
+
+    def _on_training_start(self) -> None:
+        if not self.path.exists():
+            with open(self.path, "w", newline="") as fh:
+                csv.writer(fh).writerow(self.columns)
+
+    def _on_step(self) -> bool:
+        for info in self.locals.get("infos", ()):
+            ep = info.get("episode")
+            if ep is not None:
+                self.rows.append(
+                    (
+                        self.num_timesteps,
+                        round(float(ep["r"]), 6),
+                        int(ep["l"]),
+                        int(bool(ep.get("is_success", False))),
+                        int(ep.get("targets_captured", 0)),
+                        round(time.perf_counter() - self.start, 3),
+                    )
+                )
+        if len(self.rows) >= 256:
+            self.flush()
+        return True
+
+    def flush(self) -> None:
+        """Append the rows held so far to the CSV."""
+        if self.rows:
+            with open(self.path, "a", newline="") as fh:
+                csv.writer(fh).writerows(self.rows)
+            self.rows = []
+
+    def _on_training_end(self) -> None:
+        self.flush()
+
+
+class SaveBestCallback(BaseCallback):
+    """Called by EvalCallback on a new best model: save ``DIR/best_model.zip`` and its
+    VecNormalize stats, atomically and with a Ctrl-C held until both are written
+    (EvalCallback's own save writes in place).
+
+    Args:
+        out: the run directory.
+    """
+
+    def __init__(self, out: Path) -> None:
+        super().__init__()
+        self.out = out
+
+    def _on_step(self) -> bool:
+        path = self.out / "best_model.zip"
+        with interrupts_deferred():
+            save_atomic(path, self.model.save)
+            venv = self.model.get_vec_normalize_env()
+            if venv is not None:
+                save_atomic(sidecar_path(path, "vecnormalize"), venv.save)
+        return True
+
+
+class HeldOutEvalCallback(EvalCallback):
+    """EvalCallback on the same held-out fields every time (seeds EVAL_SEED + i), timed, with
+    the targets captured of every episode logged beside SB3's arrays."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.seconds = 0.0
+        self._targets_buffer: list[int] = []
+        self.evaluations_targets: list[list[int]] = []
+
+    def _log_success_callback(self, locals_: dict, globals_: dict) -> None:
+        super()._log_success_callback(locals_, globals_)
+        if locals_["done"]:
+            self._targets_buffer.append(int(locals_["info"].get("targets_captured", 0)))
+
+    def _on_step(self) -> bool:
+        if not (self.eval_freq > 0 and self.n_calls % self.eval_freq == 0):
+            return True
+        self.eval_env.seed(EVAL_SEED)
+        self._targets_buffer = []
+        start = time.perf_counter()
+        # EvalCallback writes its log in place (a Ctrl-C mid-write would leave it cut): let
+        # it write to a scratch name, and write the real file below, atomically
+        log_path = self.log_path
+        if log_path is not None:
+            self.log_path = str(Path(log_path).with_name(".evaluations_scratch"))
+        try:
+            result = super()._on_step()
+        finally:
+            if log_path is not None:
+                with contextlib.suppress(FileNotFoundError):
+                    Path(self.log_path + ".npz").unlink()
+            self.log_path = log_path
+        self.evaluations_targets.append(self._targets_buffer)
+        if len(self.evaluations_successes) < len(self.evaluations_timesteps):
+            self.evaluations_successes.append([np.nan])  # no episode reported is_success
+        if self.log_path is not None:  # EvalCallback's file, plus targets captured
+            arrays = dict(
+                timesteps=self.evaluations_timesteps,
+                results=self.evaluations_results,
+                ep_lengths=self.evaluations_length,
+                successes=self.evaluations_successes,
+                targets_captured=self.evaluations_targets,
+            )
+            save_atomic(Path(self.log_path + ".npz"), lambda tmp: np.savez(tmp, **arrays))
+        self.seconds += time.perf_counter() - start
+        returns = self.evaluations_results[-1] if self.evaluations_results else [np.nan]
+        success = self.evaluations_successes[-1] if self.evaluations_successes else [np.nan]
+        print(
+            f"eval @ {self.num_timesteps:,} steps: return {np.mean(returns):.2f} "
+            f"± {np.std(returns):.2f}, success {100 * np.mean(success):.0f}% "
+            f"({len(returns)} held-out episodes, {time.perf_counter() - start:.1f} s)",
+            flush=True,
+        )
+        return result
+
+    def evaluate_now(self) -> None:
+        """One evaluation now (at the end of training, if the last one is older)."""
+        freq, calls = self.eval_freq, self.n_calls
+        self.eval_freq, self.n_calls = 1, 0
+        try:
+            self._on_step()
+        finally:
+            self.eval_freq, self.n_calls = freq, calls
+
+    def preload(self, path: Path, until: int) -> None:
+        """Continue an earlier run's ``evaluations.npz`` (entries after ``until`` dropped)."""
+        if not path.is_file():
+            return
+        try:
+            self._preload(path, until)
+        except (OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:  # cut by a kill
+            print(f"note: ignoring unreadable {path.name} ({exc})", file=sys.stderr)
+
+    def _preload(self, path: Path, until: int) -> None:
+        with np.load(path, allow_pickle=True) as data:
+            # every evaluation has an entry in each array; a run cut mid-write can leave
+            # some arrays shorter, so keep only the evaluations that every array holds
+            names = ("timesteps", "results", "ep_lengths", "successes", "targets_captured")
+            present = [data[k] for k in names if k in data]
+            n = min(len(a) for a in present)
+            keep = [i for i in range(n) if data["timesteps"][i] <= until]
+            self.evaluations_timesteps = [int(data["timesteps"][i]) for i in keep]
+            self.evaluations_results = [list(data["results"][i]) for i in keep]
+            self.evaluations_length = [list(data["ep_lengths"][i]) for i in keep]
+            if "successes" in data:
+                self.evaluations_successes = [list(data["successes"][i]) for i in keep]
+            if "targets_captured" in data:
+                self.evaluations_targets = [list(data["targets_captured"][i]) for i in keep]
+        if self.evaluations_results:
+            self.best_mean_reward = max(float(np.mean(r)) for r in self.evaluations_results)
+
+
+class PruningCheckpointCallback(CheckpointCallback):
+    """CheckpointCallback that saves through :func:`save_model_files` (atomic and whole) and
+    keeps the last ``keep`` checkpoints (0 = all) and the latest replay buffer.
+
+    Args:
+        config: the run's config (what to save with each model).
+        keep: periodic checkpoints kept.
+    """
+
+    def __init__(self, *args: Any, config: TrainConfig, keep: int = 0, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.config = config
+        self.keep = keep
+        self.seconds = 0.0
+
+    def _on_step(self) -> bool:
+        if self.n_calls % self.save_freq != 0:
+            return True
+        start = time.perf_counter()
+        with interrupts_deferred():  # atomic and whole, unlike CheckpointCallback's
+            path = Path(self._checkpoint_path(extension="zip"))
+            save_model_files(self.model, self.config, path)
+            self._prune()
+        self.seconds += time.perf_counter() - start
+        return True
+
+    def _prune(self) -> None:
+        folder = Path(self.save_path)
+        models = sorted(folder.glob(f"{self.name_prefix}_*_steps.zip"), key=checkpoint_steps)
+        if self.keep > 0:
+            for old in models[: -self.keep]:
+                for path in (old, *(sidecar_path(old, k) for k in SIDECARS)):
+                    path.unlink(missing_ok=True)
+        buffers = sorted(
+            folder.glob(f"{self.name_prefix}_replay_buffer_*_steps.pkl"),
+            key=lambda p: int(p.stem.split("_")[-2]),
+        )
+        for old in buffers[:-1]:
+            old.unlink(missing_ok=True)
+
+
+def make_callbacks(
+    config: TrainConfig, out: Path, eval_env: Any, resume_at: int | None, seed: int = 0
+) -> tuple[list[Any], HeldOutEvalCallback | None, PruningCheckpointCallback | None, Any]:
+    """The callbacks of a run: (all of them, the evaluation or None, the checkpointer or None,
+    the episode logger).
+
+    Args:
+        config: the run's config.
+        out: the run directory.
+        eval_env: the evaluation VecEnv (None when ``config.eval.freq`` is 0).
+        resume_at: timesteps of the checkpoint a resumed run starts from (None: a fresh run);
+            the evaluation log continues up to it.
+        seed: base seed of the curriculum's stages.
+    """
+    episodes = EpisodeLogCallback(out / "train_episodes.csv")
+    callbacks: list[Any] = [episodes]
+    if config.curriculum:
+        callbacks.insert(0, CurriculumCallback(config, seed))
+    n = config.n_envs
+    checkpoint = None
+    if config.checkpoint.freq > 0:
+        checkpoint = PruningCheckpointCallback(
+            save_freq=max(config.checkpoint.freq // n, 1),
+            save_path=str(out / "checkpoints"),
+            name_prefix=CHECKPOINT_PREFIX,
+            save_replay_buffer=False,  # unused: _on_step saves through save_model_files
+            save_vecnormalize=False,
+            config=config,
+            keep=config.checkpoint.keep,
+        )
+        callbacks.append(checkpoint)
+    evaluation = None
+    if config.eval.freq > 0:
+        evaluation = HeldOutEvalCallback(
+            eval_env,
+            callback_on_new_best=SaveBestCallback(out),
+            n_eval_episodes=config.eval.n_episodes,
+            eval_freq=max(config.eval.freq // n, 1),
+            log_path=str(out),
+            best_model_save_path=None,  # SaveBestCallback writes best_model.zip
+            deterministic=config.eval.deterministic,
+            verbose=0,
+        )
+        if resume_at is not None:
+            evaluation.preload(out / "evaluations.npz", resume_at)
+        callbacks.append(evaluation)
+    return callbacks, evaluation, checkpoint, episodes
+
+
+def close_progress_bar(callbacks: Sequence[Any]) -> None:
+    """Close a progress bar left open by an interrupted ``learn``."""
+    for c in callbacks:
+        if isinstance(c, ProgressBarCallback) and getattr(c, "pbar", None) is not None:
+            with contextlib.suppress(Exception):
+                c.pbar.close()

@@ -1,0 +1,123 @@
+"""Model files of a run: saving a model with its sidecars atomically, finding the latest one.
+
+A model ``PATH.zip`` travels with its VecNormalize statistics and (off-policy, per config) its
+replay buffer under the :func:`~agents.policies.model_files.sidecar_path` names; every file is
+written atomically (:func:`debris_gym.files.save_atomic`) and a Ctrl-C during a save is held
+until the save is whole.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import signal
+import threading
+import zipfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from agents.experiments.training.config import OFF_POLICY, TrainConfig
+from agents.policies.model_files import CHECKPOINT_RE, FINAL_MODEL, sidecar_path
+from debris_gym.files import save_atomic
+
+CHECKPOINT_PREFIX = "rl_model"
+"""Name prefix of periodic checkpoints, ``rl_model_<N>_steps.zip``."""
+
+INTERRUPTED = "interrupted"
+"""Stem of the checkpoint a Ctrl-C writes, ``checkpoints/interrupted.zip``."""
+
+SIDECARS = ("vecnormalize", "replay_buffer")
+"""The kinds of file that travel with a model (see :func:`sidecar_path`)."""
+
+
+def checkpoint_steps(path: Path) -> int:
+    """The step count in a checkpoint's name (``rl_model_4000_steps.zip`` → 4000), else -1."""
+    match = CHECKPOINT_RE.match(path.stem)
+    return int(match["steps"]) if match else -1
+
+
+def model_timesteps(model_path: str | Path) -> int:
+    """``num_timesteps`` stored in an SB3 model zip (read without building the model)."""
+    with zipfile.ZipFile(model_path) as archive:
+        data = json.loads(archive.read("data"))
+    return int(data["num_timesteps"])
+
+
+def find_latest_checkpoint(run_dir: str | Path) -> Path:
+    """The model with the most timesteps among ``DIR/checkpoints/*.zip`` and ``DIR/model.zip``.
+
+    Raises:
+        FileNotFoundError: no readable model in the run directory.
+    """
+    run_dir = Path(run_dir)
+    candidates = sorted((run_dir / "checkpoints").glob("*.zip"))
+    if (run_dir / FINAL_MODEL).is_file():
+        candidates.append(run_dir / FINAL_MODEL)
+    best: tuple[int, float, Path] | None = None
+    for path in candidates:
+        try:
+            key = (model_timesteps(path), path.stat().st_mtime, path)
+        except (OSError, KeyError, ValueError, zipfile.BadZipFile):
+            continue  # a half-written file from a hard kill
+        if best is None or key[:2] > best[:2]:
+            best = key
+    if best is None:
+        raise FileNotFoundError(
+            f"no checkpoint in {run_dir} (looked for checkpoints/*.zip and {FINAL_MODEL})"
+        )
+    return best[2]
+
+
+@contextlib.contextmanager
+def interrupts_deferred() -> Iterator[None]:
+    """Hold a Ctrl-C (SIGINT) that arrives inside the block, and raise it as a
+    ``KeyboardInterrupt`` when the block ends.
+
+    For saves during learning: a ``KeyboardInterrupt`` inside torch's zip writer comes out as a
+    ``RuntimeError`` ("unexpected pos …"), which is not an interrupt and ended the run with an
+    error instead of the interrupt checkpoint (seen in the Ctrl-C test). Only Python's default
+    handler is replaced; off the main thread, or under any other handler (e.g. SIG_IGN while the
+    final files are written), the block runs as it is.
+    """
+    main = threading.current_thread() is threading.main_thread()
+    if not main or signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        yield
+        return
+    caught: list[int] = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if caught:
+        raise KeyboardInterrupt
+
+
+def _replay_buffer_bytes(model: Any) -> int:
+    buffer = getattr(model, "replay_buffer", None)
+    if buffer is None:
+        return 0
+    return sum(v.nbytes for v in vars(buffer).values() if isinstance(v, np.ndarray))
+
+
+def _save_replay_buffer(config: TrainConfig, model: Any) -> bool:
+    if config.algo not in OFF_POLICY or config.checkpoint.replay_buffer == "never":
+        return False
+    if config.checkpoint.replay_buffer == "always":
+        return True
+    return _replay_buffer_bytes(model) <= config.checkpoint.replay_buffer_max_mb * 1e6
+
+
+def save_model_files(model: Any, config: TrainConfig, path: Path) -> list[Path]:
+    """Save ``model`` at ``path`` with its VecNormalize stats and (per config) replay buffer,
+    each atomically, under the :func:`sidecar_path` names. Returns the files written."""
+    written = [save_atomic(path, model.save)]
+    venv = model.get_vec_normalize_env()
+    if venv is not None:
+        written.append(save_atomic(sidecar_path(path, "vecnormalize"), venv.save))
+    if _save_replay_buffer(config, model):
+        written.append(save_atomic(sidecar_path(path, "replay_buffer"), model.save_replay_buffer))
+    return written

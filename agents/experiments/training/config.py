@@ -1,0 +1,331 @@
+"""Training recipes: the typed, validated form of a YAML config, one per env × algorithm.
+
+Hyper-parameters live in versioned YAML files shipped in ``agents/configs/`` (rl-zoo style);
+:class:`TrainConfig` is their typed form and :meth:`TrainConfig.from_dict` the one place that
+checks keys and values (with :mod:`agents.experiments.training.validation`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from agents.experiments.config_files import CONFIG_DIR, env_stub
+from agents.experiments.training.validation import (
+    at_least,
+    check_keys,
+    config_error,
+    section,
+    typed,
+    validate_algo_kwargs,
+    validate_curriculum,
+    validate_policy_kwargs,
+)
+from agents.policies.model_files import ALGOS, algo_class
+
+OFF_POLICY = ("sac", "td3", "dqn")
+"""Algorithms with a replay buffer."""
+
+EVAL_SEED = 1_000_000
+"""Evaluation sub-env ``i`` is reset with seed ``EVAL_SEED + i``; training seeds stay below it."""
+
+DEFAULT_ENV = "DebrisGym/Rendezvous2D-v0"
+"""Env of a ``train.py`` run that names neither ``--env`` nor ``--config``."""
+
+
+@dataclass(frozen=True)
+class NormalizeConfig:
+    """SB3 ``VecNormalize`` around the training env.
+
+    Attributes:
+        enabled: wrap the env in VecNormalize at all.
+        norm_obs: normalise observations by running mean / std (saved as ``vecnormalize.pkl`` and
+            re-applied by :func:`agents.load_agent`).
+        norm_reward: scale rewards by the running std of the discounted return (training only).
+        clip_obs: clip normalised observations to ±clip_obs.
+        clip_reward: clip scaled rewards to ±clip_reward.
+        gamma: discount of the return whose std scales rewards; None = the algorithm's gamma.
+        epsilon: added to the running variance before dividing (VecNormalize's ``epsilon``).
+            A larger value (e.g. 0.01, a floor of 0.1 on the std) keeps an element that was
+            constant so far — an empty target slot in a curriculum stage with fewer targets —
+            from being blown up to ±clip_obs when it starts to vary.
+    """
+
+    enabled: bool = False
+    norm_obs: bool = True
+    norm_reward: bool = False
+    clip_obs: float = 10.0
+    clip_reward: float = 10.0
+    gamma: float | None = None
+    epsilon: float = 1e-8
+
+
+@dataclass(frozen=True)
+class EvalConfig:
+    """Periodic evaluation on held-out seeds (SB3 ``EvalCallback``).
+
+    Attributes:
+        freq: env steps (summed over sub-envs) between evaluations; 0 = no evaluation.
+        n_episodes: episodes per evaluation (the same held-out fields every time).
+        n_envs: sub-envs of the evaluation env.
+        deterministic: evaluate the deterministic policy.
+    """
+
+    freq: int = 100_000
+    n_episodes: int = 20
+    n_envs: int = 10
+    deterministic: bool = True
+
+
+@dataclass(frozen=True)
+class CheckpointConfig:
+    """Periodic checkpoints (SB3 ``CheckpointCallback``) in ``DIR/checkpoints``.
+
+    Attributes:
+        freq: env steps between checkpoints; 0 = none (Ctrl-C still writes one).
+        keep: most recent periodic checkpoints kept; 0 = keep all.
+        replay_buffer: off-policy algos: save the replay buffer with checkpoints and the final
+            model — ``"auto"`` (only if it is at most ``replay_buffer_max_mb``), ``"always"``,
+            ``"never"``. Only the latest replay buffer is kept.
+        replay_buffer_max_mb: the ``"auto"`` size limit (MB, the buffer's allocated arrays).
+    """
+
+    freq: int = 250_000
+    keep: int = 3
+    replay_buffer: str = "auto"
+    replay_buffer_max_mb: float = 256.0
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """One training recipe: env × algorithm × hyper-parameters (a YAML file's typed form).
+
+    Attributes:
+        version: version of this recipe (bump it when hyper-parameters change).
+        env_id: a DebrisGym ID.
+        algo: one of :data:`ALGOS`.
+        timesteps: default training budget (env steps over all sub-envs); ``--timesteps``
+            overrides it.
+        n_envs: training sub-envs (``--n-envs`` overrides it).
+        env_kwargs: env options (any key of ``docs/environments.md``) and ``max_episode_steps``.
+        policy: SB3 policy alias (``MlpPolicy``).
+        policy_kwargs: keyword arguments of the policy; ``activation_fn`` by name (``tanh``).
+        algo_kwargs: keyword arguments of the SB3 algorithm. ``learning_rate`` / ``clip_range``
+            may be ``lin_<value>`` (linear decay to 0); ``action_noise`` (TD3/SAC) is
+            ``{type: normal | ornstein_uhlenbeck, sigma: float}``; ``train_freq`` may be
+            ``[n, "step" | "episode"]``.
+        normalize: VecNormalize options.
+        eval: evaluation options.
+        checkpoint: checkpoint options.
+        curriculum: training stages before the final task, each ``{until: N, env_kwargs:
+            {...}}``: while fewer than N env steps are done, the training env uses
+            ``env_kwargs`` merged over the top-level ones (e.g. fewer targets); afterwards the
+            top-level ones. Observation and action spaces must not change; evaluation always
+            flies the final task.
+        notes: free text (what the recipe is for, what it was tuned on).
+    """
+
+    version: int
+    env_id: str
+    algo: str
+    timesteps: int
+    n_envs: int
+    env_kwargs: dict[str, Any] = field(default_factory=dict)
+    policy: str = "MlpPolicy"
+    policy_kwargs: dict[str, Any] = field(default_factory=dict)
+    algo_kwargs: dict[str, Any] = field(default_factory=dict)
+    normalize: NormalizeConfig = field(default_factory=NormalizeConfig)
+    eval: EvalConfig = field(default_factory=EvalConfig)
+    checkpoint: CheckpointConfig = field(default_factory=CheckpointConfig)
+    curriculum: list[dict[str, Any]] = field(default_factory=list)
+    notes: str = ""
+
+    def stage(self, timesteps: int) -> int:
+        """Index of the curriculum stage at ``timesteps`` (``len(curriculum)``: the final task)."""
+        for k, stage in enumerate(self.curriculum):
+            if timesteps < stage["until"]:
+                return k
+        return len(self.curriculum)
+
+    def stage_env_kwargs(self, stage: int) -> dict[str, Any]:
+        """The training env's options in curriculum stage ``stage``."""
+        if stage >= len(self.curriculum):
+            return dict(self.env_kwargs)
+        return {**self.env_kwargs, **self.curriculum[stage]["env_kwargs"]}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], source: str = "config") -> TrainConfig:
+        """Validate a config mapping (e.g. parsed YAML) and build the config.
+
+        Every check lives here: unknown keys (with a close match suggested), missing required
+        keys, types, ranges, env options (via the env's own validation), algorithm and policy
+        keyword arguments (against the SB3 signatures), and algorithm vs action space.
+
+        Raises:
+            ValueError: the first problem found, naming the key and the source.
+        """
+        return _validate(data, source)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain nested dict (what ``config.yaml`` holds, without the ``run`` section)."""
+        return dataclasses.asdict(self)
+
+    @property
+    def gamma(self) -> float:
+        """The algorithm's discount (its SB3 default when the config does not set it)."""
+        value = self.algo_kwargs.get("gamma")
+        if value is None:
+            value = inspect.signature(algo_class(self.algo).__init__).parameters["gamma"].default
+        return float(value)
+
+
+def _validate(data: dict[str, Any], source: str) -> TrainConfig:
+    import gymnasium as gym
+
+    import debris_gym  # noqa: F401  (registers the IDs)
+    from debris_gym.config import EnvConfig
+
+    top = [f.name for f in dataclasses.fields(TrainConfig)]
+    data = check_keys(data, top, "", source)
+    for key in ("version", "env_id", "algo", "timesteps", "n_envs"):
+        if key not in data:
+            raise config_error(source, key, "is missing (required)")
+    version = typed(data["version"], int, "version", source)
+    at_least(version, 1, "version", source)
+    env_id = typed(data["env_id"], str, "env_id", source)
+    if env_id not in gym.registry:
+        ids = [i for i in gym.registry if i.startswith("DebrisGym/")]
+        raise config_error(
+            source, "env_id", f"names an unknown env {env_id!r}; known: {', '.join(ids)}"
+        )
+    algo = typed(data["algo"], str, "algo", source).lower()
+    if algo not in ALGOS:
+        raise config_error(source, "algo", f"must be one of {', '.join(ALGOS)}, got {algo!r}")
+    timesteps = typed(data["timesteps"], int, "timesteps", source)
+    at_least(timesteps, 1, "timesteps", source)
+    n_envs = typed(data["n_envs"], int, "n_envs", source)
+    at_least(n_envs, 1, "n_envs", source)
+    notes = typed(data.get("notes", ""), str, "notes", source, optional=True) or ""
+
+    # env options: the env's own validation names the key
+    env_kwargs = typed(data.get("env_kwargs") or {}, dict, "env_kwargs", source)
+    spec = gym.registry[env_id]
+    options = {k: v for k, v in env_kwargs.items() if k != "max_episode_steps"}
+    if "max_episode_steps" in env_kwargs:
+        steps = typed(env_kwargs["max_episode_steps"], int, "env_kwargs.max_episode_steps", source)
+        at_least(steps, 1, "env_kwargs.max_episode_steps", source)
+        env_kwargs["max_episode_steps"] = steps
+    try:
+        env_config = EnvConfig.from_kwargs(**{**spec.kwargs, **options})
+    except (TypeError, ValueError) as exc:
+        raise config_error(source, "env_kwargs", f"is invalid: {exc}") from None
+    if algo == "dqn" and env_config.action != "discrete":
+        raise config_error(
+            source,
+            "env_kwargs.action",
+            "must be 'discrete' for dqn (DQN needs a discrete action space); "
+            "set env_kwargs: {action: discrete}",
+        )
+    if algo in ("sac", "td3") and env_config.action != "continuous":
+        raise config_error(source, "env_kwargs.action", f"must be 'continuous' for {algo}")
+
+    cls = algo_class(algo)
+    policy = typed(data.get("policy", "MlpPolicy"), str, "policy", source)
+    if policy not in cls.policy_aliases:
+        raise config_error(
+            source, "policy", f"must be one of {', '.join(cls.policy_aliases)}, got {policy!r}"
+        )
+    policy_kwargs = validate_policy_kwargs(
+        data.get("policy_kwargs"), cls.policy_aliases[policy], source
+    )
+    algo_kwargs = validate_algo_kwargs(data.get("algo_kwargs"), cls, algo, source)
+
+    normalize = section(
+        NormalizeConfig,
+        data.get("normalize"),
+        "normalize.",
+        source,
+        {
+            "enabled": (bool, False),
+            "norm_obs": (bool, False),
+            "norm_reward": (bool, False),
+            "clip_obs": (float, False),
+            "clip_reward": (float, False),
+            "gamma": (float, True),
+            "epsilon": (float, False),
+        },
+    )
+    for key in ("clip_obs", "clip_reward", "epsilon"):
+        if getattr(normalize, key) <= 0:
+            raise config_error(source, f"normalize.{key}", "must be > 0")
+    if normalize.gamma is not None and not 0.0 <= normalize.gamma <= 1.0:
+        raise config_error(source, "normalize.gamma", f"must lie in [0, 1], got {normalize.gamma}")
+    evaluation = section(
+        EvalConfig,
+        data.get("eval"),
+        "eval.",
+        source,
+        {
+            "freq": (int, False),
+            "n_episodes": (int, False),
+            "n_envs": (int, False),
+            "deterministic": (bool, False),
+        },
+    )
+    at_least(evaluation.freq, 0, "eval.freq", source)
+    at_least(evaluation.n_episodes, 1, "eval.n_episodes", source)
+    at_least(evaluation.n_envs, 1, "eval.n_envs", source)
+    checkpoint = section(
+        CheckpointConfig,
+        data.get("checkpoint"),
+        "checkpoint.",
+        source,
+        {
+            "freq": (int, False),
+            "keep": (int, False),
+            "replay_buffer": (str, False),
+            "replay_buffer_max_mb": (float, False),
+        },
+    )
+    at_least(checkpoint.freq, 0, "checkpoint.freq", source)
+    at_least(checkpoint.keep, 0, "checkpoint.keep", source)
+    at_least(checkpoint.replay_buffer_max_mb, 0, "checkpoint.replay_buffer_max_mb", source)
+    if checkpoint.replay_buffer not in ("auto", "always", "never"):
+        raise config_error(
+            source,
+            "checkpoint.replay_buffer",
+            f"must be 'auto', 'always' or 'never', got {checkpoint.replay_buffer!r}",
+        )
+    curriculum = validate_curriculum(
+        data.get("curriculum"), env_kwargs, spec.kwargs, env_config, source
+    )
+    return TrainConfig(
+        version=version,
+        env_id=env_id,
+        algo=algo,
+        timesteps=timesteps,
+        n_envs=n_envs,
+        env_kwargs=env_kwargs,
+        policy=policy,
+        policy_kwargs=policy_kwargs,
+        algo_kwargs=algo_kwargs,
+        normalize=normalize,
+        eval=evaluation,
+        checkpoint=checkpoint,
+        curriculum=curriculum,
+        notes=notes,
+    )
+
+
+def default_config_path(env_id: str, algo: str) -> Path:
+    """The checked-in config for ``env_id`` × ``algo`` (it may not exist)."""
+    return CONFIG_DIR / f"{env_stub(env_id)}_{algo.lower()}.yaml"
+
+
+def available_configs() -> list[str]:
+    """Names of the checked-in training configs (``rendezvous2d_ppo``, …; one per algorithm,
+    so not imitate.py's ``*_imitation.yaml``)."""
+    return sorted(p.stem for p in CONFIG_DIR.glob("*.yaml") if p.stem.rsplit("_", 1)[-1] in ALGOS)

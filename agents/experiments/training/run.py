@@ -1,0 +1,396 @@
+"""One training run, fresh or resumed: ``train(TrainOptions(...))`` — the library call of
+``train.py``.
+
+A ``KeyboardInterrupt`` during learning saves ``DIR/checkpoints/interrupted.zip`` and returns;
+``train(TrainOptions(resume=DIR))`` continues from the latest checkpoint.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import shlex
+import signal
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from stable_baselines3.common.callbacks import ProgressBarCallback
+
+from agents.experiments.config_files import CONFIG_DIR, apply_overrides
+from agents.experiments.provenance import library_versions, utc_now
+from agents.experiments.training.callbacks import close_progress_bar, make_callbacks
+from agents.experiments.training.checkpoints import (
+    INTERRUPTED,
+    find_latest_checkpoint,
+    model_timesteps,
+    save_model_files,
+)
+from agents.experiments.training.config import (
+    DEFAULT_ENV,
+    EVAL_SEED,
+    OFF_POLICY,
+    TrainConfig,
+    available_configs,
+    default_config_path,
+)
+from agents.experiments.training.curve import plot_learning_curve
+from agents.experiments.training.models import (
+    algo_kwargs,
+    make_eval_env,
+    make_train_env,
+    policy_kwargs,
+    tensorboard_dir,
+)
+from agents.experiments.training.run_files import (
+    read_train_log,
+    truncate_episode_log,
+    write_run_config,
+    write_train_log,
+)
+from agents.policies.model_files import (
+    ALGOS,
+    FINAL_MODEL,
+    ConfigError,
+    algo_class,
+    load_config_file,
+    sidecar_path,
+)
+
+__all__ = ["TrainOptions", "TrainResult", "resolve_config", "train"]
+
+
+@dataclass
+class TrainOptions:
+    """What ``train.py`` was asked for (see its ``--help``).
+
+    Attributes:
+        out: run directory (created; must not already hold a run unless resuming).
+        env_id, algo: pick the checked-in config when ``config`` is None (defaults:
+            Rendezvous2D, ppo); must agree with ``config`` when both are given.
+        config: a config YAML file.
+        overrides: ``key.sub=value`` strings applied to the config.
+        timesteps: training budget (env steps); None = the config's. With ``resume``: steps to
+            add (None = finish the run's budget).
+        n_envs: overrides the config's ``n_envs``.
+        seed: base seed (sub-env i: seed + i), 0 <= seed, seed + n_envs <= EVAL_SEED.
+        resume: a run directory to continue from its latest checkpoint.
+        progress: show SB3's progress bar.
+        threads: torch CPU threads.
+        device: torch device.
+        argv: the command line (recorded in config.yaml).
+    """
+
+    out: Path | None = None
+    env_id: str | None = None
+    algo: str | None = None
+    config: Path | None = None
+    overrides: list[str] = field(default_factory=list)
+    timesteps: int | None = None
+    n_envs: int | None = None
+    seed: int | None = None
+    resume: Path | None = None
+    progress: bool = True
+    threads: int = 1
+    device: str = "cpu"
+    argv: list[str] | None = None
+
+
+@dataclass
+class TrainResult:
+    """How a run (or one resumed segment) ended.
+
+    Attributes:
+        out: the run directory.
+        status: ``"completed"`` or ``"interrupted"``.
+        num_timesteps: the model's ``num_timesteps`` at the end.
+        model_path: ``DIR/model.zip`` (completed) or the interrupt checkpoint.
+        wall_time_s: wall time of this segment (s).
+        env_steps_per_s: env steps of this segment / its wall time.
+    """
+
+    out: Path
+    status: str
+    num_timesteps: int
+    model_path: Path
+    wall_time_s: float
+    env_steps_per_s: float
+
+
+def resolve_config(options: TrainOptions) -> tuple[TrainConfig, str]:
+    """The validated config of a fresh run and where it came from.
+
+    Raises:
+        FileNotFoundError: no checked-in config for env × algo (the message lists them).
+        ValueError: an invalid config or override, or ``--env``/``--algo`` disagreeing with it.
+    """
+    if options.config is not None:
+        path = Path(options.config)
+    else:
+        env_id = options.env_id or DEFAULT_ENV
+        algo = (options.algo or "ppo").lower()
+        if algo not in ALGOS:
+            raise ConfigError(f"unknown algo {algo!r}; use one of {', '.join(ALGOS)}")
+        path = default_config_path(env_id, algo)
+        if not path.is_file():
+            raise FileNotFoundError(
+                f"no checked-in config for {env_id} × {algo} (expected {path.name} in "
+                f"{CONFIG_DIR}); available: {', '.join(available_configs())}. Write one and pass "
+                "--config FILE"
+            )
+    data, _ = load_config_file(path)
+    for key, flag, value in (("env_id", "--env", options.env_id), ("algo", "--algo", options.algo)):
+        given = data.get(key)
+        if value is not None and given is not None and str(given).lower() != value.lower():
+            raise ConfigError(f"{flag} {value!r} disagrees with {key}: {given!r} in {path}")
+    data = apply_overrides(data, options.overrides)
+    if options.n_envs is not None:
+        data["n_envs"] = options.n_envs
+    if options.timesteps is not None:
+        data["timesteps"] = options.timesteps
+    config = TrainConfig.from_dict(data, source=str(path))
+    rollout = config.algo_kwargs.get("n_steps", 2048) * config.n_envs
+    batch = config.algo_kwargs.get("batch_size", 64)
+    if config.algo == "ppo" and batch > rollout:  # e.g. the 128-env recipe run with --n-envs 2
+        print(
+            f"note: batch_size {batch} > rollout size {rollout} (n_steps x n_envs); using "
+            f"batch_size {rollout}",
+            file=sys.stderr,
+        )
+        kwargs = {**config.algo_kwargs, "batch_size": rollout}
+        config = dataclasses.replace(config, algo_kwargs=kwargs)
+    return config, str(path)
+
+
+def _check_seed(seed: int, n_envs: int) -> None:
+    if seed < 0 or seed + n_envs > EVAL_SEED:
+        raise ValueError(
+            f"seed must satisfy 0 <= seed and seed + n_envs <= {EVAL_SEED} (evaluation uses "
+            f"seeds from {EVAL_SEED}); got seed={seed}, n_envs={n_envs}"
+        )
+
+
+def train(options: TrainOptions) -> TrainResult:
+    """Train (or resume) one run; see the module docstring for what lands in the directory.
+
+    A ``KeyboardInterrupt`` during learning saves ``DIR/checkpoints/interrupted.zip`` (with its
+    VecNormalize stats and, per config, replay buffer), updates the logs and the learning curve,
+    and returns with ``status="interrupted"``; ``train(TrainOptions(resume=DIR))`` continues it.
+
+    Raises:
+        FileNotFoundError, ValueError: bad options or config (messages name the problem).
+    """
+    import torch
+    from stable_baselines3.common.utils import set_random_seed
+
+    torch.set_num_threads(max(int(options.threads), 1))
+    argv = options.argv if options.argv is not None else sys.argv
+    command = shlex.join(["python", *argv]) if argv else ""
+
+    if options.resume is not None:
+        out = Path(options.resume)
+        for name, value in (
+            ("--config", options.config),
+            ("--env", options.env_id),
+            ("--algo", options.algo),
+            ("--n-envs", options.n_envs),
+            ("--seed", options.seed),
+            ("--set", options.overrides or None),
+        ):
+            if value is not None:
+                raise ValueError(
+                    f"{name} cannot be combined with --resume (a resumed run keeps its own config "
+                    f"in {out / 'config.yaml'})"
+                )
+        if options.out is not None and Path(options.out).resolve() != out.resolve():
+            raise ValueError("--out and --resume name different directories; give only --resume")
+        data, run = load_config_file(out / "config.yaml")
+        config = TrainConfig.from_dict(data, source=str(out / "config.yaml"))
+        seed = int(run.get("seed", 0))
+        checkpoint = find_latest_checkpoint(out)
+        start_steps = model_timesteps(checkpoint)
+        if options.timesteps is not None:
+            add = int(options.timesteps)
+        else:
+            add = int(config.timesteps) - start_steps
+            if add <= 0:
+                raise ValueError(
+                    f"the run in {out} already reached its budget ({start_steps:,} >= "
+                    f"{config.timesteps:,} steps); pass --timesteps N to train N more"
+                )
+        if add < 1:
+            raise ValueError(f"--timesteps must be >= 1, got {add}")
+        config = dataclasses.replace(config, timesteps=max(config.timesteps, start_steps + add))
+        source = run.get("config_source", str(out / "config.yaml"))
+    else:
+        if options.out is None:
+            raise ValueError("--out DIR is required (or --resume DIR)")
+        out = Path(options.out)
+        if (out / "config.yaml").exists() or (out / FINAL_MODEL).exists():
+            raise FileExistsError(
+                f"{out} already holds a run; continue it with --resume {out} or pick another --out"
+            )
+        config, source = resolve_config(options)
+        seed = 0 if options.seed is None else int(options.seed)
+        checkpoint, start_steps, add = None, 0, config.timesteps
+        run = {}
+
+    log = read_train_log(out)
+    segments = log.setdefault("segments", [])
+    segment = len(segments)
+    segment_seed = seed + segment * config.n_envs
+    _check_seed(segment_seed, config.n_envs)
+    out.mkdir(parents=True, exist_ok=True)
+    run = {
+        **run,
+        "command": run.get("command", command),
+        "seed": seed,
+        "config_source": source,
+        "config_version": config.version,
+        "started_at": run.get("started_at", utc_now()),
+        "versions": library_versions(),
+        "device": options.device,
+        "torch_threads": torch.get_num_threads(),
+    }
+    if options.resume is not None:
+        run.setdefault("resumes", []).append(
+            {"command": command, "from": str(checkpoint), "at": utc_now(), "add_timesteps": add}
+        )
+    else:
+        run["overrides"] = list(options.overrides)
+
+    set_random_seed(segment_seed)
+    cls = algo_class(config.algo)
+    stats = sidecar_path(checkpoint, "vecnormalize") if checkpoint is not None else None
+    if stats is not None and config.normalize.enabled and not stats.is_file():
+        raise FileNotFoundError(
+            f"checkpoint {checkpoint} has no VecNormalize statistics ({stats.name}); cannot resume"
+        )
+    train_env = make_train_env(config, segment_seed, stats if config.normalize.enabled else None)
+    eval_env = make_eval_env(config) if config.eval.freq > 0 else None
+    tb = tensorboard_dir(out)
+    if checkpoint is None:
+        model = cls(
+            config.policy,
+            train_env,
+            policy_kwargs=policy_kwargs(config),
+            seed=segment_seed,
+            device=options.device,
+            tensorboard_log=tb,
+            verbose=0,
+            **algo_kwargs(config, int(np.prod(train_env.action_space.shape or (1,)))),
+        )
+    else:
+        model = cls.load(str(checkpoint), env=train_env, device=options.device)
+        model.tensorboard_log = tb
+        model.set_random_seed(segment_seed)
+        buffer = sidecar_path(checkpoint, "replay_buffer")
+        if config.algo in OFF_POLICY:
+            if buffer.is_file():
+                model.load_replay_buffer(str(buffer))
+            else:
+                print(
+                    f"note: no replay buffer saved with {checkpoint.name}; resuming with an "
+                    "empty buffer (random actions until it refills)",
+                    file=sys.stderr,
+                )
+                model.learning_starts = model.num_timesteps + int(
+                    config.algo_kwargs.get("learning_starts", model.learning_starts)
+                )
+        truncate_episode_log(out / "train_episodes.csv", start_steps)
+
+    write_run_config(out, config, run)  # before learning, so an interrupted run can be resumed
+    callbacks, evaluation, checkpointer, episodes = make_callbacks(
+        config, out, eval_env, start_steps if checkpoint is not None else None, segment_seed
+    )
+    if options.progress:
+        callbacks.append(ProgressBarCallback())
+
+    what = f"resuming {out} at {start_steps:,} steps" if checkpoint else f"training into {out}"
+    print(
+        f"{what}: {config.algo} on {config.env_id}, {add:,} steps, {config.n_envs} envs, "
+        f"seed {seed}, config {Path(source).name} v{config.version}",
+        flush=True,
+    )
+    status = "completed"
+    start = time.perf_counter()
+    try:
+        model.learn(
+            total_timesteps=add,
+            callback=callbacks,
+            reset_num_timesteps=checkpoint is None,
+            tb_log_name=config.algo.upper(),
+            progress_bar=False,
+        )
+    except KeyboardInterrupt:
+        status = "interrupted"
+        close_progress_bar(callbacks)
+    wall = time.perf_counter() - start
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main_thread else None
+    try:  # a second Ctrl-C must not cut the saving short
+        episodes.flush()
+        if status == "completed":
+            if evaluation is not None and (
+                not evaluation.evaluations_timesteps
+                or evaluation.evaluations_timesteps[-1] < model.num_timesteps
+            ):
+                evaluation.evaluate_now()
+            model_path = out / FINAL_MODEL
+        else:
+            model_path = out / "checkpoints" / f"{INTERRUPTED}.zip"
+        save_model_files(model, config, model_path)
+        eval_s = evaluation.seconds if evaluation is not None else 0.0
+        ckpt_s = checkpointer.seconds if checkpointer is not None else 0.0
+        steps = model.num_timesteps - start_steps
+        segments.append(
+            {
+                "status": status,
+                "started_at": run["resumes"][-1]["at"] if checkpoint else run["started_at"],
+                "resumed_from": str(checkpoint) if checkpoint else None,
+                "n_envs": config.n_envs,
+                "env_seed": segment_seed,
+                "torch_threads": torch.get_num_threads(),
+                "start_timesteps": start_steps,
+                "end_timesteps": int(model.num_timesteps),
+                "wall_time_s": round(wall, 3),
+                "eval_time_s": round(eval_s, 3),
+                "checkpoint_time_s": round(ckpt_s, 3),
+                "env_steps_per_s": round(steps / wall, 1) if wall > 0 else None,
+                "env_steps_per_s_excluding_eval": (
+                    round(steps / (wall - eval_s - ckpt_s), 1)
+                    if wall - eval_s - ckpt_s > 0
+                    else None
+                ),
+            }
+        )
+        log.update(
+            {
+                "env_id": config.env_id,
+                "algo": config.algo,
+                "status": status,
+                "num_timesteps": int(model.num_timesteps),
+                "target_timesteps": int(config.timesteps),
+                "model": str(model_path),
+            }
+        )
+        write_train_log(out, log)
+        run["finished_at" if status == "completed" else "interrupted_at"] = utc_now()
+        write_run_config(out, config, run)
+        plot_learning_curve(out)
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGINT, previous)
+        train_env.close()
+        if eval_env is not None:
+            eval_env.close()
+    return TrainResult(
+        out=out,
+        status=status,
+        num_timesteps=int(model.num_timesteps),
+        model_path=model_path,
+        wall_time_s=wall,
+        env_steps_per_s=(model.num_timesteps - start_steps) / wall if wall > 0 else 0.0,
+    )

@@ -1,0 +1,74 @@
+"""The bookkeeping files of a run directory: ``config.yaml`` (the resolved config and how the run
+was made), ``train_log.json`` (wall time and env-steps/s per segment) and ``train_episodes.csv``
+(every finished training episode), each written atomically.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from agents.experiments.training.config import TrainConfig
+from debris_gym.files import write_atomic
+
+__all__ = [
+    "is_complete_row",
+    "read_train_log",
+    "truncate_episode_log",
+    "write_run_config",
+    "write_train_log",
+]
+
+
+def write_run_config(out: Path, config: TrainConfig, run: dict[str, Any]) -> None:
+    header = (
+        "# Resolved training config of this run (train.py writes it; --resume reads it).\n"
+        "# The 'run' section records how the run was made.\n"
+    )
+    body = yaml.safe_dump(
+        {**config.to_dict(), "run": run}, sort_keys=False, width=100, default_flow_style=None
+    )
+    write_atomic(out / "config.yaml", header + body)
+
+
+def read_train_log(out: Path) -> dict[str, Any]:
+    path = out / "train_log.json"
+    return json.loads(path.read_text()) if path.is_file() else {}
+
+
+def write_train_log(out: Path, log: dict[str, Any]) -> None:
+    segments = log.get("segments", [])
+    wall = sum(s["wall_time_s"] for s in segments)
+    steps = sum(s["end_timesteps"] - s["start_timesteps"] for s in segments)
+    log["wall_time_s"] = round(wall, 3)
+    log["env_steps"] = steps
+    log["env_steps_per_s"] = round(steps / wall, 1) if wall > 0 else None
+    ordered = {k: v for k, v in log.items() if k != "segments"} | {"segments": segments}
+    write_atomic(out / "train_log.json", json.dumps(ordered, indent=2) + "\n")
+
+
+def is_complete_row(row: list[str], width: int) -> bool:
+    """A complete numeric CSV row (a hard kill can leave a half-written last line)."""
+    if len(row) != width:
+        return False
+    try:
+        [float(v) for v in row]
+    except ValueError:
+        return False
+    return True
+
+
+def truncate_episode_log(path: Path, until: int) -> None:
+    if not path.is_file():
+        return
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    width = len(rows[0]) if rows else 0
+    kept = [rows[0], *(r for r in rows[1:] if is_complete_row(r, width) and int(r[0]) <= until)]
+    if len(kept) != len(rows):
+        buffer = "".join(",".join(r) + "\n" for r in kept)
+        write_atomic(path, buffer)
