@@ -38,7 +38,7 @@ DECISION_WARMUP_CALLS = 3
 
 
 class AgentsAPI(NamedTuple):
-    """What this section takes from the ``agents`` package (see ``agents.evaluation``)."""
+    """What this section takes from ``agents`` (see :mod:`agents.experiments.evaluation`)."""
 
     baselines: tuple[str, ...]  # names of the classical baselines
     pretrained: str  # the agent spec of the shipped pretrained policy
@@ -59,7 +59,8 @@ def agents_api() -> AgentsAPI:
     Raises:
         ImportError: the agents package (or something it needs) is missing.
     """
-    from agents import BASELINES, evaluation
+    from agents import BASELINES
+    from agents.experiments import evaluation
 
     return AgentsAPI(
         baselines=tuple(BASELINES),

@@ -159,9 +159,9 @@ def test_help_explains_outputs_and_agents(cli):
 
 def test_paper_mode_writes_table_i_beside_ours(cli, monkeypatch, tmp_path, capsys):
     # Stand-ins while the real planners are being written: the table's shape is what is tested.
-    monkeypatch.setitem(agents.BASELINES, "apf", "agents.simple:RandomAgent")
-    monkeypatch.setitem(agents.BASELINES, "apf-mpc", "agents.simple:ZeroAgent")
-    monkeypatch.setitem(agents.BASELINES, "astar", "agents.simple:ZeroAgent")
+    monkeypatch.setitem(agents.BASELINES, "apf", "agents.policies.simple:RandomAgent")
+    monkeypatch.setitem(agents.BASELINES, "apf-mpc", "agents.policies.simple:ZeroAgent")
+    monkeypatch.setitem(agents.BASELINES, "astar", "agents.policies.simple:ZeroAgent")
     out = tmp_path / "paper"
     assert cli.main(["--paper", "--max-steps", "30", "--no-progress", "--out", str(out)]) == 0
     text = (out / "paper_table.md").read_text()

@@ -27,7 +27,7 @@ from agents.experiments.imitation.fitting import (
 )
 from agents.experiments.imitation.run import imitate, run_config_yaml
 from agents.experiments.training.config import available_configs
-from agents.mission import MissionPlan
+from agents.planners.mission import MissionPlan
 from debris_gym.envs import DebrisFieldEnv
 
 ROOT = Path(__file__).resolve().parents[1]

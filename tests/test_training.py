@@ -1,4 +1,4 @@
-"""train.py, agents.experiments.training and agents.learned: tiny runs of every algorithm,
+"""train.py, agents.experiments.training and agents.policies.learned: tiny runs of every algorithm,
 resume, Ctrl-C, config validation, and learned agents behind the shared predict() interface.
 
 The script runs of the off-policy algorithms, the Ctrl-C run and the cut-log resume are marked
@@ -41,7 +41,7 @@ from agents.experiments.training.config import (
     default_config_path,
 )
 from agents.experiments.training.run import TrainOptions, train
-from agents.learned import LearnedAgent
+from agents.policies.learned import LearnedAgent
 from agents.policies.model_files import load_config_file, sidecar_path
 from debris_gym.files import save_atomic
 
@@ -89,7 +89,7 @@ def load_script(name: str, path: Path):
 
 def run_env(run: Path, **kwargs):
     """The env a policy of ``run`` flies: the default env with the run's observation options."""
-    from agents.learned import observation_options
+    from agents import observation_options
 
     return gym.make(ENV_ID, **{**observation_options(f"ppo:{run / 'model.zip'}", ENV_ID), **kwargs})
 
@@ -491,7 +491,7 @@ def test_load_agent_errors(trained, tmp_path):
 def test_the_shipped_pretrained_policy_flies_its_env():
     """agents/pretrained/rendezvous2d_dagger.zip loads with its statistics and the observation
     options of its run, and refuses the default env with an error naming them."""
-    from agents.learned import observation_options
+    from agents import observation_options
 
     options = observation_options("pretrained", ENV_ID)
     assert options == {"obs_targets": 1, "obs_goal": True, "obs_other_targets": True}
@@ -584,7 +584,7 @@ def test_a_policy_trained_with_other_observation_options_flies_beside_the_baseli
     assert evaluate_cli.main(args) == 0
     stdout = capsys.readouterr().out
     assert "| ppo |" in stdout and "| zero |" in stdout
-    from agents.learned import observation_options
+    from agents import observation_options
 
     options = {"obs_goal": False, "obs_targets": 2}
     assert observation_options(f"ppo:{out / 'model.zip'}", ENV_ID) == options

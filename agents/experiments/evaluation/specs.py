@@ -269,7 +269,7 @@ def agent_env_options(spec: AgentSpec | str, env_id: str) -> dict[str, Any]:
         spec = parse_agent_spec(spec)
     if spec.kind not in ("learned", "pretrained"):
         return {}
-    from agents.learned import observation_options
+    from agents import observation_options
 
     try:
         return observation_options(spec.load_string, env_id)

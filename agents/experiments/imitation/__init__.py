@@ -13,7 +13,7 @@ the same kind of small MLP policy as PPO does, by supervised regression on the e
    cloning never shows it.
 
 The expert follows the env's own current goal (``ordering="nearest"``, see
-:class:`agents.mission.MissionPlan`), the goal the policy sees in its observation
+:class:`agents.planners.mission.MissionPlan`), the goal the policy sees in its observation
 (``obs_goal``), so the labels are a function of what the policy can observe. Rollouts run in
 ``workers`` processes; the fit is plain mean-squared error on the normalised action, with the
 observation normalised by the data set's mean and standard deviation.

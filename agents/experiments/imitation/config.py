@@ -182,8 +182,9 @@ class ImitationConfig:
 def expert_params(kwargs: dict[str, Any]) -> dict[str, Any]:
     """The expert's constructor arguments, with the parameter mappings of a YAML file
     (``apf``, ``mpc``, ``reference``) turned into their dataclasses."""
-    from agents.apf import APFParams
-    from agents.mpc import MPCParams, ReferenceParams
+    from agents.control.mpc import MPCParams
+    from agents.control.reference import ReferenceParams
+    from agents.planners.apf import APFParams
 
     classes = {"apf": APFParams, "mpc": MPCParams, "reference": ReferenceParams}
     out = dict(kwargs)

@@ -157,8 +157,9 @@ def _round_line(h: dict[str, Any]) -> str:
 
 
 def run_config_yaml(config: ImitationConfig, run: dict[str, Any] | None = None) -> str:
-    """``config.yaml`` of an imitation run: what :mod:`agents.learned` reads (``env_kwargs`` for
-    the observation options, ``normalize`` for the statistics) plus the imitation settings."""
+    """``config.yaml`` of an imitation run: what :mod:`agents.policies.learned` reads
+    (``env_kwargs`` for the observation options, ``normalize`` for the statistics) plus the
+    imitation settings."""
     import yaml
 
     data = {
