@@ -115,7 +115,7 @@ def _polygon_distance(p: np.ndarray, verts: np.ndarray) -> float:
 
 
 def _potential(x, goal, bodies, params, inflate, shield=0.0) -> float:
-    """Choset eq. 4.2-4.6 written out independently of agents.planners.apf."""
+    """[Choset05] eq. 4.2-4.6 written out independently of agents.planners.apf."""
     rho = float(np.linalg.norm(x - goal))
     if rho <= params.d_star:
         u_att = 0.5 * params.k_att * rho**2
