@@ -12,7 +12,8 @@ and [Zhou24] eq. 1a-1c)::
 The 2D model is the exactly decoupled in-plane (x, y) subsystem; ``n = 0`` is the double
 integrator. Discretisation is an exact zero-order hold: the matrix exponential of the augmented
 matrix ``[[A, B], [0, 0]] · dt`` ([VanLoan78]; scipy's scaled-and-squared Padé), which stays
-accurate from millisecond to ten-minute steps where the textbook closed form loses digits to cancellation.
+accurate from millisecond to ten-minute steps where the textbook closed form loses digits to
+cancellation.
 
 This module knows nothing of gymnasium; the single env, the vector env, the MPC's prediction model
 and the tests all use it. Keys in square brackets refer to docs/references.md.

@@ -2,8 +2,9 @@
 
 Every reference here is built without :func:`debris_gym.dynamics.cwh_matrices`: the CWH equations
 are re-typed from the textbook (ẍ = 3n²x + 2nẏ + u_x, ÿ = −2nẋ + u_y, z̈ = −n²z + u_z), the closed
-form is re-typed in the arrangement of [Vallado13] (keys: docs/references.md), the matrix exponential is recomputed with mpmath at 50
-digits, and the full nonlinear two-body problem is integrated in inertial coordinates.
+form is re-typed in the arrangement of [Vallado13] (keys: docs/references.md), the matrix
+exponential is recomputed with mpmath at 50 digits, and the full nonlinear two-body problem is
+integrated in inertial coordinates.
 """
 
 from __future__ import annotations
@@ -79,7 +80,8 @@ def integrate_cwh(n: float, dim: int, state0, accel, t: float) -> np.ndarray:
 
 
 def vallado_coast(state0: np.ndarray, n: float, t: float) -> np.ndarray:
-    """Unforced CW solution in the arrangement of [Vallado13] eq. 6-66, written independently of :func:`closed_form_coast`. Works for 2D (4,) and 3D (6,) states."""
+    """Unforced CW solution in the arrangement of [Vallado13] eq. 6-66, written independently of
+    :func:`closed_form_coast`. Works for 2D (4,) and 3D (6,) states."""
     dim = len(state0) // 2
     x0, y0 = state0[0], state0[1]
     xd0, yd0 = state0[dim], state0[dim + 1]

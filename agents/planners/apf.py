@@ -1,5 +1,5 @@
-"""Artificial potential field (APF, [Khatib86]): potentials and forces, the local-minimum test, and a
-gradient-descent path planner (the agent that flies the gradient is
+"""Artificial potential field (APF, [Khatib86]): potentials and forces, the local-minimum test,
+and a gradient-descent path planner (the agent that flies the gradient is
 :class:`agents.policies.apf.APFAgent`).
 
 References (keys refer to docs/references.md):
