@@ -7,9 +7,9 @@
 ``zero``       never thrusts (floor)
 ``random``     uniform random thrust (floor)
 ``apf``        artificial potential field, gradient → thrust with damping
-``apf-rrt``    APF with local-minimum detection and RRT escape (seed 003)
-``apf-mpc``    APF reference path tracked by an OSQP MPC on the CWH model (seed 000)
-``astar``      A* grid path tracked by the same MPC (seed 000's A* baseline)
+``apf-rrt``    APF with local-minimum detection and RRT escape ([An23])
+``apf-mpc``    APF reference path tracked by an OSQP MPC on the CWH model ([APF-MPC])
+``astar``      A* grid path tracked by the same MPC (the [APF-MPC] A* baseline)
 =============  ==================================================================
 
 ``load_agent("ppo:runs/ppo/model.zip", env)`` loads a policy trained by ``train.py`` (``sac``,
@@ -20,6 +20,8 @@ The package is layered, imports pointing one way: :mod:`agents.planners` (pure f
 field) → :mod:`agents.control` (the MPC tracker, reference profiles) → :mod:`agents.policies`
 (every ``predict()`` agent and the registry) → :mod:`agents.experiments` (training, imitation,
 evaluation). ``import agents`` imports neither torch nor the experiment machinery.
+
+Keys in square brackets refer to docs/references.md.
 """
 
 from __future__ import annotations

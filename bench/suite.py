@@ -76,7 +76,7 @@ def run(
         ValueError: an unknown section name.
     """
     chosen = choose_sections(sections)
-    if "torch" in sys.modules:  # pin only if something imported it; importing it costs seconds
+    if "torch" in sys.modules:  # pin only if something imported it: importing it is slow
         pin_torch()
     cfg = dict(QUICK if quick else FULL)
     cfg.update(sizes or {})

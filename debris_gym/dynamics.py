@@ -2,8 +2,8 @@
 
 Frame: x radial (away from Earth), y along-track, z cross-track (orbit normal). State vectors are
 ``[position (m), velocity (m/s)]`` of length ``2 * dim``; control is a commanded acceleration
-(m/s²) of length ``dim``. The equations (Curtis, *Orbital Mechanics for Engineering Students*,
-§7.4; seed 001 eq. 1a-1c)::
+(m/s²) of length ``dim``. The equations ([Clohessy60], [Hill1878]; written as in [Curtis14] §7.4
+and [Zhou24] eq. 1a-1c)::
 
     ẍ = 3 n² x + 2 n ẏ + u_x
     ÿ =     − 2 n ẋ    + u_y
@@ -11,11 +11,12 @@ Frame: x radial (away from Earth), y along-track, z cross-track (orbit normal). 
 
 The 2D model is the exactly decoupled in-plane (x, y) subsystem; ``n = 0`` is the double
 integrator. Discretisation is an exact zero-order hold: the matrix exponential of the augmented
-matrix ``[[A, B], [0, 0]] · dt`` (scipy's scaled-and-squared Padé), which stays accurate from
-millisecond to ten-minute steps where the textbook closed form loses digits to cancellation.
+matrix ``[[A, B], [0, 0]] · dt`` ([VanLoan78]; scipy's scaled-and-squared Padé), which stays
+accurate from millisecond to ten-minute steps where the textbook closed form loses digits to
+cancellation.
 
 This module knows nothing of gymnasium; the single env, the vector env, the MPC's prediction model
-and the tests all use it.
+and the tests all use it. Keys in square brackets refer to docs/references.md.
 """
 
 from __future__ import annotations
@@ -170,7 +171,7 @@ def chord_error_bound(max_accel_total: float, dt: float, substeps: int) -> float
 
 
 def closed_form_coast(state0: np.ndarray, n: float, t: float) -> np.ndarray:
-    """Textbook closed-form CW solution for unforced motion (Curtis eq. 7.53, Vallado §6.8).
+    """Textbook closed-form CW solution for unforced motion ([Curtis14] eq. 7.53, [Vallado13] §6.8).
 
     Independent of :func:`discretize`; kept for tests and documentation. Loses relative precision
     to cancellation when ``n * t`` is tiny; for ``n = 0`` it returns straight-line motion.

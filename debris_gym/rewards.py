@@ -23,9 +23,9 @@ from the chaser's surface to the nearest obstacle (debris that is not a target) 
 ``shaping_clearance_distance`` (m), and minus, when ``shaping_closing`` > 0, ``shaping_closing``
 · max over the bodies b other than the current goal whose clearance c_b is below
 ``shaping_closing_distance`` d of max(0, v_b − capture_speed) / V · (1 − c_b / d), v_b the
-chaser's speed toward b's centre. The progress term is potential-based (Ng, Harada & Russell
-1999), so it changes how fast an agent learns but not which policy is optimal (for the same γ
-as the learner's, and Φ = 0 after termination).
+chaser's speed toward b's centre. The progress term is potential-based ([Ng99] in
+docs/references.md), so it changes how fast an agent learns but not which policy is optimal (for
+the same γ as the learner's, and Φ = 0 after termination).
 
 The terms are computed in the envs' compiled step (:mod:`debris_gym.mission_batch`); this
 module names them (in the order of ``info["reward_terms"]`` and of the step's term columns).

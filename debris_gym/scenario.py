@@ -121,7 +121,7 @@ class Scenario:
         mean_motion: reference-orbit mean motion n (rad/s); 0 is the double integrator.
         dt: decision step length (s).
         max_accel: thrust limit (m/s²) per axis ("box") or in norm ("ball").
-        motion: debris motion model; only ``"frozen"`` (fixed in LVLH) for now.
+        motion: debris motion model; ``"frozen"`` (fixed in LVLH) is the only one.
         name: free-form label, e.g. the preset or generator it came from.
     """
 

@@ -184,8 +184,8 @@ def test_memory_child_counts_every_array():
 
 
 def test_memory_child_counts_an_array_held_twice_once(monkeypatch):
-    """Regression: MissionBatch kept a second reference to the vertex array, and the memory
-    section counted it twice (9.9 instead of 5.4 KiB per sub-env)."""
+    """Regression: an array reachable through two attributes of the env's batches (here a second
+    reference to the vertex array) is counted once, not twice."""
     from debris_gym.envs import vector
 
     reset = vector.DebrisFieldVectorEnv.reset

@@ -1,4 +1,4 @@
-"""Tests of agents.planners.ordering: the polygon queue (seed paper 000, Alg. 1) and the shortest
+"""Tests of agents.planners.ordering: the polygon queue ([APF-MPC] Alg. 1) and the shortest
 tour."""
 
 from __future__ import annotations

@@ -63,7 +63,7 @@ def test_rgb_array_frames_show_motion(env_id: str) -> None:
         _check_frame(after)
         assert after.shape == before.shape
         assert not np.array_equal(after, before)
-        # The chaser marker itself moved (its exact face colour covers other pixels now).
+        # The chaser marker itself moved (its exact face colour covers other pixels after the steps)
         chaser_before = _mask(before, rendering.CHASER)
         chaser_after = _mask(after, rendering.CHASER)
         assert chaser_after.sum() > 10

@@ -19,7 +19,7 @@ N_LEO = 1.1313666536110223e-3  # rad/s
 
 
 def _textbook(state: np.ndarray, n: float) -> np.ndarray:
-    """CWH (Curtis §7.4): ẍ = 3n²x + 2nẏ, ÿ = −2nẋ, z̈ = −n²z, written out term by term."""
+    """CWH ([Curtis14] §7.4): ẍ = 3n²x + 2nẏ, ÿ = −2nẋ, z̈ = −n²z, written out term by term."""
     dim = len(state) // 2
     x, vx, vy = state[0], state[dim], state[dim + 1]
     out = [3.0 * n**2 * x + 2.0 * n * vy, -2.0 * n * vx]

@@ -1,10 +1,9 @@
 """Linear MPC path tracker on the exact discretised CWH model, solved as a sparse QP with OSQP.
 
-References:
-    * Seed paper 000 (hybrid APF–MPC multi-target debris rendezvous), §IV: horizon N = 20 and the
-      cost of eq. 8 — tracking error + λ1 ‖u‖² (control effort) + λ2 ‖Δu‖² (smoothness).
-    * B. Stellato et al., "OSQP: an operator splitting solver for quadratic programs", Math. Prog.
-      Comp. 12, 2020 — the QP solver (``import osqp``).
+References (keys refer to docs/references.md):
+    * [APF-MPC] §IV — horizon N = 20 and the cost of eq. 8: tracking error + λ1 ‖u‖² (control
+      effort) + λ2 ‖Δu‖² (smoothness).
+    * [Stellato20] — the QP solver (``import osqp``).
 
 The problem solved at every decision (condensed form: the states are eliminated with the exact
 zero-order-hold model x_{k+1} = Φ x_k + Γ u_k from :func:`debris_gym.dynamics.discretize`, the
@@ -80,12 +79,12 @@ class MPCParams:
     default env), velocity errors in max_accel·dt (m/s), thrust as a fraction of max_accel.
 
     Attributes:
-        horizon: prediction horizon N (steps); seed 000 uses 20.
+        horizon: prediction horizon N (steps); [APF-MPC] uses 20.
         w_position: weight of the squared position error per step.
         w_velocity: weight of the squared velocity error per step.
         w_terminal: multiplier of both tracking weights at the last step of the horizon.
-        w_effort: λ1, weight of ‖ũ_k‖² (control effort, seed 000 eq. 8).
-        w_smooth: λ2, weight of ‖ũ_k − ũ_{k−1}‖² (smoothness, seed 000 eq. 8), including the
+        w_effort: λ1, weight of ‖ũ_k‖² (control effort, [APF-MPC] eq. 8).
+        w_smooth: λ2, weight of ‖ũ_k − ũ_{k−1}‖² (smoothness, [APF-MPC] eq. 8), including the
             change from the previously applied command to the first move.
         keepout_margin: clearance (m) kept between the chaser's surface and every body; None:
             0.002 × the world size (2 m on the 1 km fields, 0.04 on the 20-unit paper field).

@@ -1,23 +1,21 @@
-"""Artificial potential field (APF): Khatib's potentials and forces, the local-minimum test, and a
-gradient-descent path planner (the agent that flies the gradient is
+"""Artificial potential field (APF, [Khatib86]): potentials and forces, the local-minimum test,
+and a gradient-descent path planner (the agent that flies the gradient is
 :class:`agents.policies.apf.APFAgent`).
 
-References:
-    * O. Khatib, "Real-time obstacle avoidance for manipulators and mobile robots", IJRR 5(1),
-      1986 — the FIRAS repulsive potential.
-    * H. Choset et al., *Principles of Robot Motion*, MIT Press 2005, ch. 4 (eq. 4.2-4.6):
-      quadratic attraction with a conic switch far away, repulsion
+References (keys refer to docs/references.md):
+    * [Khatib86] — the FIRAS repulsive potential.
+    * [Choset05] ch. 4 (eq. 4.2-4.6) — quadratic attraction with a conic switch far away, repulsion
       U = ½η(1/d − 1/d₀)² for d ≤ d₀ with gradient −η(1/d − 1/d₀)(1/d²)∇d.
-    * Seed paper 000 (APF-MPC debris rendezvous) eq. 1-6: the same potentials, descent with step
-      ε = 0.01 for 400 steps per segment, influence distance 1 (:meth:`APFParams.paper`).
-    * Seed paper 003 (improved APF) eq. 2-5 and the local-minimum test eq. 14
-      (:func:`is_local_minimum`); its RRT escape lives in :mod:`agents.planners.rrt`.
+    * [APF-MPC] eq. 1-6 — the same potentials, descent with step ε = 0.01 for 400 steps per
+      segment, influence distance 1 (:meth:`APFParams.paper`).
+    * [An23] eq. 2-5 and the local-minimum test eq. 14 (:func:`is_local_minimum`); its RRT escape
+      lives in :mod:`agents.planners.rrt`.
     * S. S. Ge, Y. J. Cui, "New potential functions for mobile robot path planning", IEEE T-RA
       16(5), 2000 — optional goal shielding of the repulsion (``goal_shield``), which removes the
       "goal non-reachable with obstacles nearby" equilibrium.
 
 Forces are minus potential gradients. In the agent they are accelerations (m/s²), so ``k_att`` is
-in 1/s² and ``k_rep`` in m⁴/s²; the planner only uses the force direction (or ε·force, the paper's
+in 1/s² and ``k_rep`` in m⁴/s²; the planner only uses the force direction (or ε·force, the [APF-MPC]
 rule), so there only the ratio of the gains matters. Clearance ``d`` to a body is its signed
 distance (``FieldGeometry.gaps_and_normals``) minus ``inflate`` (the chaser's radius) minus the
 safety ``margin``.
@@ -63,7 +61,7 @@ class APFParams:
     Attributes:
         k_att: attractive gain ζ (1/s²): force −ζ(x − g) inside ``d_star``.
         d_star: quadratic → conic switch distance (m); beyond it the attraction has the constant
-            magnitude ζ·d_star. ``inf`` = quadratic everywhere (seed 000).
+            magnitude ζ·d_star. ``inf`` = quadratic everywhere ([APF-MPC]).
         k_rep: repulsive gain η (m⁴/s²).
         d0: influence distance d₀ (m): bodies farther than this do not repel.
         margin: safety margin (m) added to every body on top of ``inflate``.
@@ -71,8 +69,8 @@ class APFParams:
             ρ_g²/(ρ_g² + r_g²), ρ_g the distance to the goal, so it vanishes at the goal. 0 = off.
         step_size: planner step (m): the length of each normalised step, or ε of the gradient
             rule ``x ← x + ε F`` when ``normalized_step`` is False.
-        normalized_step: True: steps of fixed length along the force (seed 003); False: the
-            plain gradient rule of seed 000.
+        normalized_step: True: steps of fixed length along the force ([An23]); False: the
+            plain gradient rule of [APF-MPC].
         max_steps: planner step limit per segment.
         goal_tol: the planner has arrived within this distance of the goal (m).
         stall_window: steps over which progress toward the goal is measured.
@@ -121,7 +119,7 @@ class APFParams:
 
     @classmethod
     def paper(cls) -> APFParams:
-        """Seed 000's planner: U_att = ‖x − g‖² (ζ = 2, no conic part), influence distance 1,
+        """The [APF-MPC] planner: U_att = ‖x − g‖² (ζ = 2, no conic part), influence distance 1,
         x ← x − ε∇U with ε = 0.01 for at most 400 steps per segment (unit-less 20 × 20 world).
 
         The paper does not print its repulsion factor α; 0.05 keeps its 20 × 20 field's paths
@@ -202,7 +200,7 @@ def _body_terms(
 def _virtual_terms(
     x: np.ndarray, virtual: Iterable[VirtualPoint], params: APFParams
 ) -> tuple[float, np.ndarray]:
-    """Σ U and Σ F of virtual repulsive points (seed 003 §3), each with its own radius."""
+    """Σ U and Σ F of virtual repulsive points ([An23] §3), each with its own radius."""
     potential, force = 0.0, np.zeros(len(x))
     for point, radius in virtual:
         diff = x - point
@@ -322,7 +320,7 @@ def total_force(
     inflate: float = 0.0,
     virtual: Sequence[VirtualPoint] = (),
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(F_total, F_att, F_rep) at ``x`` (m/s²): seed 000 eq. 6, seed 003 eq. 6."""
+    """(F_total, F_att, F_rep) at ``x`` (m/s²): [APF-MPC] eq. 6, [An23] eq. 6."""
     x = np.asarray(x, float)
     goal = np.asarray(goal, float)
     gaps, normals = geometry.gaps_and_normals(x)
@@ -333,7 +331,7 @@ def total_force(
 
 
 def is_local_minimum(f_att: np.ndarray, f_rep: np.ndarray, params: APFParams) -> bool:
-    """Seed 003 eq. 14: the forces nearly cancel and nearly oppose each other.
+    """[An23] eq. 14: the forces nearly cancel and nearly oppose each other.
 
     Balance: ‖F_att + F_rep‖ < balance_tol·‖F_att‖ — the paper's |‖F_att‖ − ‖F_rep‖| / ‖F_att‖
     < 0.5 taken on the vector sum, which implies it (triangle inequality). Angle:
@@ -457,9 +455,9 @@ def apf_path(
 ) -> PlanResult:
     """Plan a path from ``start`` to ``goal`` by descending the total potential.
 
-    Each step moves ``params.step_size`` along the total force (or ε·F, seed 000's rule, when
+    Each step moves ``params.step_size`` along the total force (or ε·F, the [APF-MPC] rule, when
     ``params.normalized_step`` is False), never more than half the clearance. Stops at the goal
-    (success), after ``params.max_steps``, or when stalled in a local minimum (seed 003 eq. 14 and
+    (success), after ``params.max_steps``, or when stalled in a local minimum ([An23] eq. 14 and
     no progress toward the goal over ``params.stall_window`` steps).
 
     Args:

@@ -1,8 +1,9 @@
 """A* grid planner on the debris field: field → occupancy grid → A* cell path → shortcut waypoints
 (the "astar" baseline flies it with the MPC tracker: :class:`agents.policies.astar.AStarAgent`).
 
-Reference: seed paper 000, Algorithm 3 ("Simplified A*"), its grid baseline; the search itself is
-:func:`agents.planners.grid_search.astar` (optimal, 8-/26-connected, no corner cutting).
+Reference: [APF-MPC] Alg. 3 ("Simplified A*"), its grid baseline (key in docs/references.md);
+the search itself is :func:`agents.planners.grid_search.astar` (optimal, 8-/26-connected, no
+corner cutting).
 
 The field is rasterised on cell centres like :func:`debris_gym.generators.occupancy_grid` (centre
 of cell i along an axis at ``low + (i + ½)·cell``), but with one inflation per body, so the goal

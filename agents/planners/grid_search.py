@@ -1,8 +1,7 @@
 """Optimal A* search on a 2D or 3D boolean occupancy grid, without corner cutting.
 
-Reference: P. E. Hart, N. J. Nilsson, B. Raphael, "A Formal Basis for the Heuristic Determination
-of Minimum Cost Paths", IEEE Trans. Systems Science and Cybernetics 4(2), 1968 — the grid baseline
-of seed paper 000 (Algorithm 3, "Simplified A*").
+References (keys refer to docs/references.md): [Hart68] — A* search; [APF-MPC] Alg. 3
+("Simplified A*") — the grid baseline it serves.
 
 Cells are integer index tuples into the grid; a step costs its Euclidean length in cell units (1,
 √2 or √3). With ``diagonal=True`` a cell has 8 (2D) or 26 (3D) neighbours, otherwise 4 or 6. A

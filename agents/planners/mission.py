@@ -46,7 +46,7 @@ class MissionPlan:
     Args:
         scenario: the field.
         config: the env's configuration (capture geometry, order rule, return to dock).
-        ordering: "shortest" (exact/heuristic shortest tour), "polygon" (seed 000 Alg. 1) or
+        ordering: "shortest" (exact/heuristic shortest tour), "polygon" ([APF-MPC] Alg. 1) or
             "nearest" (the env's own current goal, see above); ignored when the env fixes the
             order.
     """

@@ -1,15 +1,13 @@
 """Visiting order of debris targets: the polygon queue and the shortest closed tour.
 
-References:
-    * :func:`polygon_order` — seed paper 000 (hybrid APF–MPC multi-target debris rendezvous),
-      Algorithm 1 "Multi-Target Debris Queue Ordering": split the targets by the line through the
-      min-x and max-x targets, walk the upper set by ascending x and the lower set by descending x,
-      which gives a closed polygon whose edges never cross.
+References (keys refer to docs/references.md):
+    * :func:`polygon_order` — [APF-MPC] Alg. 1 "Multi-Target Debris Queue Ordering": split the
+      targets by the line through the min-x and max-x targets, walk the upper set by ascending x
+      and the lower set by descending x, which gives a closed polygon whose edges never cross.
     * :func:`shortest_order` — the travelling-salesman tour through a fixed start (the dock).
-      Exact by Held–Karp dynamic programming (M. Held, R. M. Karp, "A dynamic programming approach
-      to sequencing problems", J. SIAM 10(1), 1962); for larger sets a local search: nearest
-      neighbour construction, 2-opt (G. A. Croes, Oper. Res. 6(6), 1958) and Or-opt (I. Or, PhD
-      thesis, Northwestern University, 1976), seeded also with the polygon tour.
+      Exact by Held–Karp dynamic programming ([Held62]); for larger sets a local search: nearest
+      neighbour construction, 2-opt ([Croes58]) and Or-opt ([Or76]), seeded also with the polygon
+      tour.
 
 All functions are pure: they take coordinates (any length unit, e.g. m) and return Python lists of
 indices into ``points``. Tours are closed; the returned orders do not repeat their first element.
@@ -76,12 +74,12 @@ def _as_order(order: Sequence[int], n: int) -> list[int]:
 
 
 # --------------------------------------------------------------------------------------------------
-# polygon queue (seed paper 000, Algorithm 1)
+# polygon queue ([APF-MPC] Alg. 1)
 # --------------------------------------------------------------------------------------------------
 
 
 def polygon_order(points: ArrayLike) -> list[int]:
-    """Polygon queue ordering of targets (seed paper 000, Algorithm 1).
+    """Polygon queue ordering of targets ([APF-MPC] Alg. 1).
 
     The first point is the one with the smallest x and the "max-x" point the one with the largest
     x; ties in x are broken by y, i.e. points are compared lexicographically by (x, y) (then by

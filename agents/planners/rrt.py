@@ -1,7 +1,7 @@
 """RRT, and the APF planner that escapes local minima with an RRT and virtual repulsive points
 (the agent that does the same in flight is :class:`agents.policies.apf_rrt.APFRRTAgent`).
 
-Reference: seed paper 003 (improved APF for spacecraft), §2.2 and §3:
+The escape follows [An23] §2.2 and §3 (keys refer to docs/references.md):
 
 1. detect a local minimum — the forces balance, ‖F_att + F_rep‖ < 0.5‖F_att‖ (which implies the
    paper's |‖F_att‖ − ‖F_rep‖| / ‖F_att‖ < 0.5), and are nearly opposite,
@@ -14,11 +14,10 @@ Reference: seed paper 003 (improved APF for spacecraft), §2.2 and §3:
    trap, and continue with APF; the virtual points are cleared when the goal is reached.
 
 The RRT path is left at its first waypoint that is both outside the virtual point's influence and
-closer to the goal than the stall point (the "leave" rule of the Bug family of planners); if no
-waypoint qualifies, the RRT path is followed to the goal. RRT collision checks are swept
+closer to the goal than the stall point (the "leave" rule of the Bug planners, [Lumelsky87]); if
+no waypoint qualifies, the RRT path is followed to the goal. RRT collision checks are swept
 (:meth:`FieldGeometry.touched`) on the field inflated by ``inflate`` + ``RRTParams.clearance``
-(``APFParams.margin`` if no path keeps that clearance).
-S. M. LaValle, "Rapidly-exploring random trees: a new tool for path planning", TR 98-11, 1998.
+(``APFParams.margin`` if no path keeps that clearance). The tree itself is [LaValle98]'s RRT.
 """
 
 from __future__ import annotations
@@ -154,7 +153,7 @@ def rrt_path(
     rng: np.random.Generator,
     params: RRTParams | None = None,
 ) -> PlanResult:
-    """Grow an RRT from ``start`` until ``goal`` can be joined by a free segment (seed 003 §2.2),
+    """Grow an RRT from ``start`` until ``goal`` can be joined by a free segment ([An23] §2.2),
     then shorten the path (random shortcuts, then greedy line-of-sight pruning).
 
     Samples are drawn first from the box around start and goal grown by ``params.local_pad``
@@ -352,7 +351,7 @@ def apf_rrt_path(
 
 
 def _route_spacing(params: APFParams) -> float:
-    """Spacing (m) of followed RRT waypoints: the APF step (100 ε for seed 000's rule)."""
+    """Spacing (m) of followed RRT waypoints: the APF step (100 ε for the [APF-MPC] rule)."""
     return params.step_size if params.normalized_step else 100.0 * params.step_size
 
 

@@ -1,10 +1,11 @@
 """The "apf" baseline: flies the mission on the potential gradient under CWH dynamics.
 
-The potentials and forces are :mod:`agents.planners.apf` (Khatib; seed 000 eq. 1-6, seed 003
-eq. 2-5). Here they become an acceleration command: damped, speed-limited toward the goal and
-every nearby body (:func:`agents.control.reference.braking_speed`), with the natural CWH
-acceleration of the env's own model (:func:`debris_gym.dynamics.cwh_acceleration`) cancelled.
-Forces are accelerations (m/s²) here, so ``k_att`` is in 1/s² and ``k_rep`` in m⁴/s².
+The potentials and forces are :mod:`agents.planners.apf` ([Khatib86]; [APF-MPC] eq. 1-6, [An23]
+eq. 2-5; keys refer to docs/references.md). Here they become an acceleration command: damped,
+speed-limited toward the goal and every nearby body
+(:func:`agents.control.reference.braking_speed`), with the natural CWH acceleration of the env's
+own model (:func:`debris_gym.dynamics.cwh_acceleration`) cancelled. Forces are accelerations
+(m/s²) here, so ``k_att`` is in 1/s² and ``k_rep`` in m⁴/s².
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """APF-MPC: an artificial-potential-field path tracked by a linear MPC on the CWH model.
 
-Reference: seed paper 000 (hybrid APF–MPC multi-target debris rendezvous): the targets are queued
+Reference: [APF-MPC] (key in docs/references.md): the targets are queued
 (:class:`~agents.planners.mission.MissionPlan`), an APF path is planned between consecutive goals
 (:func:`agents.planners.apf.apf_path`, eq. 1–6) and an MPC with horizon N = 20 and the cost of
 eq. 8 tracks it (:class:`~agents.control.mpc.MPCTracker`, OSQP on the exact discretised CWH
@@ -42,7 +42,7 @@ class APFMPCAgent(MPCPathAgent):
         apf: APF planner parameters; None: :meth:`APFParams.for_scenario` (scaled to the field).
         mpc: MPC tracker parameters (the same defaults as the "astar" agent).
         reference: speed profile of the reference.
-        ordering: "shortest", "polygon" (seed 000 Alg. 1) or "nearest" (the env's goal) order.
+        ordering: "shortest", "polygon" ([APF-MPC] Alg. 1) or "nearest" (the env's goal) order.
         replan_distance: deviation from the path (m) that triggers a re-plan; None: 2 % of the
             world size.
         fallback_cell: grid cell (m) of the A* fallback after an APF stall; None: the "astar"

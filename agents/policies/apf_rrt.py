@@ -1,4 +1,4 @@
-"""The "apf-rrt" baseline: the APF agent that escapes local minima with an RRT (seed 003 §3).
+"""The "apf-rrt" baseline: the APF agent that escapes local minima with an RRT ([An23] §3).
 
 The detection test, the RRT and the virtual repulsive points are :mod:`agents.planners.apf` and
 :mod:`agents.planners.rrt`; this module watches the flight for a stall and follows the escape
@@ -21,7 +21,7 @@ __all__ = ["APFRRTAgent"]
 
 
 class APFRRTAgent(APFAgent):
-    """APF agent that escapes local minima with an RRT ("apf-rrt"; seed 003 §3).
+    """APF agent that escapes local minima with an RRT ("apf-rrt"; [An23] §3).
 
     A local minimum is declared when the goal distance has not dropped by ``stall_progress`` over
     the last ``stall_time`` and the forces averaged over that window pass the eq. 14 test
