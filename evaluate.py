@@ -12,7 +12,7 @@ debris field comes from that seed. Outputs in --out DIR:
                             complete, paired by seed
   summary.md                the Markdown table also printed to stdout
   trajectories_epNNN.png    all agents' trajectories over the field, first --plots episodes
-  paper_table.md/.json      with --paper: seed 000's Table I beside our measurements
+  paper_table.md/.json      with --paper: [APF-MPC] Table I beside our measurements
 
 Agents (--agents, comma-separated):
   apf, astar, ...           a baseline by name
@@ -45,7 +45,7 @@ examples:
   python evaluate.py --env DebrisGym/Rendezvous3D-v0 --env-kwargs '{"n_obstacles": 40}'
   python evaluate.py --agents apf,ppo=runs/ppo/model.zip
   python evaluate.py --agents apf,mine=my_pkg.my_mod:make_policy   # your own policy
-  python evaluate.py --paper --out runs/paper          # seed 000 Table I, ours beside theirs
+  python evaluate.py --paper --out runs/paper          # [APF-MPC] Table I, ours beside theirs
 """
 
 DEFAULT_OUT = "runs/eval"
@@ -162,7 +162,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--paper",
         action="store_true",
-        help="seed 000 reproduction: one episode of DebrisGym/PaperField2D-v0 (its world is "
+        help="reproduction of the APF-MPC paper [APF-MPC]: one episode of "
+        "DebrisGym/PaperField2D-v0 (its world is "
         "fixed) with apf, apf-mpc and astar; prints Table I beside our measurements and writes "
         "DIR/paper_table.md and .json. Not combinable with --env, --agents, --episodes",
     )

@@ -174,7 +174,7 @@ def test_paper_mode_writes_table_i_beside_ours(cli, monkeypatch, tmp_path, capsy
     assert set(table["ours"]) == {"apf", "apf-mpc", "astar"}
     assert table["ours"]["apf-mpc"]["fuel"] == 0.0 and table["ours"]["astar"]["waypoints"] == 30
     assert table["paper"]["apf"]["fuel"] == 2367.9007
-    assert "Seed 000 Table I" in capsys.readouterr().out
+    assert "[APF-MPC] Table I" in capsys.readouterr().out
 
 
 # --- the library ------------------------------------------------------------------------------

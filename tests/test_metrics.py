@@ -1,4 +1,4 @@
-"""Seed 000 Table I metrics on trajectories whose answers can be worked out by hand."""
+"""[APF-MPC] Table I metrics on trajectories whose answers can be worked out by hand."""
 
 from __future__ import annotations
 

@@ -10,8 +10,7 @@ References (keys refer to docs/references.md):
       segment, influence distance 1 (:meth:`APFParams.paper`).
     * [An23] eq. 2-5 and the local-minimum test eq. 14 (:func:`is_local_minimum`); its RRT escape
       lives in :mod:`agents.planners.rrt`.
-    * S. S. Ge, Y. J. Cui, "New potential functions for mobile robot path planning", IEEE T-RA
-      16(5), 2000 — optional goal shielding of the repulsion (``goal_shield``), which removes the
+    * [Ge00] — optional goal shielding of the repulsion (``goal_shield``), which removes the
       "goal non-reachable with obstacles nearby" equilibrium.
 
 Forces are minus potential gradients. In the agent they are accelerations (m/s²), so ``k_att`` is
@@ -65,7 +64,7 @@ class APFParams:
         k_rep: repulsive gain η (m⁴/s²).
         d0: influence distance d₀ (m): bodies farther than this do not repel.
         margin: safety margin (m) added to every body on top of ``inflate``.
-        goal_shield: Ge-Cui goal shielding radius r_g (m): repulsion is multiplied by
+        goal_shield: [Ge00] goal shielding radius r_g (m): repulsion is multiplied by
             ρ_g²/(ρ_g² + r_g²), ρ_g the distance to the goal, so it vanishes at the goal. 0 = off.
         step_size: planner step (m): the length of each normalised step, or ε of the gradient
             rule ``x ← x + ε F`` when ``normalized_step`` is False.

@@ -7,11 +7,11 @@ specs         what to evaluate: baseline names, ``ppo=PATH``, ``pretrained``, yo
               ``LABEL=MODULE:ATTR`` or a policy object; building each for an env
 runner        flying every agent on the same seeded episodes (:func:`evaluate_agents`)
 records       what a run produced (episode records, trajectories, the whole run)
-metrics       seed 000 Table I metrics of a trajectory
+metrics       [APF-MPC] Table I metrics of a trajectory
 statistics    Wilson and t intervals, per-agent summaries, Δv paired by seed
 report        the Markdown table, strict JSON, episodes.csv, writing the files
 plots         trajectory plots
-paper         seed 000 Table I beside ours (``--paper``)
+paper         [APF-MPC] Table I beside ours (``--paper``)
 command       ``evaluate.py`` once its arguments are parsed
 ============  ======================================================================
 

@@ -217,7 +217,7 @@ def run_evaluation(options: EvaluateOptions) -> str:
         for name, content in (("paper_table.md", table_text), ("paper_table.json", to_json(table))):
             write_atomic(out / name, content)
             written.append(out / name)
-        text += "\nSeed 000 Table I, paper vs ours:\n\n" + table_text
+        text += "\n[APF-MPC] Table I, paper vs ours:\n\n" + table_text
     text += f"\nwrote {len(written)} files to {out}/ ({results.elapsed:.1f} s):\n"
     text += "".join(f"  {path}\n" for path in written)
     return text

@@ -1,6 +1,6 @@
-"""Trajectory metrics of seed paper 000's Table I, computed from a flown trajectory.
+"""Trajectory metrics of [APF-MPC] Table I, computed from a flown trajectory.
 
-Seed 000 (hybrid APF–MPC multi-target debris rendezvous) compares planners by path length, fuel,
+[APF-MPC] compares planners by path length, fuel,
 smoothness, time, maximal acceleration, maximal deceleration, number of waypoints and total
 curvature, but defines most of them in one line or not at all. The definitions used here are
 stated in each function's docstring and in ``docs/baselines.md``; where the paper is silent, that
@@ -63,7 +63,7 @@ def path_length(positions: ArrayLike) -> float:
 def fuel(accelerations: ArrayLike, dt: float, thrust_model: str = "ball") -> float:
     """Fuel as Δv (m/s): Σ‖u_k‖·dt over the steps.
 
-    Seed 000 reports "fuel consumption" in "units of fuel" without defining them (its numbers
+    [APF-MPC] reports "fuel consumption" in "units of fuel" without defining them (its numbers
     cannot be converted); we report the Δv spent, the propellant-independent measure of fuel.
     ``thrust_model="ball"`` (one gimballed engine) uses the Euclidean norm ‖u‖;
     ``"box"`` (one thruster per axis) uses Σ|u_i|, exactly as the env charges Δv.
@@ -75,7 +75,7 @@ def fuel(accelerations: ArrayLike, dt: float, thrust_model: str = "ball") -> flo
 def smoothness(accelerations: ArrayLike) -> float:
     """Mean squared change of the acceleration command between steps (m²/s⁴); 0 is smoothest.
 
-    (1 / (K − 1)) · Σ_k ‖u[k+1] − u[k]‖² over the K commands (0 when K < 2). Seed 000 calls its
+    (1 / (K − 1)) · Σ_k ‖u[k+1] − u[k]‖² over the K commands (0 when K < 2). [APF-MPC] calls its
     metric "a measure of trajectory smoothness" without a formula; we chose the mean of ‖Δu‖²
     because it is the smoothness term of the paper's own MPC cost (eq. 8, λ₂·‖Δu_j‖²). It does not
     depend on dt, so it compares commands, not jerk.
@@ -98,7 +98,7 @@ def max_acceleration_deceleration(
     step's mean velocity (v[k] + v[k+1]) / 2: a positive component speeds the chaser up, a
     negative one slows it down. Returns (max positive component, max |negative component|); 0 when
     there is none. Steps without motion (mean speed ≈ 0) have no direction and count as 0.
-    Seed 000 gives "maximal acceleration/deceleration experienced along the trajectory" without a
+    [APF-MPC] gives "maximal acceleration/deceleration experienced along the trajectory" without a
     formula; we use the commanded (thrust) acceleration — the part the guidance controls — which
     equals the experienced one for the paper's double integrator (n = 0).
     """
@@ -125,7 +125,7 @@ def total_curvature(positions: ArrayLike) -> float:
     In 2D this is the sum of absolute heading changes (each wrapped to [0, π]); in 3D the angle
     between successive step displacements, atan2(‖a × b‖, a · b) in both cases. Zero-length
     steps (no motion, heading undefined) are skipped. A straight line gives 0, one lap of a
-    convex polygon 2π. Seed 000: "the sum of all angle changes in the trajectory".
+    convex polygon 2π. [APF-MPC]: "the sum of all angle changes in the trajectory".
     """
     p = _points(positions, "positions")
     seg = np.diff(p, axis=0)
@@ -143,7 +143,7 @@ def total_curvature(positions: ArrayLike) -> float:
 
 @dataclass(frozen=True)
 class TrajectoryMetrics:
-    """Seed 000 Table I metrics of one trajectory (see the functions for the definitions).
+    """[APF-MPC] Table I metrics of one trajectory (see the functions for the definitions).
 
     Attributes:
         path_length: m.

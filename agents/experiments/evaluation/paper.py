@@ -1,4 +1,4 @@
-"""Seed 000 Table I beside our measurement of the same metrics on its world (``--paper``)."""
+"""[APF-MPC] Table I beside our measurement of the same metrics on its world (``--paper``)."""
 
 from __future__ import annotations
 
@@ -17,10 +17,10 @@ __all__ = [
 ]
 
 PAPER_ENV_ID = "DebrisGym/PaperField2D-v0"
-"""The world of seed 000 (fixed: one episode is enough)."""
+"""The [APF-MPC] world (fixed: one episode is enough)."""
 
 PAPER_AGENTS = ("apf", "apf-mpc", "astar")
-"""Our agents compared with seed 000's Table I: its potential planner, APF-MPC, and A*."""
+"""Our agents compared with [APF-MPC] Table I: its potential planner, APF-MPC, and A*."""
 
 PAPER_TABLE_I: dict[str, dict[str, float]] = {
     "apf": {
@@ -44,7 +44,7 @@ PAPER_TABLE_I: dict[str, dict[str, float]] = {
         "total_curvature": 2.3422e4,
     },
 }
-"""Seed 000 Table I as printed ("Potential Planner" → apf, "Integrated APF-MPC" → apf-mpc; the
+"""[APF-MPC] Table I as printed ("Potential Planner" → apf, "Integrated APF-MPC" → apf-mpc; the
 paper prints no A* row). Its units: path m, fuel "units of fuel" (undefined), smoothness
 undefined, time s (for APF-MPC apparently the computing time), accelerations m/s², curvature rad."""
 
@@ -61,7 +61,7 @@ TABLE_I_ROWS: tuple[tuple[str, str], ...] = (
 
 
 def paper_table(results: EvaluationResults, skipped: dict[str, str] | None = None) -> dict:
-    """Seed 000 Table I beside our measurement of the same metrics on its world (episode 0).
+    """[APF-MPC] Table I beside our measurement of the same metrics on its world (episode 0).
 
     Returns ``{"paper": PAPER_TABLE_I, "ours": {agent: {metric: value, plus "success",
     "targets_captured", "n_targets", "compute_s"}}, "skipped": {agent: reason}}``; agents not in
@@ -128,7 +128,7 @@ def paper_table_markdown(table: dict[str, Any]) -> str:
     )
     notes = [
         "",
-        f"Ours: one episode of `{table['env_id']}` (seed 000's world, double integrator). "
+        f"Ours: one episode of `{table['env_id']}` (the [APF-MPC] world, double integrator). "
         "Fuel is Δv; smoothness is our definition (the paper gives none); time is simulated "
         "mission time (the paper's 8379 s for APF-MPC matches its reported computing time).",
     ]

@@ -90,7 +90,7 @@ class EpisodeRecord:
 
     @property
     def metrics(self) -> TrajectoryMetrics:
-        """Seed 000 Table I metrics of this episode's trajectory."""
+        """[APF-MPC] Table I metrics of this episode's trajectory."""
         traj = self.trajectory
         if traj is None:
             raise ValueError("this record keeps no trajectory")

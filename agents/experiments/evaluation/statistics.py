@@ -42,7 +42,7 @@ def _z(confidence: float) -> float:
 
 
 def wilson_interval(successes: int, n: int, confidence: float = CONFIDENCE) -> tuple[float, float]:
-    """Wilson score interval of a binomial proportion ``successes / n``.
+    """Wilson score interval [Wilson27] of a binomial proportion ``successes / n``.
 
     Unlike the normal ("Wald") interval it stays inside [0, 1] and is not empty at 0/n or n/n.
 
@@ -62,7 +62,8 @@ def wilson_interval(successes: int, n: int, confidence: float = CONFIDENCE) -> t
 def t_interval(
     values: Sequence[float], confidence: float = CONFIDENCE
 ) -> tuple[float | None, float | None]:
-    """Student t confidence interval of the mean of ``values``; (None, None) for fewer than 2."""
+    """Student t confidence interval [Student08] of the mean of ``values``; (None, None) for
+    fewer than 2 values."""
     from scipy.stats import t
 
     x = np.asarray(values, dtype=float)

@@ -6,7 +6,7 @@ the same kind of small MLP policy as PPO does, by supervised regression on the e
 
 1. **Behaviour cloning**: the expert flies ``bc_episodes`` training fields; every (observation,
    expert action) pair is kept.
-2. **DAgger** (Ross, Gordon & Bagnell 2011): for each of ``dagger_rounds`` rounds the current
+2. **DAgger** [Ross11]: for each of ``dagger_rounds`` rounds the current
    policy flies ``dagger_episodes`` fields while the expert, attached to the same env, names the
    action it would take in every state the *policy* visits; those pairs join the data set and the
    policy is refit. The policy thereby learns to recover from its own mistakes, which plain
