@@ -50,6 +50,9 @@ class PointQuery(NamedTuple):
 class BodyShape:
     """One 2D body of a :class:`FieldGeometry`, answering nearest-point queries.
 
+    Each query reuses the shape's own small arrays (no allocation per call: planners ask
+    per point and per body); a shape is therefore not to be queried from two threads at once.
+
     Args:
         geometry: the field.
         index: the body's index (targets first, then obstacles).
@@ -58,17 +61,21 @@ class BodyShape:
     def __init__(self, geometry: FieldGeometry, index: int) -> None:
         self.geometry = geometry
         self.body_index = index
+        self._point = np.empty((1, 2))
+        self._gap = np.empty((1, 1))
+        self._normal = np.empty((1, 1, 2))
+        self._surface = np.empty((1, 1, 2))
+        self._args = (
+            self._point, index, index + 1, *geometry._field, self._gap, self._normal,
+            self._surface,
+        )  # fmt: skip
 
     def point_query(self, point: tuple[float, float]) -> PointQuery:
         """Nearest surface point, signed distance (m) and unit gradient at ``point`` (m)."""
-        gaps, normals, surface = self.geometry.nearest_points(
-            np.array([point], dtype=float), self.body_index, self.body_index + 1
-        )
-        return PointQuery(
-            Vec2(float(surface[0, 0, 0]), float(surface[0, 0, 1])),
-            float(gaps[0, 0]),
-            Vec2(float(normals[0, 0, 0]), float(normals[0, 0, 1])),
-        )
+        self._point[0] = point
+        nearest_points(*self._args)
+        (sx, sy), (nx, ny) = self._surface[0, 0].tolist(), self._normal[0, 0].tolist()
+        return PointQuery(Vec2(sx, sy), self._gap.item(), Vec2(nx, ny))
 
 
 class FieldGeometry:
