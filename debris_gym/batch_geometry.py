@@ -5,21 +5,18 @@ obstacles, as :attr:`Scenario.bodies`) in flat numpy arrays. Its queries take on
 path per field and answer for every body of every field in one call of a numba-compiled loop
 over fields and bodies (no Python loop, no temporaries the size of the batch); the per-field
 functions (:func:`field_gaps`, :func:`polygon_gap`, :func:`path_touches`, :func:`ray_ranges`)
-are what :mod:`debris_gym.mission_batch` calls inside its step. They give the same answers as
-:class:`debris_gym.geometry.FieldGeometry`: clearance with the same formulas, operation for
-operation (bit-identical), swept contacts and lidar equal to pymunk's;
-``tests/test_vector_env.py`` holds the two together.
+are what :mod:`debris_gym.mission_batch` calls inside its step. Planners see one field through
+the same loops: :class:`debris_gym.geometry.FieldGeometry` is a batch of one. The tests hold the
+answers to an independent oracle (``tests/geometry_oracle.py``: pymunk in 2D).
 
 Storage is compact: polygon vertices exist only for the bodies from ``polygon_start`` on (the
 vector env keeps targets as circles), four numbers per vertex: its position relative to the
 body centre (m) and the edge vector to the next vertex (m). The edge is computed once, when the
-field is loaded, as :class:`~debris_gym.geometry.FieldGeometry` computes it (difference of the
-two absolute vertices), and 1 / |e|² is recomputed from it where needed, as FieldGeometry does,
-so the queries stay bit-identical to it. Storing the edge instead of recomputing it from two
-vertices in every query (and inlining the helpers, :mod:`debris_gym.jit`) made the gaps 1.6x
-faster; also storing 1 / |e|² saved another 10 % of the gaps but cost 1.1 KiB per field
-(docs/benchmarks.md). The outward normal of an edge e of a counter-clockwise polygon is
-(e_y, −e_x) / |e|.
+field is loaded (difference of the two absolute vertices), and 1 / |e|² is recomputed from it
+where needed. Storing the edge instead of recomputing it from two vertices in every query (and
+inlining the helpers, :mod:`debris_gym.jit`) made the gaps 1.6x faster; also storing 1 / |e|²
+saved another 10 % of the gaps but cost 1.1 KiB per field (docs/benchmarks.md). The outward
+normal of an edge e of a counter-clockwise polygon is (e_y, −e_x) / |e|.
 """
 
 from __future__ import annotations

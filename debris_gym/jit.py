@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numba
 
-COMPILED_MODULES = ("batch_geometry", "generators", "mission_batch", "thrust")
+COMPILED_MODULES = ("batch_geometry", "generators", "geometry_kernels", "mission_batch", "thrust")
 """Modules of this package with numba-compiled functions (their caches are dropped together)."""
 
 COMPILE_OPTIONS: dict[str, object] = {"cache": True, "nogil": True, "error_model": "numpy"}

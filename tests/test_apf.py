@@ -25,6 +25,7 @@ from agents.planners.rrt import apf_rrt_path
 from debris_gym.generators import paper_field
 from debris_gym.geometry import FieldGeometry
 from debris_gym.scenario import Body, Scenario
+from tests.geometry_oracle import OracleField
 
 # --------------------------------------------------------------------------------------------------
 # fields
@@ -66,7 +67,7 @@ def _cup(dim=2, target_x=15.0, target_y=260.0, half=60.0, r=10.0) -> Scenario:
 
 def _dense_clearance(scenario: Scenario, waypoints: np.ndarray, inflate: float) -> float:
     """Smallest clearance (m) to the inflated bodies along the polyline, sampled every 0.1 m."""
-    geometry = FieldGeometry(scenario)
+    geometry = OracleField(scenario)
     pieces = [waypoints[:1]]
     for a, b in zip(waypoints[:-1], waypoints[1:]):
         k = max(2, math.ceil(float(np.linalg.norm(b - a)) / 0.1))

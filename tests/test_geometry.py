@@ -1,11 +1,12 @@
-"""Geometry: numpy clearance vs pymunk, swept collision checks, lidar."""
+"""The library's geometry (:class:`FieldGeometry`, a one-field view of the compiled batch) held to
+the independent oracle of ``tests/geometry_oracle.py`` (pymunk in 2D, closed forms for spheres),
+on random fields, points (inside bodies and on their surfaces too), segments and rays."""
 
 from __future__ import annotations
 
 import math
 
 import numpy as np
-import pymunk
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -13,37 +14,231 @@ from hypothesis import strategies as st
 from debris_gym.generators import FieldSpec, random_field
 from debris_gym.geometry import FieldGeometry, lidar_directions
 from debris_gym.scenario import Body, Scenario
+from tests.geometry_oracle import OracleField
+
+IMPLEMENTATIONS = [FieldGeometry, OracleField]
+"""Hand-computed cases check the library and the oracle alike (an oracle can be wrong too)."""
 
 
-def field_2d(seed: int, n_obstacles: int = 20) -> Scenario:
-    spec = FieldSpec(dim=2, n_obstacles=n_obstacles, polygon_fraction=0.5)
+def random_scenario(seed: int, dim: int = 2, n_obstacles: int = 20) -> Scenario:
+    spec = FieldSpec(dim=dim, n_obstacles=n_obstacles, polygon_fraction=0.5)
     return random_field(
-        np.random.default_rng(seed),
-        spec,
-        mean_motion=0.0,
-        dt=10.0,
-        max_accel=0.05,
+        np.random.default_rng(seed), spec, mean_motion=0.0, dt=10.0, max_accel=0.05,
         capture_radius=5.0,
-    )
+    )  # fmt: skip
 
 
-@pytest.mark.parametrize("seed", range(5))
-def test_numpy_signed_distance_matches_pymunk(seed):
-    scen = field_2d(seed)
-    geom = FieldGeometry(scen)
-    rng = np.random.default_rng(seed)
-    # points all over the field, plus points near and inside every body
-    pts = [rng.uniform(-500, 500, size=(300, 2))]
-    for b in scen.bodies:
-        pts.append(np.asarray(b.position) + rng.uniform(-1.3, 1.3, size=(20, 2)) * b.radius)
-    pts = np.vstack(pts)
+def probe_points(scen: Scenario, rng: np.random.Generator, n_free: int = 100) -> np.ndarray:
+    """Points all over the field, and around, inside and on the surface of every body."""
+    dim = scen.dim
+    pts = [rng.uniform(scen.low, scen.high, size=(n_free, dim))]
+    for body in scen.bodies:
+        centre = np.asarray(body.position, dtype=float)
+        pts.append(centre + rng.uniform(-1.3, 1.3, size=(6, dim)) * body.radius)
+        if body.is_polygon:
+            verts = np.asarray(body.vertices, dtype=float)
+            weights = rng.dirichlet(np.ones(len(verts)), size=4)
+            pts.append(centre + weights @ verts)  # inside: convex combinations of the corners
+            k = rng.integers(len(verts), size=4)
+            u = rng.uniform(size=(4, 1))
+            pts.append(centre + verts[k] + u * (verts[(k + 1) % len(verts)] - verts[k]))
+        else:
+            direction = rng.normal(size=(8, dim))
+            direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+            depth = np.concatenate([np.ones(4), rng.uniform(0.05, 1.0, size=4)])[:, None]
+            pts.append(centre + body.radius * depth * direction)  # on the surface, inside
+    return np.vstack(pts)
+
+
+# --- clearance and nearest points ---------------------------------------------------------------
+
+
+@settings(max_examples=12, deadline=None)
+@given(seed=st.integers(0, 10_000), dim=st.sampled_from([2, 3]))
+def test_signed_distance_matches_the_oracle(seed, dim):
+    scen = random_scenario(seed, dim)
+    geom, oracle = FieldGeometry(scen), OracleField(scen)
+    pts = probe_points(scen, np.random.default_rng(seed))
     ours = geom.signed_distance(pts)
-    for j, shape in enumerate(geom.shapes):
-        ref = np.array([shape.point_query(tuple(p)).distance for p in pts])
-        np.testing.assert_allclose(ours[:, j], ref, atol=1e-9, rtol=1e-9)
+    np.testing.assert_allclose(ours, oracle.signed_distance(pts), rtol=1e-9, atol=1e-9)
+    assert (ours < 0).any() and (np.abs(ours) < 1e-9).any()  # inside and on surfaces covered
+    for p, row in zip(pts[::25], ours[::25]):
+        np.testing.assert_array_equal(geom.point_gaps(p), row)
+        np.testing.assert_array_equal(geom.signed_distance(p), row)
+        assert geom.clearance(p) == row.min()
 
 
-def test_circle_clearance_hand_computed():
+@settings(max_examples=12, deadline=None)
+@given(seed=st.integers(0, 10_000), dim=st.sampled_from([2, 3]))
+def test_nearest_points_and_normals_match_the_oracle(seed, dim):
+    scen = random_scenario(seed, dim)
+    geom, oracle = FieldGeometry(scen), OracleField(scen)
+    pts = probe_points(scen, np.random.default_rng(seed), n_free=40)
+    gaps, normals, surface = geom.nearest_points(pts)
+    for k, p in enumerate(pts):
+        ref_gaps, ref_normals, ref_surface = oracle.nearest(p)
+        np.testing.assert_allclose(gaps[k], ref_gaps, rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(normals[k], ref_normals, rtol=1e-9, atol=1e-9)
+        # pymunk's surface point is NaN for a point exactly on a polygon's edge (0 · 1/0)
+        on_edge = np.isnan(ref_surface)
+        ref_surface[on_edge] = np.broadcast_to(p, ref_surface.shape)[on_edge]
+        np.testing.assert_allclose(surface[k], ref_surface, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(normals, axis=2), 1.0)
+    np.testing.assert_allclose(gaps, geom.signed_distance(pts), rtol=1e-9, atol=1e-9)
+    # the one-point and one-body forms give the same numbers
+    one_gaps, one_normals = geom.gaps_and_normals(pts[0])
+    np.testing.assert_array_equal(one_gaps, gaps[0])
+    np.testing.assert_array_equal(one_normals, normals[0])
+    if dim == 2:
+        last = len(scen.bodies) - 1
+        info = geom.shapes[last].point_query(tuple(pts[1]))
+        assert info.distance == gaps[1, last]
+        assert tuple(info.gradient) == tuple(normals[1, last])
+        assert tuple(info.point) == tuple(surface[1, last])
+
+
+def test_normals_are_the_gradient_of_the_distance():
+    """Away from surfaces and corners' medial lines the normal is ∇d (central differences)."""
+    scen = random_scenario(4)
+    geom = FieldGeometry(scen)
+    rng = np.random.default_rng(4)
+    pts = probe_points(scen, rng)
+    gaps, normals, _ = geom.nearest_points(pts)
+    h = 1e-6
+    checked = 0
+    for k, p in enumerate(pts):
+        fd = np.stack(
+            [
+                (geom.point_gaps(p + h * e) - geom.point_gaps(p - h * e)) / (2 * h)
+                for e in np.eye(2)
+            ],
+            axis=1,
+        )
+        smooth = np.abs(gaps[k]) > 0.5
+        close = np.all(np.abs(fd - normals[k]) < 1e-4, axis=1)
+        checked += int(smooth.sum())
+        # a kink (two edges equally near) can only make a few bodies disagree
+        assert close[smooth].mean() > 0.9
+    assert checked > 1000
+
+
+# --- swept contacts -----------------------------------------------------------------------------
+
+
+def _graze(oracle: OracleField, body: int, path: np.ndarray) -> float:
+    """|closest approach of the path to ``body`` − inflate| (m), by dense sampling."""
+    t = np.linspace(0.0, 1.0, 4001)[:, None]
+    pts = np.vstack([(1 - t) * a + t * b for a, b in zip(path[:-1], path[1:])])
+    if oracle.dim == 2:
+        shape = oracle.shapes[body]
+        closest = min(shape.point_query(tuple(p)).distance for p in pts)
+    else:
+        closest = float(np.linalg.norm(pts - oracle.centers[body], axis=1).min())
+        closest -= oracle.radii[body]
+    step = max(float(np.linalg.norm(b - a)) for a, b in zip(path[:-1], path[1:])) / 4000
+    return abs(closest - oracle.inflate) - step
+
+
+@settings(max_examples=15, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    dim=st.sampled_from([2, 3]),
+    inflate=st.sampled_from([0.0, 0.5, 4.0]),
+    n_segments=st.integers(1, 3),
+)
+def test_swept_contacts_match_the_oracle(seed, dim, inflate, n_segments):
+    scen = random_scenario(seed % 50, dim, n_obstacles=30)
+    geom, oracle = FieldGeometry(scen, inflate=inflate), OracleField(scen, inflate=inflate)
+    rng = np.random.default_rng(seed)
+    centres = scen.body_positions()
+    contacts = 0
+    for k in range(60):
+        start = rng.uniform(scen.low, scen.high)
+        if k % 3 == 0:  # start inside a body or at its surface
+            start = centres[rng.integers(len(centres))] + rng.normal(0.0, 3.0, dim)
+        aim = centres[rng.integers(len(centres))] + rng.normal(0.0, 10.0, dim)
+        end = aim if k % 2 else start + rng.uniform(-150.0, 150.0, dim)
+        t = np.linspace(0.0, 1.0, n_segments + 1)[:, None]
+        bend = rng.normal(0.0, 20.0, dim) * np.sin(np.pi * t)
+        path = start + t * (end - start) + bend
+        ours, ref = geom.touched(path), oracle.touched(path)
+        for body in set(ours) ^ set(ref):
+            assert _graze(oracle, body, path) <= 1e-9, (body, ours, ref)
+        contacts += bool(ref)
+        first, ref_first = geom.first_hit(path), oracle.first_hit(path)
+        assert (first >= 0) == bool(ours)
+        if first != ref_first and set(ours) == set(ref):
+            # only a tie (two bodies met at the same point) may order differently
+            for a, b in zip(path[:-1], path[1:]):
+                hits = oracle.segment_contacts(a, b)
+                if hits:
+                    assert hits[first] == pytest.approx(hits[ref_first], abs=1e-9)
+                    break
+    assert contacts >= 10
+
+
+def test_start_gaps_of_inf_leave_bodies_out_of_the_swept_check():
+    scen = random_scenario(2)
+    geom = FieldGeometry(scen, inflate=1.0)
+    centres = scen.body_positions()
+    path = np.array([centres[3] + [-200.0, 0.0], centres[3] + [200.0, 0.0]])
+    assert 3 in geom.touched(path)
+    gaps = geom.point_gaps(path[0])
+    gaps[3] = np.inf
+    assert 3 not in geom.touched(path, gaps)
+    assert geom.first_hit(path, gaps) != 3
+
+
+@pytest.mark.parametrize("make", IMPLEMENTATIONS)
+def test_first_hit_is_the_body_met_first_along_the_path(make):
+    square = ((-5.0, -5.0), (5.0, -5.0), (5.0, 5.0), (-5.0, 5.0))
+    scen = Scenario(
+        dim=2,
+        bounds=((-100, 100), (-100, 100)),
+        dock=(0, -80),
+        targets=(Body(position=(40.0, 0.0), radius=5.0),),
+        obstacles=(Body(position=(0.0, 0.0), radius=math.sqrt(50), vertices=square),),
+    )
+    geom = make(scen, inflate=1.0)
+    path = np.array([[-50.0, 0.0], [80.0, 0.0]])
+    assert geom.first_hit(path) == 1 and geom.touched(path) == [0, 1]
+    assert geom.first_hit(path[::-1]) == 0
+    # starting inside the square's margin touches it at once, even heading out
+    assert geom.first_hit(np.array([[5.5, 0.0], [20.0, 0.0]])) == 1
+    assert geom.touched(np.array([[0.0, 5.5], [0.0, 20.0]])) == [1]
+    assert geom.touched(np.array([[0.0, 6.5], [0.0, 20.0]])) == []
+    # passing 1.5 m from a corner misses the 1 m margin; 0.5 m does not
+    corner = np.array([5.0, 5.0]) + 1.5 / math.sqrt(2)
+    along = np.array([1.0, -1.0]) * 30
+    assert geom.first_hit(np.array([corner - along, corner + along])) == -1
+    corner = np.array([5.0, 5.0]) + 0.5 / math.sqrt(2)
+    assert geom.first_hit(np.array([corner - along, corner + along])) == 1
+
+
+# --- lidar ---------------------------------------------------------------------------------------
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 10_000), dim=st.sampled_from([2, 3]))
+def test_lidar_matches_the_oracle(seed, dim):
+    scen = random_scenario(seed, dim)
+    geom, oracle = FieldGeometry(scen), OracleField(scen)
+    dirs = lidar_directions(dim, 24)
+    rng = np.random.default_rng(seed)
+    origins = probe_points(scen, rng, n_free=10)[::7]
+    # a sensor exactly on a surface is a tie between "inside" (range 0) and "outside"
+    origins = origins[np.abs(geom.signed_distance(origins)).min(axis=1) > 1e-6]
+    for origin in origins:
+        np.testing.assert_allclose(
+            geom.lidar(origin, dirs, 300.0), oracle.lidar(origin, dirs, 300.0), atol=1e-9
+        )
+
+
+# --- hand-computed cases ------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("make", IMPLEMENTATIONS)
+def test_circle_clearance_hand_computed(make):
     scen = Scenario(
         dim=2,
         bounds=((-10, 10), (-10, 10)),
@@ -51,15 +246,16 @@ def test_circle_clearance_hand_computed():
         targets=(Body(position=(3.0, 4.0), radius=1.0),),
         obstacles=(Body(position=(-6.0, 0.0), radius=2.0),),
     )
-    geom = FieldGeometry(scen)
-    np.testing.assert_allclose(geom.signed_distance(np.zeros(2)), [4.0, 4.0])
+    geom = make(scen)
+    np.testing.assert_allclose(geom.signed_distance(np.zeros(2)).ravel(), [4.0, 4.0])
     np.testing.assert_allclose(
-        geom.signed_distance(np.array([-6.0, 1.0])), [math.hypot(9, 3) - 1, -1]
+        geom.signed_distance(np.array([-6.0, 1.0])).ravel(), [math.hypot(9, 3) - 1, -1]
     )
-    assert geom.clearance(np.array([3.0, 4.0])) == pytest.approx(-1.0)
+    assert geom.signed_distance(np.array([3.0, 4.0])).min() == pytest.approx(-1.0)
 
 
-def test_polygon_distance_hand_computed():
+@pytest.mark.parametrize("make", IMPLEMENTATIONS)
+def test_polygon_distance_and_normals_hand_computed(make):
     square = ((-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0))
     scen = Scenario(
         dim=2,
@@ -68,12 +264,22 @@ def test_polygon_distance_hand_computed():
         targets=(Body(position=(8.0, 8.0), radius=1.0),),
         obstacles=(Body(position=(0.0, 0.0), radius=math.sqrt(2), vertices=square),),
     )
-    geom = FieldGeometry(scen)
+    geom = make(scen)
     pts = np.array([[3.0, 0.0], [0.5, 0.0], [4.0, 5.0], [0.0, 0.0]])
     np.testing.assert_allclose(geom.signed_distance(pts)[:, 1], [2.0, -0.5, 5.0, -1.0])
+    nearest = geom.nearest if make is OracleField else lambda p: geom.nearest_points(p)
+    for p, normal, surface in (
+        ([3.0, 0.0], [1.0, 0.0], [1.0, 0.0]),
+        ([0.5, 0.0], [1.0, 0.0], [1.0, 0.0]),  # inside: toward the nearest edge
+        ([4.0, 5.0], [0.6, 0.8], [1.0, 1.0]),  # off a corner
+    ):
+        _, normals, points = nearest(np.array(p))
+        np.testing.assert_allclose(np.reshape(normals, (-1, 2))[1], normal, atol=1e-12)
+        np.testing.assert_allclose(np.reshape(points, (-1, 2))[1], surface, atol=1e-12)
 
 
-def test_3d_sphere_distance_and_swept_hit():
+@pytest.mark.parametrize("make", IMPLEMENTATIONS)
+def test_3d_sphere_distance_and_swept_hit(make):
     scen = Scenario(
         dim=3,
         bounds=((-10, 10),) * 3,
@@ -81,8 +287,8 @@ def test_3d_sphere_distance_and_swept_hit():
         targets=(Body(position=(0.0, 5.0, 0.0), radius=1.0),),
         obstacles=(Body(position=(5.0, 0.0, 0.0), radius=2.0),),
     )
-    geom = FieldGeometry(scen, inflate=0.5)
-    assert geom.signed_distance(np.array([0.0, 0.0, 3.0])) == pytest.approx(
+    geom = make(scen, inflate=0.5)
+    assert geom.signed_distance(np.array([0.0, 0.0, 3.0])).ravel() == pytest.approx(
         [math.sqrt(34) - 1, math.sqrt(34) - 2]
     )
     # passes 1.4 m from the obstacle centre: inside 2 + 0.5 → hit, though both ends are clear
@@ -95,37 +301,8 @@ def test_3d_sphere_distance_and_swept_hit():
     assert geom.touched(np.array([[5.0, -4.0, 2.6], [5.0, 4.0, 2.6]])) == []
 
 
-def brute_force_hit(scen: Scenario, a, b, inflate: float, samples: int = 4001) -> bool:
-    """Independent check: dense sampling of the segment against the exact signed distance."""
-    geom = FieldGeometry(scen)
-    t = np.linspace(0.0, 1.0, samples)[:, None]
-    pts = (1 - t) * np.asarray(a) + t * np.asarray(b)
-    return bool((geom.signed_distance(pts) <= inflate).any())
-
-
-@settings(max_examples=60, deadline=None)
-@given(
-    seed=st.integers(0, 10_000),
-    ax=st.floats(-500, 500),
-    ay=st.floats(-500, 500),
-    bx=st.floats(-500, 500),
-    by=st.floats(-500, 500),
-)
-def test_swept_check_agrees_with_dense_sampling(seed, ax, ay, bx, by):
-    scen = field_2d(seed % 7, n_obstacles=30)
-    geom = FieldGeometry(scen, inflate=1.0)
-    got = geom.first_hit(np.array([[ax, ay], [bx, by]])) >= 0
-    truth = brute_force_hit(scen, (ax, ay), (bx, by), inflate=1.0)
-    if got != truth:
-        # only a graze within the sampling resolution may disagree
-        seg = math.hypot(bx - ax, by - ay) / 4000
-        t = np.linspace(0, 1, 4001)[:, None]
-        pts = (1 - t) * np.array([ax, ay]) + t * np.array([bx, by])
-        margin = FieldGeometry(scen).signed_distance(pts).min() - 1.0
-        assert abs(margin) <= seg + 1e-9
-
-
-def test_lidar_2d_against_hand_computed_ranges():
+@pytest.mark.parametrize("make", IMPLEMENTATIONS)
+def test_lidar_2d_against_hand_computed_ranges(make):
     scen = Scenario(
         dim=2,
         bounds=((-100, 100), (-100, 100)),
@@ -133,12 +310,12 @@ def test_lidar_2d_against_hand_computed_ranges():
         targets=(Body(position=(0.0, 30.0), radius=5.0),),
         obstacles=(Body(position=(50.0, 0.0), radius=10.0),),
     )
-    geom = FieldGeometry(scen)
-    ranges = geom.lidar(np.zeros(2), lidar_directions(2, 4), 60.0)
+    ranges = make(scen).lidar(np.zeros(2), lidar_directions(2, 4), 60.0)
     np.testing.assert_allclose(ranges, [40.0, 25.0, 60.0, 60.0], atol=1e-9)
 
 
-def test_lidar_3d_against_hand_computed_ranges():
+@pytest.mark.parametrize("make", IMPLEMENTATIONS)
+def test_lidar_3d_against_hand_computed_ranges(make):
     scen = Scenario(
         dim=3,
         bounds=((-100, 100),) * 3,
@@ -146,11 +323,14 @@ def test_lidar_3d_against_hand_computed_ranges():
         targets=(Body(position=(0.0, 0.0, 30.0), radius=5.0),),
         obstacles=(Body(position=(50.0, 0.0, 0.0), radius=10.0),),
     )
-    geom = FieldGeometry(scen)
+    geom = make(scen)
     dirs = np.array([[1.0, 0, 0], [0, 0, 1.0], [0, 1.0, 0], [-1.0, 0, 0]])
     np.testing.assert_allclose(geom.lidar(np.zeros(3), dirs, 60.0), [40.0, 25.0, 60.0, 60.0])
     # from inside a sphere the range is 0
     assert geom.lidar(np.array([50.0, 0, 0]), dirs[:1], 60.0)[0] == 0.0
+
+
+# --- the API --------------------------------------------------------------------------------------
 
 
 def test_lidar_directions_are_unit_and_spread():
@@ -158,17 +338,27 @@ def test_lidar_directions_are_unit_and_spread():
         d = lidar_directions(dim, n)
         np.testing.assert_allclose(np.linalg.norm(d, axis=1), 1.0)
         assert np.allclose(d.mean(axis=0), 0.0, atol=0.05)
+    with pytest.raises(ValueError, match="n_rays"):
+        lidar_directions(2, 0)
 
 
-def test_pymunk_space_holds_every_body_with_its_index():
-    scen = field_2d(1)
+def test_view_holds_every_body_in_order():
+    scen = random_scenario(1)
     geom = FieldGeometry(scen)
-    assert len(geom.space.shapes) == len(scen.bodies)
+    assert geom.n_bodies == len(scen.bodies)
+    np.testing.assert_array_equal(geom.centers, scen.body_positions())
+    np.testing.assert_array_equal(geom.radii, [b.radius for b in scen.bodies])
+    assert list(geom.is_polygon) == [b.is_polygon for b in scen.bodies]
     assert [s.body_index for s in geom.shapes] == list(range(len(scen.bodies)))
-    kinds = [isinstance(s, pymunk.Poly) for s in geom.shapes]
-    assert kinds == [b.is_polygon for b in scen.bodies]
 
 
-def test_negative_inflate_is_rejected():
+def test_bad_arguments_are_rejected():
     with pytest.raises(ValueError, match="inflate"):
-        FieldGeometry(field_2d(0), inflate=-1.0)
+        FieldGeometry(random_scenario(0), inflate=-1.0)
+    with pytest.raises(ValueError, match="inflate"):
+        FieldGeometry(random_scenario(0), inflate=math.nan)
+    geom = FieldGeometry(random_scenario(0))
+    with pytest.raises(ValueError, match="bodies"):
+        geom.nearest_points(np.zeros((1, 2)), 3, geom.n_bodies + 1)
+    with pytest.raises(ValueError, match="2D"):
+        _ = FieldGeometry(random_scenario(0, dim=3)).shapes

@@ -23,8 +23,8 @@ from agents.planners.paths import dejitter
 from debris_gym.dynamics import discretize
 from debris_gym.envs import DebrisFieldEnv
 from debris_gym.generators import occupancy_grid
-from debris_gym.geometry import FieldGeometry
 from debris_gym.scenario import Body, Scenario
+from tests.geometry_oracle import OracleField
 
 N_MEAN = 1.1313666536110223e-3  # default LEO mean motion (rad/s)
 
@@ -62,7 +62,7 @@ def _fly_line(scenario: Scenario, params: MPCParams, end=(400.0, 0.0), steps: in
         params=ReferenceParams(end_speed=0.1),
         world_size=scenario.size,
     )
-    infos, geom = [], FieldGeometry(scenario)
+    infos, geom = [], OracleField(scenario)
     for _ in range(steps):
         state = env.chaser_state
         accel = tracker.command(state, *ref.horizon(state, tracker.N))
@@ -199,7 +199,7 @@ def test_astar_path_matches_dijkstra_and_is_collision_free():
     w = result.waypoints
     np.testing.assert_allclose(w[0], start)
     np.testing.assert_allclose(w[-1], goal)
-    assert FieldGeometry(scen, inflate=4.0).first_hit(w) == -1
+    assert OracleField(scen, inflate=4.0).first_hit(w) == -1
     straight = np.linalg.norm(goal - start)
     assert straight <= result.cost <= info["grid_cost"] + 2 * 8.0
 
@@ -251,7 +251,7 @@ def test_apf_mpc_completes_a_stalled_apf_path_with_astar():
     assert result.success and result.info["fallback"] == "astar"
     assert agent.stats["apf_stalls"] == 1 and agent.stats["astar_fallbacks"] == 1
     np.testing.assert_allclose(result.waypoints[-1], [150.0, 0.0])
-    assert FieldGeometry(scen, inflate=1.0).first_hit(result.waypoints) == -1
+    assert OracleField(scen, inflate=1.0).first_hit(result.waypoints) == -1
 
 
 @pytest.mark.parametrize("name", ["apf-mpc", "astar"])

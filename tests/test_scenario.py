@@ -23,8 +23,8 @@ from debris_gym.generators import (
     random_fields,
     route_by_construction,
 )
-from debris_gym.geometry import FieldGeometry
 from debris_gym.scenario import Body, Scenario, as_scenario
+from tests.geometry_oracle import OracleField
 
 
 def make(spec: FieldSpec, seed: int, capture_radius: float = 5.0) -> Scenario:
@@ -44,7 +44,7 @@ def pymunk_overlaps(scen: Scenario) -> list[tuple[int, int]]:
     Two convex bodies overlap iff an edge of one enters the other (segment query), a circle's
     centre is within its radius of the other (point query), or one holds the other's centre.
     """
-    shapes = FieldGeometry(scen).shapes
+    shapes = OracleField(scen).shapes
     pairs = []
     for i, a in enumerate(shapes):
         for j, b in enumerate(shapes):
@@ -83,8 +83,7 @@ def spec_strategy(dim: int, sizes: tuple[float, float]):
 def check_field(spec: FieldSpec, seed: int, capture_radius: float) -> None:
     scen = make(spec, seed, capture_radius)
     assert len(scen.targets) == spec.n_targets and len(scen.obstacles) == spec.n_obstacles
-    geom = FieldGeometry(scen)
-    assert geom.clearance(np.asarray(scen.dock)) > spec.chaser_radius
+    assert OracleField(scen).point_gaps(scen.dock).min() > spec.chaser_radius
     # bounding circles / spheres at least min_gap apart (so the exact shapes are too)
     centres = scen.body_positions()
     radii = np.array([b.radius for b in scen.bodies])
