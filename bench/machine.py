@@ -33,8 +33,6 @@ def machine_description() -> list[str]:
         load = "{:.2f} {:.2f} {:.2f}".format(*os.getloadavg())
     except OSError:
         load = "n/a"
-    import pymunk
-
     source = _source_fingerprint()
 
     return [
@@ -43,7 +41,7 @@ def machine_description() -> list[str]:
         f"- Load average at start (1/5/15 min): {load}",
         f"- OS: {platform.platform()}",
         f"- Python {platform.python_version()} ({platform.python_implementation()})",
-        f"- numpy {np.__version__}, gymnasium {gym.__version__}, pymunk {pymunk.version}, "
+        f"- numpy {np.__version__}, gymnasium {gym.__version__}, numba {_version('numba')}, "
         f"debris_gym {debris_gym.__version__}, torch {_version('torch')}, "
         f"stable-baselines3 {_version('stable-baselines3')}",
         f"- debris_gym source measured: {source}",

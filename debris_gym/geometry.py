@@ -20,62 +20,12 @@ decision pays once per batch instead of once per point.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
 
 import numpy as np
 
 from debris_gym.batch_geometry import FieldBatch
 from debris_gym.geometry_kernels import first_contacts, nearest_points
 from debris_gym.scenario import Scenario
-
-
-class Vec2(NamedTuple):
-    """A 2D vector (m or unitless)."""
-
-    x: float
-    y: float
-
-
-class PointQuery(NamedTuple):
-    """Nearest-point answer of one body (:meth:`BodyShape.point_query`)."""
-
-    point: Vec2
-    """Nearest surface point (m)."""
-    distance: float
-    """Signed distance (m), negative inside."""
-    gradient: Vec2
-    """Unit gradient of the distance (pointing away from the body)."""
-
-
-class BodyShape:
-    """One 2D body of a :class:`FieldGeometry`, answering nearest-point queries.
-
-    Each query reuses the shape's own small arrays (no allocation per call: planners ask
-    per point and per body); a shape is therefore not to be queried from two threads at once.
-
-    Args:
-        geometry: the field.
-        index: the body's index (targets first, then obstacles).
-    """
-
-    def __init__(self, geometry: FieldGeometry, index: int) -> None:
-        self.geometry = geometry
-        self.body_index = index
-        self._point = np.empty((1, 2))
-        self._gap = np.empty((1, 1))
-        self._normal = np.empty((1, 1, 2))
-        self._surface = np.empty((1, 1, 2))
-        self._args = (
-            self._point, index, index + 1, *geometry._field, self._gap, self._normal,
-            self._surface,
-        )  # fmt: skip
-
-    def point_query(self, point: tuple[float, float]) -> PointQuery:
-        """Nearest surface point, signed distance (m) and unit gradient at ``point`` (m)."""
-        self._point[0] = point
-        nearest_points(*self._args)
-        (sx, sy), (nx, ny) = self._surface[0, 0].tolist(), self._normal[0, 0].tolist()
-        return PointQuery(Vec2(sx, sy), self._gap.item(), Vec2(nx, ny))
 
 
 class FieldGeometry:
@@ -115,22 +65,12 @@ class FieldGeometry:
             self.batch.vertices[0],
         )
         self._zeros = np.zeros(1, dtype=np.int64)
-        self._shapes: list[BodyShape] | None = None
 
     def _rows(self, count: int) -> np.ndarray:
         """``count`` references to the batch's only row (a reused array)."""
         if self._zeros.size < count:
             self._zeros = np.zeros(max(count, 2 * self._zeros.size), dtype=np.int64)
         return self._zeros[:count]
-
-    @property
-    def shapes(self) -> list[BodyShape]:
-        """One :class:`BodyShape` per body, in body order (2D only)."""
-        if self.dim != 2:
-            raise ValueError("per-body shapes exist only for 2D fields")
-        if self._shapes is None:
-            self._shapes = [BodyShape(self, i) for i in range(self.n_bodies)]
-        return self._shapes
 
     # --- clearance ----------------------------------------------------------------------------
 

@@ -75,7 +75,7 @@ def test_variants_scaling_and_resets_are_measured(rows):
 def test_report_has_machine_header_and_a_line_per_row(rows):
     report = bench.format_report(rows, command="python bench/run.py --quick", elapsed=1.0)
     assert report.startswith("# DebrisGym benchmark")
-    assert "- CPU: " in report and "gymnasium" in report and "pymunk" in report
+    assert "- CPU: " in report and "gymnasium" in report and "numba" in report
     for env_id in (*DEBRIS_IDS, CARTPOLE):
         assert report.count(f"`{env_id}`") >= 3  # make, unwrapped, reset
     assert "| 1000 | 7,071 |" in report

@@ -89,12 +89,11 @@ def test_nearest_points_and_normals_match_the_oracle(seed, dim):
     one_gaps, one_normals = geom.gaps_and_normals(pts[0])
     np.testing.assert_array_equal(one_gaps, gaps[0])
     np.testing.assert_array_equal(one_normals, normals[0])
-    if dim == 2:
-        last = len(scen.bodies) - 1
-        info = geom.shapes[last].point_query(tuple(pts[1]))
-        assert info.distance == gaps[1, last]
-        assert tuple(info.gradient) == tuple(normals[1, last])
-        assert tuple(info.point) == tuple(surface[1, last])
+    last = len(scen.bodies) - 1
+    one_body = geom.nearest_points(pts[1:2], last, last + 1)
+    np.testing.assert_array_equal(one_body[0][0, 0], gaps[1, last])
+    np.testing.assert_array_equal(one_body[1][0, 0], normals[1, last])
+    np.testing.assert_array_equal(one_body[2][0, 0], surface[1, last])
 
 
 def test_normals_are_the_gradient_of_the_distance():
@@ -349,7 +348,6 @@ def test_view_holds_every_body_in_order():
     np.testing.assert_array_equal(geom.centers, scen.body_positions())
     np.testing.assert_array_equal(geom.radii, [b.radius for b in scen.bodies])
     assert list(geom.is_polygon) == [b.is_polygon for b in scen.bodies]
-    assert [s.body_index for s in geom.shapes] == list(range(len(scen.bodies)))
 
 
 def test_bad_arguments_are_rejected():
@@ -360,5 +358,3 @@ def test_bad_arguments_are_rejected():
     geom = FieldGeometry(random_scenario(0))
     with pytest.raises(ValueError, match="bodies"):
         geom.nearest_points(np.zeros((1, 2)), 3, geom.n_bodies + 1)
-    with pytest.raises(ValueError, match="2D"):
-        _ = FieldGeometry(random_scenario(0, dim=3)).shapes

@@ -409,13 +409,13 @@ class MPCTracker:
         normals = diff / np.maximum(dist, 1e-12)[..., None]
         surface = centres + radii[..., None] * normals
         poly = geom.is_polygon[nearest] & valid
-        if poly.any():
-            shapes = geom.shapes
-            for i, j in zip(*np.nonzero(poly), strict=True):
-                info = shapes[nearest[i, j]].point_query((float(points[i, 0]), float(points[i, 1])))
-                g = np.array([info.gradient.x, info.gradient.y])
-                normals[i, j] = g / max(float(np.linalg.norm(g)), 1e-12)
-                surface[i, j] = (info.point.x, info.point.y)
+        if poly.any():  # a polygon's nearest point may be a vertex or on an edge
+            rows, slots = np.nonzero(poly)
+            bodies = nearest[rows, slots]
+            _, body_normals, body_surface = geom.nearest_points(points)
+            g = body_normals[rows, bodies]
+            normals[rows, slots] = g / np.maximum(np.linalg.norm(g, axis=1), 1e-12)[:, None]
+            surface[rows, slots] = body_surface[rows, bodies]
         offsets = np.einsum("pmd,pmd->pm", normals, surface) + margins[nearest]
         del d
         return normals, np.where(valid, offsets, -np.inf), valid
