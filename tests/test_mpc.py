@@ -22,8 +22,8 @@ from agents.planners.mission import Goal
 from agents.planners.paths import dejitter
 from debris_gym.dynamics import discretize
 from debris_gym.envs import DebrisFieldEnv
-from debris_gym.generators import occupancy_grid
 from debris_gym.scenario import Body, Scenario
+from debris_gym.solvability import occupancy_grid
 from tests.geometry_oracle import OracleField
 
 N_MEAN = 1.1313666536110223e-3  # default LEO mean motion (rad/s)

@@ -11,19 +11,18 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from debris_gym import generators
+from debris_gym import generators, solvability
 from debris_gym.generators import (
     MAX_POLYGON_VERTICES,
     FieldSpec,
     draw_size,
-    grid_route_exists,
-    is_solvable,
     paper_field,
     random_field,
     random_fields,
     route_by_construction,
 )
 from debris_gym.scenario import Body, Scenario, as_scenario
+from debris_gym.solvability import grid_route_exists, is_solvable
 from tests.geometry_oracle import OracleField
 
 
@@ -335,7 +334,7 @@ def test_the_proof_holds_by_construction_where_claimed(spec, capture_radius, see
     centers, radii, _, _, placed = generators._draw_fields(u, spec)
     half = spec.field_size / 2.0
     low, high = np.full(spec.dim, -half), np.full(spec.dim, half)
-    proof = generators._route_proof(
+    proof = solvability.route_proof(
         centers, radii, spec.n_targets, low, high, np.zeros(spec.dim), spec.chaser_radius,
         capture_radius,
     )  # fmt: skip

@@ -5,7 +5,7 @@ Reference: [APF-MPC] Alg. 3 ("Simplified A*"), its grid baseline (key in docs/re
 the search itself is :func:`agents.planners.grid_search.astar` (optimal, 8-/26-connected, no
 corner cutting).
 
-The field is rasterised on cell centres like :func:`debris_gym.generators.occupancy_grid` (centre
+The field is rasterised on cell centres like :func:`debris_gym.solvability.occupancy_grid` (centre
 of cell i along an axis at ``low + (i + ½)·cell``), but with one inflation per body, so the goal
 target can be inflated less than the obstacles (its approach point must stay free). With
 ``conservative=True`` a cell is blocked when its centre is within inflation + half the cell

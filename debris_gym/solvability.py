@@ -1,0 +1,161 @@
+"""Is a field solvable? Proofs and searches for a collision-free route to every target.
+
+A random field handed to a user must be solvable: a route from the dock to a capture point of
+every target that keeps the chaser clear of every body. :func:`route_proof` proves it for many
+fields at once when the inflated bodies are pairwise disjoint balls inside the bounds (the free
+space is then connected); :func:`grid_route_exists` searches an occupancy grid of the library's
+geometry for any other field; :func:`is_solvable` tries the proof, then the search.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+import scipy.ndimage
+
+from debris_gym.geometry import FieldGeometry, distance
+from debris_gym.scenario import Scenario
+
+
+@functools.cache
+def _capture_directions(dim: int) -> np.ndarray:
+    """Unit directions (16 in 2D, 26 in 3D) of the candidate capture points around a target."""
+    if dim == 2:
+        ang = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
+        dirs = np.stack([np.cos(ang), np.sin(ang)], axis=1)
+    else:
+        grid = np.array(np.meshgrid(*[[-1, 0, 1]] * 3, indexing="ij")).reshape(3, -1).T
+        grid = grid[np.any(grid != 0, axis=1)]
+        dirs = grid / np.linalg.norm(grid, axis=1, keepdims=True)
+    dirs.setflags(write=False)
+    return dirs
+
+
+def route_proof(
+    centers: np.ndarray,
+    radii: np.ndarray,
+    n_targets: int,
+    low: np.ndarray,
+    high: np.ndarray,
+    dock: np.ndarray,
+    chaser_radius: float,
+    capture_radius: float,
+) -> np.ndarray:
+    """The disjoint-balls proof of :func:`is_solvable` for K fields at once, shape (K,).
+
+    True where the bounding balls inflated by ``chaser_radius`` are pairwise disjoint and
+    strictly inside the bounds, the dock is free, and each target has a free capture point.
+    """
+    num, n_bodies, dim = centers.shape
+    reach = radii + chaser_radius
+
+    def inside(points: np.ndarray, margin) -> np.ndarray:  # (K, P, dim) -> (K, P)
+        ok = None
+        for axis in range(dim):
+            x = points[..., axis]
+            axis_ok = (x - margin > low[axis]) & (x + margin < high[axis])
+            ok = axis_ok if ok is None else ok & axis_ok
+        return ok
+
+    def free(points: np.ndarray) -> np.ndarray:  # (K, P, dim) -> (K, P)
+        dist = distance(points[:, :, None, :], centers[:, None]) - reach[:, None]
+        return inside(points, 0.0) & (dist > 0.0).all(axis=2)
+
+    gaps = distance(centers[:, :, None], centers[:, None]) - reach[:, :, None] - reach[:, None]
+    gaps[:, np.arange(n_bodies), np.arange(n_bodies)] = np.inf
+    ok = inside(centers, reach).all(axis=1) & (gaps > 0.0).all(axis=(1, 2))
+    ok &= free(np.broadcast_to(dock, (num, 1, dim)))[:, 0]
+    dirs = _capture_directions(dim)
+    t = n_targets
+    depth = radii[:, :t] + chaser_radius + 0.5 * capture_radius
+    points = centers[:, :t, None, :] + depth[..., None, None] * dirs  # (K, T, D, dim)
+    ok &= free(points.reshape(num, -1, dim)).reshape(num, t, -1).any(axis=2).all(axis=1)
+    return ok
+
+
+def occupancy_grid(
+    scenario: Scenario, inflate: float, cell: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Rasterise the field: True where a cell centre is within ``inflate`` (m) of a body.
+
+    Returns:
+        ``(occupied, centres)``: a boolean array with one axis per dimension and the (…, dim)
+        cell-centre coordinates (m).
+    """
+    axes = [np.arange(lo + cell / 2.0, hi, cell) for lo, hi in scenario.bounds]
+    mesh = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
+    geom = FieldGeometry(scenario)
+    flat = mesh.reshape(-1, scenario.dim)
+    occupied = np.zeros(flat.shape[0], dtype=bool)
+    for start in range(0, flat.shape[0], 4096):
+        chunk = flat[start : start + 4096]
+        occupied[start : start + 4096] = (geom.signed_distance(chunk) <= inflate).any(axis=1)
+    return occupied.reshape(mesh.shape[:-1]), mesh
+
+
+def is_solvable(
+    scenario: Scenario, chaser_radius: float, capture_radius: float, cell: float | None = None
+) -> bool:
+    """True if a collision-free route links the dock to a capture point of every target.
+
+    Two checks, the first a proof and the second a search:
+
+    1. If the bodies' bounding circles / spheres, inflated by ``chaser_radius``, are pairwise
+       disjoint and lie strictly inside the bounds, the space left for the chaser's centre is
+       connected (the complement of finitely many disjoint closed balls in an open box of dimension
+       >= 2 is path-connected). It then suffices that the dock and one capture point per target
+       are free. Generated fields always take this route; it costs O(bodies²).
+    2. Otherwise (a hand-made field with touching bodies): :func:`grid_route_exists`.
+    """
+    if _disjoint_balls_route(scenario, chaser_radius, capture_radius):
+        return True
+    return grid_route_exists(scenario, chaser_radius, capture_radius, cell)
+
+
+def _disjoint_balls_route(scenario: Scenario, chaser_radius: float, capture_radius: float) -> bool:
+    radii = np.array([b.radius for b in scenario.bodies])
+    return bool(
+        route_proof(
+            scenario.body_positions(0.0)[None], radii[None], len(scenario.targets),
+            scenario.low, scenario.high, np.asarray(scenario.dock, dtype=float),
+            chaser_radius, capture_radius,
+        )[0]
+    )  # fmt: skip
+
+
+def grid_route_exists(
+    scenario: Scenario, chaser_radius: float, capture_radius: float, cell: float | None = None
+) -> bool:
+    """Occupancy-grid search for a route from the dock to every target's capture zone.
+
+    Conservative: a cell counts as free only if a disc (ball) of half its diagonal around its
+    centre clears every body by ``chaser_radius``, so neighbouring free cells are joined by a
+    collision-free straight segment. Free cells are grouped into face-connected components
+    (``scipy.ndimage.label``); the dock's cell and, for each target, a free cell from whose free
+    disc the chaser's surface gets within ``capture_radius`` of the target surface must share a
+    component. Works for any field, overlapping bodies included.
+    """
+    if cell is None:
+        cell = scenario.size / (200.0 if scenario.dim == 2 else 60.0)
+    half_diag = cell * math.sqrt(scenario.dim) / 2.0
+    occupied, centres = occupancy_grid(scenario, chaser_radius + half_diag, cell)
+    labels, _ = scipy.ndimage.label(~occupied)
+    low = scenario.low
+
+    def cell_of(p):
+        idx = np.floor((np.asarray(p) - low) / cell).astype(int)
+        return tuple(np.clip(idx, 0, np.array(occupied.shape) - 1))
+
+    dock_label = labels[cell_of(scenario.dock)]
+    if dock_label == 0:
+        return False
+    for target in scenario.targets:
+        gap = np.linalg.norm(centres - np.asarray(target.position), axis=-1) - target.radius
+        # From a free cell centre the chaser may move half a diagonal in any direction (the free
+        # disc), e.g. straight at the target, which shortens the surface gap by that much.
+        zone = (gap - chaser_radius <= capture_radius + half_diag) & (labels == dock_label)
+        if not zone.any():
+            return False
+    return True
