@@ -1,4 +1,5 @@
-"""What the single env and the native vector env share: spaces, observation layout, fields."""
+"""What the single env and the native vector env share: spaces, fields, the observation names
+(:func:`observation_names`, from :mod:`debris_gym.observation`'s table of slots)."""
 
 from __future__ import annotations
 
@@ -9,8 +10,18 @@ from gymnasium.envs.registration import EnvSpec
 
 from debris_gym.config import EnvConfig
 from debris_gym.generators import FieldSpec, paper_field, random_field
-from debris_gym.mission_batch import OBS_LIMIT
+from debris_gym.observation import OBS_LIMIT, observation_names
 from debris_gym.scenario import Scenario
+
+__all__ = [
+    "DEFAULT_HORIZON_STEPS",
+    "discrete_action_table",
+    "field_spec",
+    "new_scenario",
+    "observation_names",
+    "registered_horizon",
+    "single_spaces",
+]
 
 DEFAULT_HORIZON_STEPS = 1000
 """Steps used for the 'time remaining' observation when the env has no registered time limit."""
@@ -29,28 +40,6 @@ def registered_horizon(spec: EnvSpec | None) -> int:
         if registered:
             return int(registered)
     return DEFAULT_HORIZON_STEPS
-
-
-def observation_names(cfg: EnvConfig) -> list[str]:
-    """Name of every observation element, in order (see docs/environments.md)."""
-    axes = "xyz"[: cfg.dim]
-    names = [f"chaser_pos_{a}" for a in axes] + [f"chaser_vel_{a}" for a in axes]
-    for k in range(cfg.obs_targets):
-        names += [f"target{k}_rel_pos_{a}" for a in axes]
-        names += [f"target{k}_rel_vel_{a}" for a in axes]
-        names += [f"target{k}_radius", f"target{k}_captured"]
-    names += [f"dock_rel_pos_{a}" for a in axes]
-    if cfg.observation == "kinematics":
-        for k in range(cfg.obs_obstacles):
-            names += [f"obstacle{k}_rel_pos_{a}" for a in axes]
-            names += [f"obstacle{k}_radius", f"obstacle{k}_gap"]
-    else:
-        names += [f"lidar{k}" for k in range(cfg.lidar_rays)]
-    names += ["delta_v_remaining", "time_remaining"]
-    if cfg.obs_goal:
-        names += [f"goal_rel_pos_{a}" for a in axes] + [f"goal_rel_vel_{a}" for a in axes]
-        names += ["goal_gap"]
-    return names
 
 
 def single_spaces(cfg: EnvConfig) -> tuple[spaces.Box, spaces.Space]:
