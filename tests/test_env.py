@@ -16,6 +16,7 @@ from debris_gym.dynamics import discretize
 from debris_gym.envs import DebrisFieldEnv
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.scenario import Body, Scenario
+from tests.helpers import simple_scenario
 
 ALL_IDS = list(debris_gym.ENV_SPECS)
 INFO_KEYS = {
@@ -29,22 +30,6 @@ INFO_KEYS = {
     "is_success",
     "reward_terms",
 }
-
-
-def simple_scenario(**overrides) -> Scenario:
-    """Free-space field: one target 100 m along-track, one circle obstacle, dock at origin."""
-    data = dict(
-        dim=2,
-        bounds=((-500.0, 500.0), (-500.0, 500.0)),
-        dock=(0.0, 0.0),
-        targets=(Body(position=(0.0, 100.0), radius=5.0, velocity=(0.0, 0.0)),),
-        obstacles=(Body(position=(200.0, 0.0), radius=20.0, velocity=(0.0, 0.0)),),
-        mean_motion=0.0,
-        dt=10.0,
-        max_accel=0.05,
-    )
-    data.update(overrides)
-    return Scenario(**data)
 
 
 @pytest.mark.parametrize("env_id", ALL_IDS)

@@ -17,7 +17,7 @@ from debris_gym.envs.vector import DebrisFieldVectorEnv
 from debris_gym.generators import FieldSpec, random_field
 from debris_gym.geometry import FieldGeometry, lidar_directions
 from debris_gym.scenario import Body, Scenario
-from tests.test_env import simple_scenario
+from tests.helpers import simple_scenario
 
 INFO_KEYS = ["chaser_state", "time", "delta_v", "targets_captured", "min_clearance", "collision"]
 INFO_KEYS += ["out_of_bounds", "is_success", "captured"]

@@ -3,6 +3,9 @@
 
 from __future__ import annotations
 
+import math
+import warnings
+
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
@@ -17,6 +20,7 @@ __all__ = [
     "DEFAULT_HORIZON_STEPS",
     "discrete_action_table",
     "field_spec",
+    "warn_if_physics_differ",
     "new_scenario",
     "observation_names",
     "registered_horizon",
@@ -89,3 +93,31 @@ def new_scenario(cfg: EnvConfig, spec: FieldSpec, rng: np.random.Generator) -> S
         rng, spec, mean_motion=cfg.n, dt=cfg.dt, max_accel=cfg.max_accel,
         capture_radius=cfg.capture_radius,
     )  # fmt: skip
+
+
+PHYSICS_DIFFER = "the pinned scenario's physics differ from the env's options"
+"""Start of the warning :func:`warn_if_physics_differ` gives (for filters)."""
+
+
+def warn_if_physics_differ(cfg: EnvConfig, scenario: Scenario) -> None:
+    """Warn (``UserWarning``) when a pinned scenario's ``mean_motion``, ``dt`` or ``max_accel``
+    differ from the env's options.
+
+    A pinned scenario is flown with its own physics (docs/environments.md, Options): a saved
+    field keeps the physics it was made with. A hand-built :class:`Scenario` whose physics were
+    left at their defaults (free space, ``mean_motion=0``) would then silently fly in free space
+    in a LEO env; the warning names every differing parameter with both values.
+    """
+    ours = {"mean_motion": cfg.n, "dt": cfg.dt, "max_accel": cfg.max_accel}
+    differ = [
+        f"{name} {getattr(scenario, name)!r} (env {value!r})"
+        for name, value in ours.items()
+        if not math.isclose(getattr(scenario, name), value, rel_tol=1e-9, abs_tol=0.0)
+    ]
+    if differ:
+        warnings.warn(
+            f"{PHYSICS_DIFFER}: {', '.join(differ)}; the scenario's are used (build the "
+            "Scenario with the env's values, or the env with the scenario's, to silence this)",
+            UserWarning,
+            stacklevel=3,
+        )
