@@ -13,16 +13,14 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from gymnasium import spaces
 
 from debris_gym.config import EnvConfig
 from debris_gym.dynamics import discretize, substep_position_matrix
-from gymnasium import spaces
-
 from debris_gym.geometry import FieldGeometry, lidar_directions
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.scenario import Scenario, as_scenario
 from debris_gym.thrust import commanded_accel, delta_v_rate
-
 
 OBS_LIMIT = 10.0
 """Observations are clipped to ±10 (docs/environments.md)."""

@@ -15,7 +15,7 @@ import debris_gym
 from debris_gym.dynamics import discretize
 from debris_gym.envs import DebrisFieldEnv
 from debris_gym.rewards import REWARD_TERMS
-from debris_gym.scenario import Body, Scenario
+from debris_gym.scenario import Body
 from tests.helpers import simple_scenario
 
 ALL_IDS = list(debris_gym.ENV_SPECS)

@@ -23,8 +23,8 @@ from debris_gym.mission_batch import MissionBatch
 from debris_gym.mission_step import sort_by_gap
 from debris_gym.observation import observation_names
 from debris_gym.scenario import Body
-from tests.reference_env import ReferenceDebrisFieldEnv, reference_observation_names
 from tests.helpers import simple_scenario
+from tests.reference_env import ReferenceDebrisFieldEnv, reference_observation_names
 
 INFO_KEYS = ["chaser_state", "time", "delta_v", "targets_captured", "min_clearance", "collision"]
 INFO_KEYS += ["out_of_bounds", "is_success", "captured", "n_targets"]

@@ -20,11 +20,11 @@ __all__ = [
     "DEFAULT_HORIZON_STEPS",
     "discrete_action_table",
     "field_spec",
-    "warn_if_physics_differ",
     "new_scenario",
     "observation_names",
     "registered_horizon",
     "single_spaces",
+    "warn_if_physics_differ",
 ]
 
 DEFAULT_HORIZON_STEPS = 1000
