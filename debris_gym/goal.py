@@ -34,25 +34,30 @@ class Goal(NamedTuple):
 
 
 @inlined
-def current_goal(gaps, captured, queued, return_to_dock, chaser_radius):
-    """The current goal of one mission: ``(index, gap, goals_after)``.
+def current_goal(i, gaps, captured, queued, return_to_dock, chaser_radius):
+    """The current goal of mission (row) ``i``: ``(index, gap, goals_after)``.
 
     The rule: while a target is uncaptured the goal is a target — with ``queued`` the first
     uncaptured one in index order (the queue head), else the uncaptured target with the
     smallest gap (the lowest index among equal gaps). Once every target is captured the goal is
     the dock (index −1) if ``return_to_dock``, else nothing (index −2).
 
+    Rows of 2D arrays rather than 1D arrays: the compiled step calls it in its row loop, where
+    a row view would cost a reference-count update per call. From Python, for one mission:
+    ``current_goal(0, gaps[None], captured[None], ...)``.
+
     Args:
-        gaps: (≥ T,) float, the gaps from the chaser's centre to each body's surface (m); only
-            the first T entries (the targets, in scenario order) are read.
-        captured: (T,) bool, which targets are captured.
+        i: the row.
+        gaps: (N, ≥ T) float, row i: the gaps from the chaser's centre to each body's surface
+            (m); only the first T entries (the targets, in scenario order) are read.
+        captured: (N, T) bool, row i: which targets are captured.
         queued: the ``target_order == "queued"`` rule.
         return_to_dock: the ``return_to_dock`` rule.
         chaser_radius: chaser radius (m), subtracted from the target's gap.
 
     Returns:
-        ``index`` (int), ``gap`` (float, m) — for a target ``gaps[index] − chaser_radius``, the
-        chaser-surface-to-target-surface gap; 0.0 for the dock and for nothing (the dock's
+        ``index`` (int), ``gap`` (float, m) — for a target ``gaps[i, index] − chaser_radius``,
+        the chaser-surface-to-target-surface gap; 0.0 for the dock and for nothing (the dock's
         distance is the caller's to measure) — and ``goals_after`` (int): uncaptured targets
         after this one, plus 1 for the dock if ``return_to_dock``; 0 at the dock or when
         nothing is left.
@@ -60,10 +65,10 @@ def current_goal(gaps, captured, queued, return_to_dock, chaser_radius):
     goal = NO_GOAL
     gap = math.inf
     left = 0
-    for j in range(captured.shape[0]):
-        if not captured[j]:
-            if (not queued or left == 0) and gaps[j] < gap:
-                gap = gaps[j]
+    for j in range(captured.shape[1]):
+        if not captured[i, j]:
+            if (not queued or left == 0) and gaps[i, j] < gap:
+                gap = gaps[i, j]
                 goal = j
             left += 1
     if left:

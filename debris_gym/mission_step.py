@@ -10,11 +10,17 @@ One row (mission) of a step is::
     judge      collision, bounds, success; terminated and truncated
     reward     the named terms, with the potential-based progress term
 
-Each phase is an inlined compiled function over the named structures of
-:mod:`debris_gym.mission_data`; :func:`step_rows` reads as that list. :func:`begin_rows` starts
-episodes. The rules are those of ``docs/environments.md``; :class:`debris_gym.mission_batch.
-MissionBatch` drives these kernels and ``tests/test_mission_batch.py`` holds them to an
-independent reference env.
+Each phase is an inlined compiled function; :func:`step_rows` reads as that list.
+:func:`begin_rows` starts episodes. The kernels take the named structures of
+:mod:`debris_gym.mission_data` and unpack the structures of arrays (``Missions``, ``Field``,
+``StepOutputs``) once, at their top, handing each phase the arrays it reads or writes: an array
+read out of a structure costs an atomic reference-count update that numba does not remove,
+and inside the row loop those updates cost more than the step's physics (docs/benchmarks.md).
+Scalars (``Rules``, ``Shaping``) are read from their structures anywhere.
+
+The rules are those of ``docs/environments.md``; :class:`debris_gym.mission_batch.MissionBatch`
+drives these kernels and ``tests/test_mission_batch.py`` holds them to an independent reference
+env.
 """
 
 from __future__ import annotations
@@ -36,13 +42,13 @@ _T_CAPTURE, _T_SUCCESS, _T_PROGRESS, _T_DV, _T_COLLISION, _T_OOB, _T_TIME = rang
 
 
 @inlined
-def burn(i, action, rules, missions, accel):
-    """Thrust: the commanded acceleration of ``action`` into ``accel`` (dim,) and into
-    ``missions.accel[i]``, cut to what the Δv budget still allows (a burn that would overspend
-    it spends it exactly); the Δv is added to the mission's. Returns the step's Δv (m/s)."""
+def burn(i, action, rules, delta_v, applied, accel):
+    """Thrust: the commanded acceleration of ``action`` into ``accel`` (dim,) and
+    ``applied[i]``, cut to what the Δv budget still allows (a burn that would overspend it
+    spends it exactly); the Δv is added to ``delta_v[i]``. Returns the step's Δv (m/s)."""
     thrust_row(action, rules.max_accel, rules.box_thrust, accel)
     dv = delta_v_rate_row(accel, rules.box_thrust) * rules.dt
-    spent = missions.delta_v[i]
+    spent = delta_v[i]
     budget = rules.delta_v_budget
     if dv > 0.0 and spent + dv > budget:
         scale = max(budget - spent, 0.0) / dv
@@ -50,17 +56,16 @@ def burn(i, action, rules, missions, accel):
             accel[k] = accel[k] * scale
         dv = dv * scale
     for k in range(accel.shape[0]):
-        missions.accel[i, k] = accel[k]
-    missions.delta_v[i] = spent + dv
+        applied[i, k] = accel[k]
+    delta_v[i] = spent + dv
     return dv
 
 
 @inlined
-def propagate(i, accel, rules, missions, start, path):
+def propagate(i, accel, matrix_t, rules, state, time, steps, start, path):
     """Fly the step: ``start`` (2·dim,) ← the state before it, ``path`` (K + 1, dim) ← its start
-    and the K sub-step positions, the mission's state ← the end; the clock advances."""
-    state = missions.state
-    matrix_t = rules.step_matrix_t
+    and the K sub-step positions (``matrix_t``: :attr:`Rules.step_matrix_t`), ``state[i]`` ← the
+    end; the clock advances."""
     dim = accel.shape[0]
     n_sub = path.shape[0] - 1
     for k in range(2 * dim):
@@ -80,164 +85,140 @@ def propagate(i, accel, rules, missions, start, path):
             state[i, dim + c - n_sub * dim] = s
     for a in range(dim):
         state[i, a] = path[n_sub, a]
-    missions.time[i] += rules.dt
-    missions.steps[i] += 1
+    time[i] += rules.dt
+    steps[i] += 1
 
 
 @inlined
-def contacts(i, path, rules, missions, field, touched):
-    """Which bodies the chaser touched along ``path`` into ``touched`` (B,), swept from the
-    gaps at its start (the gaps of the step before)."""
-    path_touches(
-        path, missions.gaps[i], rules.chaser_radius, i, field.centers, field.radii,
-        field.polygon_start, field.n_vertices, field.vertices, touched,
-    )  # fmt: skip
-
-
-@inlined
-def measure(i, rules, missions, field):
-    """Gaps from the chaser to every body (:func:`measure_gaps`) and the smallest obstacle gap
-    of the episode so far."""
-    measure_gaps(i, rules, missions, field)
-    n_targets, n_bodies = rules.n_targets, missions.gaps.shape[1]
-    if n_bodies > n_targets:  # clearance to debris other than targets
-        clearance = missions.min_clearance[i]
-        for b in range(n_targets, n_bodies):
-            clearance = min(clearance, missions.gaps[i, b])
-        missions.min_clearance[i] = clearance
-
-
-@inlined
-def measure_gaps(i, rules, missions, field):
-    """Gaps (m) from mission ``i``'s chaser centre to every body, and its ranked obstacles
-    ``missions.nearest[i]`` re-sorted by gap (:func:`sort_by_gap`).
+def measure(i, state, gaps, nearest, centers, radii, polygon_start, polygons, n_vertices, vertices):
+    """Gaps (m) from mission ``i``'s chaser centre to every body of its field into ``gaps[i]``,
+    and its ranked obstacles ``nearest[i]`` re-sorted by gap (:func:`sort_by_gap`).
 
     The gaps are exact for every body: computing all of them in one tight loop costs less than
     culling polygons with bounds (the bookkeeping of a culled selection outweighs the polygon
     edges it saves at the default obstacle count; docs/benchmarks.md).
     """
-    dim = field.dock.shape[1]
+    dim = centers.shape[2]
     field_gaps(
-        missions.state[i, :dim], i, field.centers, field.radii, field.polygon_start,
-        field.polygons, field.n_vertices, field.vertices, missions.gaps[i],
-    )  # fmt: skip
-    sort_by_gap(missions.gaps[i], missions.nearest[i])
+        state[i, :dim], i, centers, radii, polygon_start, polygons, n_vertices, vertices, gaps[i]
+    )
+    sort_by_gap(gaps[i], nearest[i])
 
 
 @inlined
-def captures(i, rules, missions):
-    """Capture the targets within ``capture_radius`` of the chaser's surface while its speed is
-    at most ``capture_speed`` (targets are at rest in LVLH); queued, only the queue head.
-    Returns ``(targets captured now, slow)``."""
-    state = missions.state
+def nearest_obstacle(i, n_targets, gaps, clearance):
+    """The smaller of ``clearance`` and the gaps (m) to the obstacles (bodies from
+    ``n_targets`` on) of row ``i``."""
+    for b in range(n_targets, gaps.shape[1]):
+        clearance = min(clearance, gaps[i, b])
+    return clearance
+
+
+@inlined
+def speed_of(i, state):
+    """The chaser's speed (m/s) in row ``i`` of ``state`` (N, 2·dim)."""
     dim = state.shape[1] // 2
     s = 0.0
     for a in range(dim):
         s += state[i, dim + a] * state[i, dim + a]
-    slow = math.sqrt(s) <= rules.capture_speed
-    new = 0
-    reach = rules.capture_radius + rules.chaser_radius
-    for j in range(rules.n_targets):
-        if missions.captured[i, j]:
-            continue
-        if slow and missions.gaps[i, j] <= reach:
-            missions.captured[i, j] = True
-            new += 1
-        if rules.queued:
-            break  # only the queue head can be captured
-    return new, slow
+    return math.sqrt(s)
 
 
 @inlined
-def judge(i, start, touched, slow, rules, missions, field, out):
-    """Collision, bounds and success after the step; ``out.terminated`` (any of them, or the
-    budget spent) and ``out.truncated`` (the step limit). Returns terminated."""
-    state = missions.state
+def captures(i, slow, rules, gaps, captured):
+    """Capture the targets within ``capture_radius`` of the chaser's surface when the chaser is
+    ``slow`` (targets are at rest in LVLH); queued, only the queue head. Returns how many."""
+    new = 0
+    reach = rules.capture_radius + rules.chaser_radius
+    for j in range(rules.n_targets):
+        if captured[i, j]:
+            continue
+        if slow and gaps[i, j] <= reach:
+            captured[i, j] = True
+            new += 1
+        if rules.queued:
+            break  # only the queue head can be captured
+    return new
+
+
+@inlined
+def collides(i, start, touched, slow, n_targets, state, centers):
+    """Did the step collide? Any contact with debris that is not a target; a target touched
+    too fast (not ``slow``) unless the chaser is leaving it: moving away from its centre at
+    both ends of the step and over the step as a whole (departing after a gentle contact is not
+    an impact)."""
     dim = start.shape[0] // 2
-    n_targets = rules.n_targets
-    hit = False
     for b in range(n_targets, touched.shape[0]):
         if touched[b]:
-            hit = True  # any contact with debris that is not a target
-            break
-    if not hit and not slow:
-        # a target touched too fast is a collision unless the chaser is leaving it: moving
-        # away from its centre at both ends of the step and over the step as a whole
-        # (departing after a gentle contact is not an impact)
+            return True
+    hit = False
+    if not slow:
         for j in range(n_targets):
             if touched[j]:
                 closing0 = 0.0
                 closing1 = 0.0
                 closing_step = 0.0
                 for a in range(dim):
-                    toward = field.centers[i, j, a] - start[a]
+                    toward = centers[i, j, a] - start[a]
                     closing0 += toward * start[dim + a]
-                    closing1 += (field.centers[i, j, a] - state[i, a]) * state[i, dim + a]
+                    closing1 += (centers[i, j, a] - state[i, a]) * state[i, dim + a]
                     closing_step += toward * (state[i, a] - start[a])
                 if closing0 > 0.0 or closing1 > 0.0 or closing_step > 0.0:
                     hit = True
-    missions.collision[i] = missions.collision[i] or hit
-    oob = False
-    for a in range(dim):
-        if state[i, a] <= field.low[i, a] or state[i, a] >= field.high[i, a]:
-            oob = True
-    missions.out_of_bounds[i] = oob
-    done = not missions.collision[i]
-    for j in range(n_targets):
-        done = done and missions.captured[i, j]
-    if done and rules.return_to_dock:
-        s = 0.0
-        for a in range(dim):
-            off = state[i, a] - field.dock[i, a]
-            s += off * off
-        done = math.sqrt(s) <= rules.capture_radius and slow
-    missions.success[i] = missions.success[i] or done
-    spent = missions.delta_v[i] >= rules.delta_v_budget
-    ended = missions.success[i] or missions.collision[i] or missions.out_of_bounds[i] or spent
-    out.terminated[i] = ended
-    out.truncated[i] = rules.max_steps > 0 and missions.steps[i] >= rules.max_steps
-    return ended
+    return hit
 
 
 @inlined
-def reward(i, new, dv, ended, rules, shaping, missions, field, out):
-    """The named reward terms of the step into ``out.terms[i]`` and their sum into
-    ``out.reward[i]``; the mission's potential becomes Φ(s′)."""
+def outside(i, state, low, high):
+    """Is the chaser of row ``i`` on or beyond the bounds?"""
+    oob = False
+    for a in range(low.shape[1]):
+        if state[i, a] <= low[i, a] or state[i, a] >= high[i, a]:
+            oob = True
+    return oob
+
+
+@inlined
+def succeeds(i, slow, rules, state, captured, dock):
+    """Every target captured and (if a return is required) the chaser within
+    ``capture_radius`` of the dock, slow."""
+    done = True
+    for j in range(captured.shape[1]):
+        done = done and captured[i, j]
+    if done and rules.return_to_dock:
+        s = 0.0
+        for a in range(dock.shape[1]):
+            off = state[i, a] - dock[i, a]
+            s += off * off
+        done = math.sqrt(s) <= rules.capture_radius and slow
+    return done
+
+
+@inlined
+def reward(i, new, dv, ended, phi, before, rules, success, collision, out_of_bounds, terms):
+    """The named reward terms of the step into ``terms[i]`` (potential Φ ``before`` and ``phi``
+    after it); returns their sum."""
     w = rules.weights
-    phi = potential(i, rules, shaping, missions, field)
-    progress = rules.gamma * phi - missions.potential[i]
-    missions.potential[i] = phi
-    terms = out.terms
     terms[i, _T_CAPTURE] = w.capture * new
-    terms[i, _T_SUCCESS] = w.success * missions.success[i]
-    terms[i, _T_PROGRESS] = w.progress * progress
+    terms[i, _T_SUCCESS] = w.success * success[i]
+    terms[i, _T_PROGRESS] = w.progress * (rules.gamma * phi - before)
     terms[i, _T_DV] = -w.delta_v * dv
-    terms[i, _T_COLLISION] = -w.collision * missions.collision[i]
-    terms[i, _T_OOB] = -w.out_of_bounds * missions.out_of_bounds[i]
+    terms[i, _T_COLLISION] = -w.collision * collision[i]
+    terms[i, _T_OOB] = -w.out_of_bounds * out_of_bounds[i]
     terms[i, _T_TIME] = -w.time
     if ended and rules.terminal_zero:
         terms[i, _T_PROGRESS] -= w.progress * rules.gamma * phi  # Φ(terminal) = 0
     total = 0.0
     for k in range(terms.shape[1]):
         total += terms[i, k]
-    out.reward[i] = total
-
-
-@inlined
-def idle(i, out):
-    """The outputs of a mission that does not step: zero reward and terms, no end."""
-    for k in range(out.terms.shape[1]):
-        out.terms[i, k] = 0.0
-    out.reward[i] = 0.0
-    out.terminated[i] = False
-    out.truncated[i] = False
+    return total
 
 
 # --- the potential ----------------------------------------------------------------------------
 
 
 @inlined
-def potential(i, rules, shaping, missions, field):
+def potential(i, rules, shaping, state, gaps, captured, centers, dock, length_scale, speed_scale):
     """Φ of mission ``i``: −(gap to the current goal / L + goals after it), less the optional
     terms of ``shaping`` (:func:`shaping_terms`; see :mod:`debris_gym.rewards`).
 
@@ -245,12 +226,9 @@ def potential(i, rules, shaping, missions, field):
     numba then compiles the kernels without the call, whose mere presence cost time in every
     step (docs/benchmarks.md).
     """
-    state = missions.state
     goal, gap, after = current_goal(
-        missions.gaps[i], missions.captured[i], rules.queued, rules.return_to_dock,
-        rules.chaser_radius,
-    )  # fmt: skip
-    dock = field.dock
+        i, gaps, captured, rules.queued, rules.return_to_dock, rules.chaser_radius
+    )
     if goal == DOCK_GOAL:  # the distance to the dock, written out for 2 or 3 axes (no loop)
         off = state[i, 0] - dock[i, 0]
         s = off * off
@@ -261,35 +239,29 @@ def potential(i, rules, shaping, missions, field):
             s += off * off
         gap = math.sqrt(s)
     goal_gap = max(gap, 0.0)
-    phi = -(goal_gap / field.length_scale[i] + after)
+    phi = -(goal_gap / length_scale[i] + after)
     if shaping is not None:
-        phi = shaping_terms(phi, goal, goal_gap, i, rules, shaping, missions, field)
+        phi = shaping_terms(
+            phi, goal, goal_gap, i, rules, shaping, state, gaps, centers, speed_scale[i]
+        )
     return phi
 
 
 @kernel  # not inlined: off by default (see potential's ``shaping``)
-def shaping_terms(phi, goal, goal_gap, i, rules, shaping, missions, field):
+def shaping_terms(phi, goal, goal_gap, i, rules, shaping, state, gaps, centers, speed_scale):
     """Φ less the optional approach-speed, clearance and closing terms: ``shaping.speed`` ·
     max(0, speed − (capture_speed + slope · goal gap)) / V; ``shaping.clearance`` ·
     max(0, 1 − c / d)² (c: the chaser surface's gap to the nearest obstacle);
     ``shaping.closing`` · the largest, over bodies b other than the goal within
     ``closing_distance`` d, of max(0, v_b − capture_speed) / V · (1 − c_b / d) (v_b: the
-    chaser's speed toward b's centre)."""
-    state, gaps, centers = missions.state, missions.gaps, field.centers
+    chaser's speed toward b's centre). ``speed_scale`` is the row's V (m/s)."""
     dim = centers.shape[2]
     n_targets, chaser_r = rules.n_targets, rules.chaser_radius
-    speed_scale = field.speed_scale[i]
     if shaping.speed > 0.0 and goal != NO_GOAL:
-        s = 0.0
-        for a in range(dim):
-            s += state[i, dim + a] * state[i, dim + a]
         allowed = rules.capture_speed + shaping.speed_slope * goal_gap
-        phi -= shaping.speed * max(math.sqrt(s) - allowed, 0.0) / speed_scale
+        phi -= shaping.speed * max(speed_of(i, state) - allowed, 0.0) / speed_scale
     if shaping.clearance > 0.0 and gaps.shape[1] > n_targets:
-        nearest = math.inf
-        for b in range(n_targets, gaps.shape[1]):
-            nearest = min(nearest, gaps[i, b])
-        clearance = max(nearest - chaser_r, 0.0)
+        clearance = max(nearest_obstacle(i, n_targets, gaps, math.inf) - chaser_r, 0.0)
         closeness = max(1.0 - clearance / shaping.clearance_distance, 0.0)
         phi -= shaping.clearance * closeness * closeness
     if shaping.closing > 0.0:
@@ -343,35 +315,39 @@ def sort_by_gap(gaps, order):
 def begin_rows(rows, states, rules, shaping, missions, field):
     """Start new episodes in ``rows``: the chaser at ``states`` (R, 2·dim) or, if None, at rest
     at the dock; clocks, Δv and flags cleared; gaps, clearance and potential computed."""
-    dim = field.dock.shape[1]
-    n_targets, n_bodies = rules.n_targets, field.centers.shape[1]
-    state = missions.state
+    (state, time, steps, delta_v, captured, collision, out_of_bounds, success, gaps, nearest,
+     min_clearance, potentials, applied) = missions  # fmt: skip
+    (centers, radii, polygon_start, polygons, n_vertices, vertices, dock, _low, _high,
+     length_scale, speed_scale) = field  # fmt: skip
+    dim = dock.shape[1]
+    n_targets = rules.n_targets
     for r in range(rows.shape[0]):
         i = rows[r]
-        for k in range(missions.nearest.shape[1]):  # a new field: sort from index order
-            missions.nearest[i, k] = n_targets + k
+        for k in range(nearest.shape[1]):  # a new field: sort from index order
+            nearest[i, k] = n_targets + k
         for a in range(dim):
             if states is None:
-                state[i, a] = field.dock[i, a]
+                state[i, a] = dock[i, a]
                 state[i, dim + a] = 0.0
             else:
                 state[i, a] = states[r, a]
                 state[i, dim + a] = states[r, dim + a]
-            missions.accel[i, a] = 0.0
-        missions.time[i] = 0.0
-        missions.steps[i] = 0
-        missions.delta_v[i] = 0.0
+            applied[i, a] = 0.0
+        time[i] = 0.0
+        steps[i] = 0
+        delta_v[i] = 0.0
         for j in range(n_targets):
-            missions.captured[i, j] = False
-        missions.collision[i] = False
-        missions.out_of_bounds[i] = False
-        missions.success[i] = False
-        measure_gaps(i, rules, missions, field)
-        clearance = math.inf
-        for b in range(n_targets, n_bodies):
-            clearance = min(clearance, missions.gaps[i, b])
-        missions.min_clearance[i] = clearance
-        missions.potential[i] = potential(i, rules, shaping, missions, field)
+            captured[i, j] = False
+        collision[i] = False
+        out_of_bounds[i] = False
+        success[i] = False
+        measure(
+            i, state, gaps, nearest, centers, radii, polygon_start, polygons, n_vertices, vertices
+        )
+        min_clearance[i] = nearest_obstacle(i, n_targets, gaps, math.inf)
+        potentials[i] = potential(
+            i, rules, shaping, state, gaps, captured, centers, dock, length_scale, speed_scale
+        )
 
 
 @kernel
@@ -392,22 +368,61 @@ def step_all_threaded(n_chunks, live, actions, rules, shaping, missions, field, 
 @kernel  # called once per row range: no need to inline it
 def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out):
     """One step of the missions ``lo … hi − 1`` that are ``live``: the phases in order."""
-    dim = field.dock.shape[1]
-    path = np.empty((rules.step_matrix_t.shape[1] // dim, dim))  # start + every sub-step
+    (state, time, steps, delta_v, captured, collision, out_of_bounds, success, gaps, nearest,
+     min_clearance, potentials, applied) = missions  # fmt: skip
+    (centers, radii, polygon_start, polygons, n_vertices, vertices, dock, low, high,
+     length_scale, speed_scale) = field  # fmt: skip
+    rewards, terminated, truncated, terms = out
+    matrix_t = rules.step_matrix_t
+    n_targets = rules.n_targets
+    dim = dock.shape[1]
+    path = np.empty((matrix_t.shape[1] // dim, dim))  # start + every sub-step
     start = np.empty(2 * dim)
     accel = np.empty(dim)
-    touched = np.empty(field.centers.shape[1], dtype=np.bool_)
+    touched = np.empty(centers.shape[1], dtype=np.bool_)
     for i in range(lo, hi):
         if not live[i]:
-            idle(i, out)
+            for k in range(terms.shape[1]):
+                terms[i, k] = 0.0
+            rewards[i] = 0.0
+            terminated[i] = False
+            truncated[i] = False
             continue
-        dv = burn(i, actions[i], rules, missions, accel)
-        propagate(i, accel, rules, missions, start, path)
-        contacts(i, path, rules, missions, field, touched)
-        measure(i, rules, missions, field)
-        new, slow = captures(i, rules, missions)
-        ended = judge(i, start, touched, slow, rules, missions, field, out)
-        reward(i, new, dv, ended, rules, shaping, missions, field, out)
+        # burn, propagate
+        dv = burn(i, actions[i], rules, delta_v, applied, accel)
+        propagate(i, accel, matrix_t, rules, state, time, steps, start, path)
+        # contacts along the path, swept from the gaps at its start
+        path_touches(
+            path, gaps[i], rules.chaser_radius, i, centers, radii, polygon_start, n_vertices,
+            vertices, touched,
+        )  # fmt: skip
+        # measure at the end
+        measure(
+            i, state, gaps, nearest, centers, radii, polygon_start, polygons, n_vertices, vertices
+        )
+        min_clearance[i] = nearest_obstacle(i, n_targets, gaps, min_clearance[i])
+        # captures
+        slow = speed_of(i, state) <= rules.capture_speed
+        new = captures(i, slow, rules, gaps, captured)
+        # judge
+        collision[i] = collision[i] or collides(i, start, touched, slow, n_targets, state, centers)
+        out_of_bounds[i] = outside(i, state, low, high)
+        success[i] = success[i] or (
+            not collision[i] and succeeds(i, slow, rules, state, captured, dock)
+        )
+        spent = delta_v[i] >= rules.delta_v_budget
+        ended = success[i] or collision[i] or out_of_bounds[i] or spent
+        terminated[i] = ended
+        truncated[i] = rules.max_steps > 0 and steps[i] >= rules.max_steps
+        # reward
+        phi = potential(
+            i, rules, shaping, state, gaps, captured, centers, dock, length_scale, speed_scale
+        )
+        before = potentials[i]
+        potentials[i] = phi
+        rewards[i] = reward(
+            i, new, dv, ended, phi, before, rules, success, collision, out_of_bounds, terms
+        )
 
 
 @kernel

@@ -166,25 +166,29 @@ def _put(out, i, k, value):
 def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
     """Observations of the missions ``lo … hi − 1`` into ``out``, block by block."""
     state, gaps, captured = missions.state, missions.gaps, missions.captured
-    centers, radii = field.centers, field.radii
-    dim = field.dock.shape[1]
+    nearest, delta_v, steps = missions.nearest, missions.delta_v, missions.steps
+    centers, radii, dock = field.centers, field.radii, field.dock
+    length_scale, speed_scale = field.length_scale, field.speed_scale
+    n_vertices, vertices = field.n_vertices, field.vertices
+    lidar_directions = layout.lidar_directions
+    dim = dock.shape[1]
     n_targets = rules.n_targets
     order = np.empty(n_targets, dtype=np.int64)
-    n_near = min(layout.obstacle_slots, missions.nearest.shape[1])
+    n_near = min(layout.obstacle_slots, nearest.shape[1])
     if layout.other_targets:  # every body but the goal is a candidate
         n_near = min(layout.obstacle_slots, gaps.shape[1] - 1)
     near = np.empty(n_near, dtype=np.int64)  # the bodies in the obstacle slots
     near_gap = np.empty(n_near)
-    ranges = np.empty(layout.lidar_directions.shape[0])
+    ranges = np.empty(lidar_directions.shape[0])
     for i in range(lo, hi):
         goal, gap = NO_GOAL, 0.0  # the current goal, for the options that show it
         if layout.goal_slots or layout.other_targets:
             goal, gap, _ = current_goal(
-                gaps[i], captured[i], rules.queued, rules.return_to_dock, rules.chaser_radius
+                i, gaps, captured, rules.queued, rules.return_to_dock, rules.chaser_radius
             )
         # x / L as x · (1 / L): one division per scale instead of one per element
-        L = field.length_scale[i]
-        V = field.speed_scale[i]
+        L = length_scale[i]
+        V = speed_scale[i]
         inv_l = 1.0 / L
         inv_v = 1.0 / V
 
@@ -224,7 +228,7 @@ def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
         # dock: relative position / L
         k = layout.dock
         for a in range(dim):
-            k = _put(out, i, k, (field.dock[i, a] - state[i, a]) * inv_l)
+            k = _put(out, i, k, (dock[i, a] - state[i, a]) * inv_l)
 
         # obstacles: the nearest by surface gap, nearest first (the step keeps them ranked);
         # with obs_other_targets the nearest bodies other than the current goal
@@ -234,7 +238,7 @@ def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
                 _select_nearest(gaps[i], 0, goal, near, near_gap)
             else:
                 for s in range(n_near):
-                    near[s] = missions.nearest[i, s]
+                    near[s] = nearest[i, s]
             for s in range(n_near):
                 b = near[s]
                 for a in range(dim):
@@ -250,8 +254,8 @@ def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
         if layout.lidar_rays:
             k = layout.lidar
             ray_ranges(
-                state[i, :dim], layout.lidar_directions, layout.lidar_range, i, centers, radii,
-                field.polygon_start, field.n_vertices, field.vertices, ranges,
+                state[i, :dim], lidar_directions, layout.lidar_range, i, centers, radii,
+                field.polygon_start, n_vertices, vertices, ranges,
             )  # fmt: skip
             for r in range(ranges.shape[0]):
                 k = _put(out, i, k, ranges[r] / layout.lidar_range)
@@ -259,9 +263,9 @@ def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
         # budgets: Δv remaining, time remaining (fractions)
         k = layout.budgets
         budget = rules.delta_v_budget
-        spent = missions.delta_v[i]
+        spent = delta_v[i]
         k = _put(out, i, k, 1.0 if budget == math.inf else max(budget - spent, 0.0) / budget)
-        k = _put(out, i, k, max(horizon - missions.steps[i], 0.0) / horizon)
+        k = _put(out, i, k, max(horizon - steps[i], 0.0) / horizon)
 
         # goal: the current goal at a 10x finer scale
         if layout.goal_slots:
@@ -272,7 +276,7 @@ def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
                 if goal >= 0:
                     rel = centers[i, goal, a] - state[i, a]
                 elif goal == DOCK_GOAL:
-                    rel = field.dock[i, a] - state[i, a]
+                    rel = dock[i, a] - state[i, a]
                 else:
                     rel = 0.0
                 s += rel * rel

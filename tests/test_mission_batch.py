@@ -263,20 +263,24 @@ def test_every_observation_element_is_written(kwargs):
 def test_current_goal_follows_the_rule_on_a_hand_computed_case():
     """Gaps from the chaser's centre (chaser radius 2 m): targets 0 … 2 at 30, 12, 12 m, then
     two obstacles (not read)."""
-    gaps = np.array([30.0, 12.0, 12.0, 1.0, 0.5])
+    gaps = np.array([[30.0, 12.0, 12.0, 1.0, 0.5]])
     none = np.zeros(3, dtype=bool)
     # any order: the smallest gap, the lowest index among equals; the surface gap is 12 − 2
-    assert current_goal(gaps, none, False, True, 2.0) == (1, 10.0, 3)
-    assert current_goal(gaps, none, False, False, 2.0) == (1, 10.0, 2)
+    assert current_goal(0, gaps, none[None], False, True, 2.0) == (1, 10.0, 3)
+    assert current_goal(0, gaps, none[None], False, False, 2.0) == (1, 10.0, 2)
     # queued: the first uncaptured target whatever its gap
-    assert current_goal(gaps, none, True, True, 2.0) == (0, 28.0, 3)
+    assert current_goal(0, gaps, none[None], True, True, 2.0) == (0, 28.0, 3)
     first_done = np.array([True, False, False])
-    assert current_goal(gaps, first_done, True, False, 2.0) == (1, 10.0, 1)
-    assert current_goal(gaps, np.array([False, True, True]), False, True, 2.0) == (0, 28.0, 1)
+    assert current_goal(0, gaps, first_done[None], True, False, 2.0) == (1, 10.0, 1)
+    assert current_goal(0, gaps, np.array([False, True, True])[None], False, True, 2.0) == (
+        0,
+        28.0,
+        1,
+    )
     # all captured: the dock if a return is required, else nothing
     done = np.ones(3, dtype=bool)
-    assert current_goal(gaps, done, False, True, 2.0) == (DOCK_GOAL, 0.0, 0)
-    assert current_goal(gaps, done, True, False, 2.0) == (NO_GOAL, 0.0, 0)
+    assert current_goal(0, gaps, done[None], False, True, 2.0) == (DOCK_GOAL, 0.0, 0)
+    assert current_goal(0, gaps, done[None], True, False, 2.0) == (NO_GOAL, 0.0, 0)
 
 
 def test_the_env_reports_its_current_goal():

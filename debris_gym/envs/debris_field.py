@@ -152,7 +152,7 @@ class DebrisFieldEnv(gym.Env):
         observation use."""
         m, cfg = self._missions, self.config
         index, gap, after = current_goal(
-            m.gaps[0], m.captured[0], cfg.target_order == "queued", cfg.return_to_dock,
+            0, m.gaps, m.captured, cfg.target_order == "queued", cfg.return_to_dock,
             cfg.chaser_radius,
         )  # fmt: skip
         if index == DOCK_GOAL:
