@@ -27,13 +27,15 @@ COMPILED_MODULES = (
     "batch_geometry",
     "generators",
     "goal",
-    "mission_data",
     "mission_step",
     "observation",
     "thrust",
 )
-"""Modules of this package with numba-compiled functions, and ``mission_data`` whose named
-structures the compiled signatures are made of (their caches are dropped together)."""
+"""Modules of this package with numba-compiled functions (their caches are dropped together)."""
+
+STRUCTURE_MODULES = ("mission_data",)
+"""Modules whose named tuples the compiled signatures are made of: the compiled code reads
+their fields by position, so a change to them drops the cache too."""
 
 COMPILE_OPTIONS: dict[str, object] = {"cache": True, "nogil": True, "error_model": "numpy"}
 """Options of every decorator below. ``error_model="numpy"``: a division by zero gives inf/NaN
@@ -98,7 +100,7 @@ def drop_stale_cache(package_dir: Path, modules: tuple[str, ...] = COMPILED_MODU
 
 
 with contextlib.suppress(OSError):
-    drop_stale_cache(Path(__file__).resolve().parent)
+    drop_stale_cache(Path(__file__).resolve().parent, COMPILED_MODULES + STRUCTURE_MODULES)
 
 kernel = numba.njit(**COMPILE_OPTIONS)
 """Decorator for a compiled loop called from Python."""

@@ -138,6 +138,12 @@ class MissionBatch:
         self._step_code = None  # the step's machine code, resolved on the first step
         self._observe_code = None
 
+    def __getstate__(self) -> dict:
+        # the resolved machine code does not pickle: it is resolved again on first use
+        state = self.__dict__.copy()
+        state.update(_step_code=None, _observe_code=None, _field_view=None)
+        return state
+
     @property
     def field_arrays(self) -> Field:
         """The per-field arrays as one :class:`~debris_gym.mission_data.Field` (rebuilt when the

@@ -4,7 +4,7 @@ Each is a module-level :class:`~typing.NamedTuple`, which numba compiles as a re
 fields (arrays and scalars alike) and which its on-disk cache can key on:
 
 * :class:`Rules` — what stays fixed for a batch: the physics of a step, the mission's rules,
-  the reward weights (:class:`RewardWeights`);
+  the reward weights;
 * :class:`Shaping` — the optional terms of the potential, or None when all are off (the
   kernels are then compiled without them);
 * :class:`Missions` — the per-mission state arrays (row i = mission i);
@@ -24,22 +24,6 @@ import numpy as np
 
 from debris_gym.config import EnvConfig
 from debris_gym.rewards import REWARD_TERMS
-
-
-class RewardWeights(NamedTuple):
-    """Weight of every reward term (named as :data:`debris_gym.rewards.REWARD_TERMS`);
-    penalties as positive magnitudes."""
-
-    capture: float
-    success: float
-    progress: float
-    delta_v: float
-    collision: float
-    out_of_bounds: float
-    time: float
-
-
-assert RewardWeights._fields == REWARD_TERMS  # the step's term columns follow this order
 
 
 class Rules(NamedTuple):
@@ -74,8 +58,15 @@ class Rules(NamedTuple):
     """Discount of the potential-based shaping."""
     terminal_zero: bool
     """``shaping_terminal == "zero"``: Φ = 0 after termination."""
-    weights: RewardWeights
-    """Reward term weights."""
+    # the reward weights, named like their config keys (penalties as positive magnitudes);
+    # flat fields, not a nested structure: numba's threaded loops take no nested tuples
+    reward_capture: float
+    reward_success: float
+    reward_progress: float
+    reward_delta_v: float
+    reward_collision: float
+    reward_out_of_bounds: float
+    reward_time: float
 
 
 class Shaping(NamedTuple):
@@ -187,7 +178,7 @@ def make_rules(
         max_steps=-1 if max_episode_steps is None else int(max_episode_steps),
         gamma=float(cfg.shaping_gamma),
         terminal_zero=cfg.shaping_terminal == "zero",
-        weights=RewardWeights(*(float(getattr(cfg, f"reward_{k}")) for k in REWARD_TERMS)),
+        **{f"reward_{k}": float(getattr(cfg, f"reward_{k}")) for k in REWARD_TERMS},
     )
 
 

@@ -33,10 +33,14 @@ import numpy as np
 from debris_gym.batch_geometry import field_gaps, path_touches
 from debris_gym.goal import DOCK_GOAL, NO_GOAL, current_goal
 from debris_gym.jit import inlined, kernel, threaded
+from debris_gym.rewards import REWARD_TERMS
 from debris_gym.thrust import delta_v_rate_row, thrust_row
 
-# reward term columns, in REWARD_TERMS order (mission_data.RewardWeights checks that order)
+# reward term columns, in REWARD_TERMS order
 _T_CAPTURE, _T_SUCCESS, _T_PROGRESS, _T_DV, _T_COLLISION, _T_OOB, _T_TIME = range(7)
+assert REWARD_TERMS == (
+    "capture", "success", "progress", "delta_v", "collision", "out_of_bounds", "time"
+)  # fmt: skip
 
 # --- phases -----------------------------------------------------------------------------------
 
@@ -198,16 +202,15 @@ def succeeds(i, slow, rules, state, captured, dock):
 def reward(i, new, dv, ended, phi, before, rules, success, collision, out_of_bounds, terms):
     """The named reward terms of the step into ``terms[i]`` (potential Φ ``before`` and ``phi``
     after it); returns their sum."""
-    w = rules.weights
-    terms[i, _T_CAPTURE] = w.capture * new
-    terms[i, _T_SUCCESS] = w.success * success[i]
-    terms[i, _T_PROGRESS] = w.progress * (rules.gamma * phi - before)
-    terms[i, _T_DV] = -w.delta_v * dv
-    terms[i, _T_COLLISION] = -w.collision * collision[i]
-    terms[i, _T_OOB] = -w.out_of_bounds * out_of_bounds[i]
-    terms[i, _T_TIME] = -w.time
+    terms[i, _T_CAPTURE] = rules.reward_capture * new
+    terms[i, _T_SUCCESS] = rules.reward_success * success[i]
+    terms[i, _T_PROGRESS] = rules.reward_progress * (rules.gamma * phi - before)
+    terms[i, _T_DV] = -rules.reward_delta_v * dv
+    terms[i, _T_COLLISION] = -rules.reward_collision * collision[i]
+    terms[i, _T_OOB] = -rules.reward_out_of_bounds * out_of_bounds[i]
+    terms[i, _T_TIME] = -rules.reward_time
     if ended and rules.terminal_zero:
-        terms[i, _T_PROGRESS] -= w.progress * rules.gamma * phi  # Φ(terminal) = 0
+        terms[i, _T_PROGRESS] -= rules.reward_progress * rules.gamma * phi  # Φ(terminal) = 0
     total = 0.0
     for k in range(terms.shape[1]):
         total += terms[i, k]
