@@ -26,6 +26,9 @@ from debris_gym.scenario import Body
 from tests.helpers import simple_scenario
 from tests.reference_env import ReferenceDebrisFieldEnv, reference_observation_names
 
+# some tests fly the free-space simple_scenario in envs with the default LEO orbit on purpose
+pytestmark = pytest.mark.filterwarnings("ignore:the pinned scenario's physics differ")
+
 INFO_KEYS = ["chaser_state", "time", "delta_v", "targets_captured", "min_clearance", "collision"]
 INFO_KEYS += ["out_of_bounds", "is_success", "captured", "n_targets"]
 
@@ -277,6 +280,10 @@ def test_current_goal_follows_the_rule_on_a_hand_computed_case():
         28.0,
         1,
     )
+    # row i of a batch: the rule reads that row only
+    two = np.vstack([gaps, [[1.0, 50.0, 3.0, 0.0, 0.0]]])
+    flags = np.array([[False, False, False], [False, False, True]])
+    assert current_goal(1, two, flags, False, True, 2.0) == (0, -1.0, 2)
     # all captured: the dock if a return is required, else nothing
     done = np.ones(3, dtype=bool)
     assert current_goal(0, gaps, done[None], False, True, 2.0) == (DOCK_GOAL, 0.0, 0)

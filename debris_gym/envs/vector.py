@@ -115,6 +115,13 @@ class DebrisFieldVectorEnv(VectorEnv):
         return _ScenarioList(self)
 
     @property
+    def batch(self) -> MissionBatch | None:
+        """The :class:`~debris_gym.mission_batch.MissionBatch` holding every sub-env's mission
+        and field as arrays (None before the first reset). Read it; writing to it bypasses the
+        env's checks."""
+        return self._missions
+
+    @property
     def _field(self) -> FieldBatch | None:
         return None if self._missions is None else self._missions.field
 
