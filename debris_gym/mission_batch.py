@@ -135,13 +135,14 @@ class MissionBatch:
         self.speed_scale = np.ones(n)
         self._outputs: StepOutputs = new_step_outputs(n)
         self._field_view: Field | None = None
+        self._heads: dict[str, tuple] | None = None
         self._step_code = None  # the step's machine code, resolved on the first step
         self._observe_code = None
 
     def __getstate__(self) -> dict:
         # the resolved machine code does not pickle: it is resolved again on first use
         state = self.__dict__.copy()
-        state.update(_step_code=None, _observe_code=None, _field_view=None)
+        state.update(_step_code=None, _observe_code=None, _field_view=None, _heads=None)
         return state
 
     @property
@@ -157,7 +158,23 @@ class MissionBatch:
                 dock=self.dock, low=self.low, high=self.high, length_scale=self.length_scale,
                 speed_scale=self.speed_scale,
             )  # fmt: skip
+            self._heads = None
         return view
+
+    def _head(self) -> dict[str, tuple]:
+        """The kernels' arguments that stay the same from call to call, built once (and again
+        when the field's arrays change): ``step`` before the actions, ``tail`` after them,
+        ``observe`` before the horizon."""
+        field = self.field_arrays
+        heads = self._heads
+        if heads is None:
+            threads = (self.threads,) if self.threads > 1 else ()
+            heads = self._heads = {
+                "step": threads,
+                "tail": (self.rules, self.shaping, self.missions, field, self._outputs),
+                "observe": (*threads, self.rules, self.layout, self.missions, field),
+            }
+        return heads
 
     def set_world(self, rows: np.ndarray, dock, low, high, length_scale: float) -> None:
         """Dock position, bounds (m) and length scale L of the fields in ``rows``."""
@@ -190,29 +207,17 @@ class MissionBatch:
             next call overwrites; rows not in ``live`` are zero / False. ``terms`` columns follow
             :data:`debris_gym.rewards.REWARD_TERMS`.
         """
+        if live.dtype != np.bool_ or actions.dtype != np.float64:
+            live, actions = live.astype(np.bool_), actions.astype(np.float64)
         # the machine code is resolved for exactly these types (see jit.specialise)
-        live = np.ascontiguousarray(live, dtype=np.bool_)
-        actions = np.ascontiguousarray(actions, dtype=np.float64)
-        field, out = self.field_arrays, self._outputs
-        if self.threads > 1:
-            args = (
-                self.threads,
-                live,
-                actions,
-                self.rules,
-                self.shaping,
-                self.missions,
-                field,
-                out,
-            )
-            kernel = step_all_threaded
-        else:
-            args = (live, actions, self.rules, self.shaping, self.missions, field, out)
-            kernel = step_all
-        if self._step_code is None:
-            self._step_code = specialise(kernel, *args)
-        self._step_code(*args)
-        return out
+        live, actions = np.ascontiguousarray(live), np.ascontiguousarray(actions)
+        head = self._head()
+        code = self._step_code
+        if code is None:
+            kernel = step_all_threaded if self.threads > 1 else step_all
+            code = self._step_code = specialise(kernel, *head["step"], live, actions, *head["tail"])
+        code(*head["step"], live, actions, *head["tail"])
+        return self._outputs
 
     def captured_counts(self) -> np.ndarray:
         """(N,) int64: targets captured so far in each mission (a new array)."""
@@ -224,16 +229,13 @@ class MissionBatch:
         """Write every mission's observation into ``out`` (N, obs size) float32 and return it.
 
         Args:
-            out: the buffer, C-contiguous.
+            out: the buffer, a C-contiguous float32 array (not checked: the envs own it).
             horizon: steps the ``time_remaining`` element counts down from.
         """
-        if out.dtype != np.float32 or not out.flags.c_contiguous or out.ndim != 2:
-            raise ValueError("the observation buffer must be a C-contiguous 2D float32 array")
-        args = (self.rules, self.layout, self.missions, self.field_arrays, float(horizon), out)
-        if self.threads > 1:
-            args = (self.threads, *args)
-        if self._observe_code is None:
+        head = self._head()["observe"]
+        code = self._observe_code
+        if code is None:
             kernel = observe_all_threaded if self.threads > 1 else observe_all
-            self._observe_code = specialise(kernel, *args)
-        self._observe_code(*args)
+            code = self._observe_code = specialise(kernel, *head, float(horizon), out)
+        code(*head, float(horizon), out)
         return out
