@@ -138,11 +138,13 @@ class MissionBatch:
         self._heads: dict[str, tuple] | None = None
         self._step_code = None  # the step's machine code, resolved on the first step
         self._observe_code = None
+        self._begin_code: dict[bool, object] = {}
 
     def __getstate__(self) -> dict:
         # the resolved machine code does not pickle: it is resolved again on first use
         state = self.__dict__.copy()
-        state.update(_step_code=None, _observe_code=None, _field_view=None, _heads=None)
+        state.update(_step_code=None, _observe_code=None, _begin_code={}, _field_view=None)
+        state.update(_heads=None)
         return state
 
     @property
@@ -187,9 +189,13 @@ class MissionBatch:
     def begin(self, rows: np.ndarray, states: np.ndarray | None = None) -> None:
         """Start new episodes in ``rows`` (fields loaded): chaser at ``states`` (R, 2·dim) or at
         rest at the dock, clocks and flags cleared, gaps and potential computed."""
-        rows = np.asarray(rows, dtype=np.int64)
+        rows = np.ascontiguousarray(rows, dtype=np.int64)
         states = None if states is None else np.ascontiguousarray(states, dtype=float)
-        begin_rows(rows, states, self.rules, self.shaping, self.missions, self.field_arrays)
+        args = (rows, states, self.rules, self.shaping, self.missions, self.field_arrays)
+        code = self._begin_code.get(states is None)
+        if code is None:  # one machine code with initial states, one without
+            code = self._begin_code[states is None] = specialise(begin_rows, *args)
+        code(*args)
 
     def step(
         self, actions: np.ndarray, live: np.ndarray
