@@ -23,8 +23,20 @@ from pathlib import Path
 
 import numba
 
-COMPILED_MODULES = ("batch_geometry", "generators", "geometry_kernels", "mission_batch", "thrust")
+COMPILED_MODULES = (
+    "batch_geometry",
+    "generators",
+    "geometry_kernels",
+    "goal",
+    "mission_step",
+    "observation",
+    "thrust",
+)
 """Modules of this package with numba-compiled functions (their caches are dropped together)."""
+
+STRUCTURE_MODULES = ("mission_data",)
+"""Modules whose named tuples the compiled signatures are made of: the compiled code reads
+their fields by position, so a change to them drops the cache too."""
 
 COMPILE_OPTIONS: dict[str, object] = {"cache": True, "nogil": True, "error_model": "numpy"}
 """Options of every decorator below. ``error_model="numpy"``: a division by zero gives inf/NaN
@@ -89,7 +101,7 @@ def drop_stale_cache(package_dir: Path, modules: tuple[str, ...] = COMPILED_MODU
 
 
 with contextlib.suppress(OSError):
-    drop_stale_cache(Path(__file__).resolve().parent)
+    drop_stale_cache(Path(__file__).resolve().parent, COMPILED_MODULES + STRUCTURE_MODULES)
 
 kernel = numba.njit(**COMPILE_OPTIONS)
 """Decorator for a compiled loop called from Python."""
@@ -99,3 +111,16 @@ inlined = numba.njit(**COMPILE_OPTIONS, inline="always")
 
 threaded = numba.njit(**COMPILE_OPTIONS, parallel=True)
 """Decorator for a compiled loop whose ``numba.prange`` iterations run on several threads."""
+
+
+def specialise(dispatcher, *args):
+    """The machine code of ``dispatcher`` (compiled or loaded from the cache if need be) for the
+    types of ``args``, as a callable that skips numba's per-call type dispatch.
+
+    Numba types every argument on each call of a dispatcher; for a named tuple it does so in
+    Python, element by element, which costs more than the whole of a small step
+    (docs/benchmarks.md). A caller that passes the same structures every time resolves the
+    machine code once and calls it directly. The caller must then pass arguments of exactly the
+    types of ``args`` (same dtypes, dimensions and contiguity): the machine code does not check.
+    """
+    return dispatcher.compile(tuple(dispatcher.typeof_pyval(a) for a in args))

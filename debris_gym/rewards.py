@@ -27,7 +27,7 @@ chaser's speed toward b's centre. The progress term is potential-based ([Ng99] i
 docs/references.md), so it changes how fast an agent learns but not which policy is optimal (for
 the same γ as the learner's, and Φ = 0 after termination).
 
-The terms are computed in the envs' compiled step (:mod:`debris_gym.mission_batch`); this
+The terms are computed in the envs' compiled step (:mod:`debris_gym.mission_step`); this
 module names them (in the order of ``info["reward_terms"]`` and of the step's term columns).
 """
 

@@ -1,4 +1,10 @@
-"""Reference implementation of the DebrisField rules (the pre-compiled single env), for tests."""
+"""Reference implementation of the DebrisField rules (the pre-compiled single env), for tests.
+
+Independent of the code under test where a shared mistake would hide: the observation layout
+(names and order) and the clip limit are written out here by hand from docs/environments.md,
+and the reference draws no fields (a test pins the field the env drew, so the library's field
+generator is not part of the reference).
+"""
 
 from __future__ import annotations
 
@@ -7,22 +13,47 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from gymnasium import spaces
 
 from debris_gym.config import EnvConfig
 from debris_gym.dynamics import discretize, substep_position_matrix
-from debris_gym.envs.common import (
-    OBS_LIMIT,
-    discrete_action_table,
-    field_spec,
-    new_scenario,
-    observation_names,
-    registered_horizon,
-    single_spaces,
-)
 from debris_gym.geometry import FieldGeometry, lidar_directions
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.scenario import Scenario, as_scenario
 from debris_gym.thrust import commanded_accel, delta_v_rate
+
+OBS_LIMIT = 10.0
+"""Observations are clipped to ±10 (docs/environments.md)."""
+
+
+def reference_observation_names(cfg: EnvConfig) -> list[str]:
+    """The observation's element names, in order, as docs/environments.md lists them."""
+    axes = "xyz"[: cfg.dim]
+    names = [f"chaser_pos_{a}" for a in axes] + [f"chaser_vel_{a}" for a in axes]
+    for k in range(cfg.obs_targets):
+        names += [f"target{k}_rel_pos_{a}" for a in axes]
+        names += [f"target{k}_rel_vel_{a}" for a in axes]
+        names += [f"target{k}_radius", f"target{k}_captured"]
+    names += [f"dock_rel_pos_{a}" for a in axes]
+    if cfg.observation == "kinematics":
+        for k in range(cfg.obs_obstacles):
+            names += [f"obstacle{k}_rel_pos_{a}" for a in axes]
+            names += [f"obstacle{k}_radius", f"obstacle{k}_gap"]
+    else:
+        names += [f"lidar{k}" for k in range(cfg.lidar_rays)]
+    names += ["delta_v_remaining", "time_remaining"]
+    if cfg.obs_goal:
+        names += [f"goal_rel_pos_{a}" for a in axes] + [f"goal_rel_vel_{a}" for a in axes]
+        names += ["goal_gap"]
+    return names
+
+
+def reference_discrete_actions(dim: int) -> np.ndarray:
+    """Row k = normalised thrust of discrete action k: coast, +x, −x, +y, −y (, +z, −z)."""
+    table = np.zeros((2 * dim + 1, dim))
+    for axis in range(dim):
+        table[1 + 2 * axis, axis], table[2 + 2 * axis, axis] = 1.0, -1.0
+    return table
 
 
 class ReferenceDebrisFieldEnv(gym.Env):
@@ -37,8 +68,10 @@ class ReferenceDebrisFieldEnv(gym.Env):
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 15}
 
-    def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
+    def __init__(self, render_mode: str | None = None, horizon: int = 1000, **kwargs: Any) -> None:
         self.config = EnvConfig.from_kwargs(**kwargs)
+        if self.config.obs_goal or self.config.obs_other_targets:
+            raise ValueError("the reference has no obs_goal / obs_other_targets observations")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode={render_mode!r} is not supported; use one of "
@@ -47,14 +80,19 @@ class ReferenceDebrisFieldEnv(gym.Env):
         self.render_mode = render_mode
         cfg = self.config
         self.dim = d = cfg.dim
-        self.observation_space, self.action_space = single_spaces(cfg)
-        self._discrete_actions = discrete_action_table(d)
-        self._obs_names = observation_names(cfg)
+        self._obs_names = reference_observation_names(cfg)
+        size = len(self._obs_names)
+        self.observation_space = spaces.Box(-OBS_LIMIT, OBS_LIMIT, (size,), dtype=np.float32)
+        if cfg.action == "continuous":
+            self.action_space = spaces.Box(-1.0, 1.0, shape=(d,), dtype=np.float32)
+        else:
+            self.action_space = spaces.Discrete(2 * d + 1)
+        self._discrete_actions = reference_discrete_actions(d)
         lidar = cfg.observation == "lidar"
         self._lidar_dirs = lidar_directions(d, cfg.lidar_rays) if lidar else None
-        self._field_spec = field_spec(cfg)
         self.scenario: Scenario | None = None
-        self._horizon: int | None = None
+        self._horizon = horizon
+        """Steps the time-remaining element counts down from."""
         self._renderer = None
 
     # --- observation layout -------------------------------------------------------------------
@@ -84,9 +122,6 @@ class ReferenceDebrisFieldEnv(gym.Env):
         return list(self._obs_names)
 
     # --- scenario -----------------------------------------------------------------------------
-
-    def _new_scenario(self) -> Scenario:
-        return new_scenario(self.config, self._field_spec, self.np_random)
 
     def _set_scenario(self, scenario: Scenario) -> None:
         cfg = self.config
@@ -120,8 +155,8 @@ class ReferenceDebrisFieldEnv(gym.Env):
         """Start an episode.
 
         Args:
-            seed: seeds the env's generator (and so the random field).
-            options: ``{"scenario": Scenario | dict | path}`` pins the field;
+            seed: seeds the env's generator.
+            options: ``{"scenario": Scenario | dict | path}`` the field (required);
                 ``{"chaser_state": array (2·dim,)}`` sets the initial LVLH state (m, m/s).
         """
         super().reset(seed=seed)
@@ -129,10 +164,11 @@ class ReferenceDebrisFieldEnv(gym.Env):
         unknown = sorted(set(options) - {"scenario", "chaser_state"})
         if unknown:
             raise ValueError(f"unknown reset option(s) {unknown}; allowed: chaser_state, scenario")
-        if options.get("scenario") is not None:
-            self._set_scenario(as_scenario(options["scenario"]))
-        else:
-            self._set_scenario(self._new_scenario())
+        if options.get("scenario") is None:
+            raise ValueError(
+                "the reference draws no fields: pin one with options={'scenario': ...}"
+            )
+        self._set_scenario(as_scenario(options["scenario"]))
         d = self.dim
         if options.get("chaser_state") is not None:
             state = self._validated_chaser_state(options["chaser_state"])
@@ -344,16 +380,11 @@ class ReferenceDebrisFieldEnv(gym.Env):
         k += width
         budget = cfg.delta_v_budget
         obs[k] = 1.0 if budget is None else max(budget - self._delta_v, 0.0) / budget
-        horizon = self._horizon_steps()
+        horizon = self._horizon
         obs[k + 1] = max(horizon - self._steps, 0) / horizon
         np.minimum(obs, OBS_LIMIT, out=obs)
         np.maximum(obs, -OBS_LIMIT, out=obs)
         return obs.astype(np.float32)
-
-    def _horizon_steps(self) -> int:
-        if self._horizon is None:
-            self._horizon = registered_horizon(self.spec)
-        return self._horizon
 
     def _fill_target_slots(self, slots: np.ndarray, pos: np.ndarray, vel: np.ndarray) -> None:
         """K × (rel pos, rel vel, radius, captured): goals first (queue order or nearest)."""

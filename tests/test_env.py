@@ -14,8 +14,13 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 import debris_gym
 from debris_gym.dynamics import discretize
 from debris_gym.envs import DebrisFieldEnv
+from debris_gym.envs.vector import DebrisFieldVectorEnv
 from debris_gym.rewards import REWARD_TERMS
-from debris_gym.scenario import Body, Scenario
+from debris_gym.scenario import Body
+from tests.helpers import simple_scenario
+
+# many tests fly the free-space simple_scenario in envs with the default LEO orbit on purpose
+pytestmark = pytest.mark.filterwarnings("ignore:the pinned scenario's physics differ")
 
 ALL_IDS = list(debris_gym.ENV_SPECS)
 INFO_KEYS = {
@@ -29,22 +34,6 @@ INFO_KEYS = {
     "is_success",
     "reward_terms",
 }
-
-
-def simple_scenario(**overrides) -> Scenario:
-    """Free-space field: one target 100 m along-track, one circle obstacle, dock at origin."""
-    data = dict(
-        dim=2,
-        bounds=((-500.0, 500.0), (-500.0, 500.0)),
-        dock=(0.0, 0.0),
-        targets=(Body(position=(0.0, 100.0), radius=5.0, velocity=(0.0, 0.0)),),
-        obstacles=(Body(position=(200.0, 0.0), radius=20.0, velocity=(0.0, 0.0)),),
-        mean_motion=0.0,
-        dt=10.0,
-        max_accel=0.05,
-    )
-    data.update(overrides)
-    return Scenario(**data)
 
 
 @pytest.mark.parametrize("env_id", ALL_IDS)
@@ -750,3 +739,35 @@ def test_approach_speed_shaping_hand_computed():
     assert env.potential == pytest.approx(-(gap / 500.0 + 1.0), rel=1e-12)
     # with γ = 1 and 'hold', the progress terms still sum to Φ(end) − Φ(start)
     assert_progress_telescopes(seed=3, steps=60, **kwargs)
+
+
+def test_a_pinned_scenario_with_other_physics_warns_and_flies_its_own():
+    """Regression: a hand-built Scenario left at its default physics (free space) flew silently
+    in free space in a LEO env. It still flies its own physics (the documented contract of a
+    pinned field), with a warning naming each differing parameter and both values."""
+    env = DebrisFieldEnv(delta_v_budget=None)
+    scen = simple_scenario(dt=5.0)
+    with pytest.warns(
+        UserWarning, match=r"mean_motion 0\.0 \(env 0\.00113\d*\), dt 5\.0 \(env 10\.0\)"
+    ):
+        env.reset(seed=0, options={"scenario": scen, "chaser_state": [0.0, 0.0, 1.0, 0.0]})
+    env.step(np.zeros(2, dtype=np.float32))
+    np.testing.assert_allclose(env.chaser_state, [5.0, 0.0, 1.0, 0.0])  # free space, 5 s
+    matching = simple_scenario(mean_motion=env.config.n, dt=env.config.dt)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        env.reset(seed=0, options={"scenario": matching})
+        vector = gym.make_vec(
+            "DebrisGym/Rendezvous2D-v0",
+            num_envs=2,
+            vectorization_mode="vector_entry_point",
+            delta_v_budget=None,
+            n_obstacles=1,
+            n_targets=1,
+        )
+        vector.reset(seed=0, options={"scenario": matching})
+    other = DebrisFieldVectorEnv(num_envs=2, delta_v_budget=None)
+    with pytest.warns(UserWarning, match=r"max_accel 0\.2 \(env 0\.05\)"):
+        other.reset(
+            seed=0, options={"scenario": simple_scenario(max_accel=0.2, mean_motion=env.config.n)}
+        )

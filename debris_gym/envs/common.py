@@ -1,6 +1,10 @@
-"""What the single env and the native vector env share: spaces, observation layout, fields."""
+"""What the single env and the native vector env share: spaces, fields, the observation names
+(:func:`observation_names`, from :mod:`debris_gym.observation`'s table of slots)."""
 
 from __future__ import annotations
+
+import math
+import warnings
 
 import gymnasium as gym
 import numpy as np
@@ -9,8 +13,19 @@ from gymnasium.envs.registration import EnvSpec
 
 from debris_gym.config import EnvConfig
 from debris_gym.generators import FieldSpec, paper_field, random_field
-from debris_gym.mission_batch import OBS_LIMIT
+from debris_gym.observation import OBS_LIMIT, observation_names
 from debris_gym.scenario import Scenario
+
+__all__ = [
+    "DEFAULT_HORIZON_STEPS",
+    "discrete_action_table",
+    "field_spec",
+    "new_scenario",
+    "observation_names",
+    "registered_horizon",
+    "single_spaces",
+    "warn_if_physics_differ",
+]
 
 DEFAULT_HORIZON_STEPS = 1000
 """Steps used for the 'time remaining' observation when the env has no registered time limit."""
@@ -29,28 +44,6 @@ def registered_horizon(spec: EnvSpec | None) -> int:
         if registered:
             return int(registered)
     return DEFAULT_HORIZON_STEPS
-
-
-def observation_names(cfg: EnvConfig) -> list[str]:
-    """Name of every observation element, in order (see docs/environments.md)."""
-    axes = "xyz"[: cfg.dim]
-    names = [f"chaser_pos_{a}" for a in axes] + [f"chaser_vel_{a}" for a in axes]
-    for k in range(cfg.obs_targets):
-        names += [f"target{k}_rel_pos_{a}" for a in axes]
-        names += [f"target{k}_rel_vel_{a}" for a in axes]
-        names += [f"target{k}_radius", f"target{k}_captured"]
-    names += [f"dock_rel_pos_{a}" for a in axes]
-    if cfg.observation == "kinematics":
-        for k in range(cfg.obs_obstacles):
-            names += [f"obstacle{k}_rel_pos_{a}" for a in axes]
-            names += [f"obstacle{k}_radius", f"obstacle{k}_gap"]
-    else:
-        names += [f"lidar{k}" for k in range(cfg.lidar_rays)]
-    names += ["delta_v_remaining", "time_remaining"]
-    if cfg.obs_goal:
-        names += [f"goal_rel_pos_{a}" for a in axes] + [f"goal_rel_vel_{a}" for a in axes]
-        names += ["goal_gap"]
-    return names
 
 
 def single_spaces(cfg: EnvConfig) -> tuple[spaces.Box, spaces.Space]:
@@ -100,3 +93,31 @@ def new_scenario(cfg: EnvConfig, spec: FieldSpec, rng: np.random.Generator) -> S
         rng, spec, mean_motion=cfg.n, dt=cfg.dt, max_accel=cfg.max_accel,
         capture_radius=cfg.capture_radius,
     )  # fmt: skip
+
+
+PHYSICS_DIFFER = "the pinned scenario's physics differ from the env's options"
+"""Start of the warning :func:`warn_if_physics_differ` gives (for filters)."""
+
+
+def warn_if_physics_differ(cfg: EnvConfig, scenario: Scenario) -> None:
+    """Warn (``UserWarning``) when a pinned scenario's ``mean_motion``, ``dt`` or ``max_accel``
+    differ from the env's options.
+
+    A pinned scenario is flown with its own physics (docs/environments.md, Options): a saved
+    field keeps the physics it was made with. A hand-built :class:`Scenario` whose physics were
+    left at their defaults (free space, ``mean_motion=0``) would then silently fly in free space
+    in a LEO env; the warning names every differing parameter with both values.
+    """
+    ours = {"mean_motion": cfg.n, "dt": cfg.dt, "max_accel": cfg.max_accel}
+    differ = [
+        f"{name} {getattr(scenario, name)!r} (env {value!r})"
+        for name, value in ours.items()
+        if not math.isclose(getattr(scenario, name), value, rel_tol=1e-9, abs_tol=0.0)
+    ]
+    if differ:
+        warnings.warn(
+            f"{PHYSICS_DIFFER}: {', '.join(differ)}; the scenario's are used (build the "
+            "Scenario with the env's values, or the env with the scenario's, to silence this)",
+            UserWarning,
+            stacklevel=3,
+        )

@@ -16,8 +16,10 @@ from debris_gym.envs.common import (
     observation_names,
     registered_horizon,
     single_spaces,
+    warn_if_physics_differ,
 )
 from debris_gym.geometry import FieldGeometry
+from debris_gym.goal import DOCK_GOAL, Goal, current_goal
 from debris_gym.mission_batch import MissionBatch
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.scenario import Scenario, as_scenario
@@ -141,6 +143,23 @@ class DebrisFieldEnv(gym.Env):
             self._field_geometry = FieldGeometry(self.scenario, inflate=self.config.chaser_radius)
         return self._field_geometry
 
+    @property
+    def current_goal(self) -> Goal:
+        """The goal the mission is heading for now (:func:`debris_gym.goal.current_goal`): a
+        target (index ≥ 0, with the chaser-surface-to-target-surface gap in m), the dock (−1,
+        with the distance from the chaser's centre to the dock in m) or nothing left (−2, gap
+        0), and how many goals come after it. The rule the shaping potential and the goal
+        observation use."""
+        m, cfg = self._missions, self.config
+        index, gap, after = current_goal(
+            0, m.gaps, m.captured, cfg.target_order == "queued", cfg.return_to_dock,
+            cfg.chaser_radius,
+        )  # fmt: skip
+        if index == DOCK_GOAL:
+            offset = m.state[0, : self.dim] - m.dock[0]
+            gap = math.sqrt(float(offset @ offset))
+        return Goal(int(index), float(gap), int(after))
+
     def observation_names(self) -> list[str]:
         """Name of every observation element, in order."""
         return list(self._obs_names)
@@ -195,7 +214,9 @@ class DebrisFieldEnv(gym.Env):
         if unknown:
             raise ValueError(f"unknown reset option(s) {unknown}; allowed: chaser_state, scenario")
         if options.get("scenario") is not None:
-            self._set_scenario(as_scenario(options["scenario"]))
+            pinned = as_scenario(options["scenario"])
+            warn_if_physics_differ(self.config, pinned)
+            self._set_scenario(pinned)
         else:
             self._set_scenario(self._new_scenario())
         d = self.dim

@@ -34,6 +34,7 @@ from debris_gym.envs.common import (
     observation_names,
     registered_horizon,
     single_spaces,
+    warn_if_physics_differ,
 )
 from debris_gym.generators import paper_field, random_fields, scenario_from_arrays
 from debris_gym.mission_batch import MissionBatch, check_threads
@@ -112,6 +113,13 @@ class DebrisFieldVectorEnv(VectorEnv):
         :class:`Scenario` when accessed (the same ``Scenario`` the single env builds).
         """
         return _ScenarioList(self)
+
+    @property
+    def batch(self) -> MissionBatch | None:
+        """The :class:`~debris_gym.mission_batch.MissionBatch` holding every sub-env's mission
+        and field as arrays (None before the first reset). Read it; writing to it bypasses the
+        env's checks."""
+        return self._missions
 
     @property
     def _field(self) -> FieldBatch | None:
@@ -219,6 +227,8 @@ class DebrisFieldVectorEnv(VectorEnv):
             raise ValueError(f"unknown reset option(s) {unknown}; allowed: chaser_state, scenario")
         pinned = options.get("scenario")
         pinned = as_scenario(pinned) if pinned is not None else None
+        if pinned is not None:
+            warn_if_physics_differ(self.config, pinned)
         states = options.get("chaser_state")
         if states is not None:
             states = np.array(states, dtype=float)

@@ -1,0 +1,438 @@
+"""The compiled decision step of N missions, as a list of named phases.
+
+One row (mission) of a step is::
+
+    burn       the thrust model, cut to what the Δv budget still allows
+    propagate  exact zero-order-hold flight over the step, sampled at the collision sub-steps
+    contacts   the swept contact check along the sampled path
+    measure    the gaps to every body at the step's end (and the obstacle ranking, clearance)
+    captures   targets reached slowly enough
+    judge      collision, bounds, success; terminated and truncated
+    reward     the named terms, with the potential-based progress term
+
+Each phase is an inlined compiled function; :func:`step_rows` reads as that list.
+:func:`begin_rows` starts episodes. The kernels take the named structures of
+:mod:`debris_gym.mission_data` and unpack the structures of arrays (``Missions``, ``Field``,
+``StepOutputs``) once, at their top, handing each phase the arrays it reads or writes: an array
+read out of a structure costs an atomic reference-count update that numba does not remove,
+and inside the row loop those updates cost more than the step's physics (docs/benchmarks.md).
+Scalars (``Rules``, ``Shaping``) are read from their structures anywhere.
+
+The rules are those of ``docs/environments.md``; :class:`debris_gym.mission_batch.MissionBatch`
+drives these kernels and ``tests/test_mission_batch.py`` holds them to an independent reference
+env.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from debris_gym.batch_geometry import field_gaps, path_touches
+from debris_gym.goal import DOCK_GOAL, NO_GOAL, current_goal
+from debris_gym.jit import inlined, kernel, threaded
+from debris_gym.rewards import REWARD_TERMS
+from debris_gym.thrust import delta_v_rate_row, thrust_row
+
+# reward term columns, in REWARD_TERMS order
+_T_CAPTURE, _T_SUCCESS, _T_PROGRESS, _T_DV, _T_COLLISION, _T_OOB, _T_TIME = range(7)
+assert REWARD_TERMS == (
+    "capture", "success", "progress", "delta_v", "collision", "out_of_bounds", "time"
+)  # fmt: skip
+
+# --- phases -----------------------------------------------------------------------------------
+
+
+@inlined
+def burn(i, action, rules, delta_v, applied, accel):
+    """Thrust: the commanded acceleration of ``action`` into ``accel`` (dim,) and
+    ``applied[i]``, cut to what the Δv budget still allows (a burn that would overspend it
+    spends it exactly); the Δv is added to ``delta_v[i]``. Returns the step's Δv (m/s)."""
+    thrust_row(action, rules.max_accel, rules.box_thrust, accel)
+    dv = delta_v_rate_row(accel, rules.box_thrust) * rules.dt
+    spent = delta_v[i]
+    budget = rules.delta_v_budget
+    if dv > 0.0 and spent + dv > budget:
+        scale = max(budget - spent, 0.0) / dv
+        for k in range(accel.shape[0]):
+            accel[k] = accel[k] * scale
+        dv = dv * scale
+    for k in range(accel.shape[0]):
+        applied[i, k] = accel[k]
+    delta_v[i] = spent + dv
+    return dv
+
+
+@inlined
+def propagate(i, accel, matrix_t, rules, state, time, steps, start, path):
+    """Fly the step: ``start`` (2·dim,) ← the state before it, ``path`` (K + 1, dim) ← its start
+    and the K sub-step positions (``matrix_t``: :attr:`Rules.step_matrix_t`), ``state[i]`` ← the
+    end; the clock advances."""
+    dim = accel.shape[0]
+    n_sub = path.shape[0] - 1
+    for k in range(2 * dim):
+        start[k] = state[i, k]
+    for a in range(dim):
+        path[0, a] = start[a]
+    # [x₀, u] @ matrix_t: every sub-step position, then the end velocity
+    for c in range(matrix_t.shape[1]):
+        s = 0.0
+        for k in range(2 * dim):
+            s += start[k] * matrix_t[k, c]
+        for k in range(dim):
+            s += accel[k] * matrix_t[2 * dim + k, c]
+        if c < n_sub * dim:
+            path[1 + c // dim, c % dim] = s
+        else:
+            state[i, dim + c - n_sub * dim] = s
+    for a in range(dim):
+        state[i, a] = path[n_sub, a]
+    time[i] += rules.dt
+    steps[i] += 1
+
+
+@inlined
+def measure(i, state, gaps, nearest, centers, radii, polygon_start, polygons, n_vertices, vertices):
+    """Gaps (m) from mission ``i``'s chaser centre to every body of its field into ``gaps[i]``,
+    and its ranked obstacles ``nearest[i]`` re-sorted by gap (:func:`sort_by_gap`).
+
+    The gaps are exact for every body: computing all of them in one tight loop costs less than
+    culling polygons with bounds (the bookkeeping of a culled selection outweighs the polygon
+    edges it saves at the default obstacle count; docs/benchmarks.md).
+    """
+    dim = centers.shape[2]
+    field_gaps(
+        state[i, :dim], i, centers, radii, polygon_start, polygons, n_vertices, vertices, gaps[i]
+    )
+    sort_by_gap(gaps[i], nearest[i])
+
+
+@inlined
+def nearest_obstacle(i, n_targets, gaps, clearance):
+    """The smaller of ``clearance`` and the gaps (m) to the obstacles (bodies from
+    ``n_targets`` on) of row ``i``."""
+    for b in range(n_targets, gaps.shape[1]):
+        clearance = min(clearance, gaps[i, b])
+    return clearance
+
+
+@inlined
+def speed_of(i, state):
+    """The chaser's speed (m/s) in row ``i`` of ``state`` (N, 2·dim)."""
+    dim = state.shape[1] // 2
+    s = 0.0
+    for a in range(dim):
+        s += state[i, dim + a] * state[i, dim + a]
+    return math.sqrt(s)
+
+
+@inlined
+def captures(i, slow, rules, gaps, captured):
+    """Capture the targets within ``capture_radius`` of the chaser's surface when the chaser is
+    ``slow`` (targets are at rest in LVLH); queued, only the queue head. Returns how many."""
+    new = 0
+    reach = rules.capture_radius + rules.chaser_radius
+    for j in range(rules.n_targets):
+        if captured[i, j]:
+            continue
+        if slow and gaps[i, j] <= reach:
+            captured[i, j] = True
+            new += 1
+        if rules.queued:
+            break  # only the queue head can be captured
+    return new
+
+
+@inlined
+def collides(i, start, touched, slow, n_targets, state, centers):
+    """Did the step collide? Any contact with debris that is not a target; a target touched
+    too fast (not ``slow``) unless the chaser is leaving it: moving away from its centre at
+    both ends of the step and over the step as a whole (departing after a gentle contact is not
+    an impact)."""
+    dim = start.shape[0] // 2
+    for b in range(n_targets, touched.shape[0]):
+        if touched[b]:
+            return True
+    hit = False
+    if not slow:
+        for j in range(n_targets):
+            if touched[j]:
+                closing0 = 0.0
+                closing1 = 0.0
+                closing_step = 0.0
+                for a in range(dim):
+                    toward = centers[i, j, a] - start[a]
+                    closing0 += toward * start[dim + a]
+                    closing1 += (centers[i, j, a] - state[i, a]) * state[i, dim + a]
+                    closing_step += toward * (state[i, a] - start[a])
+                if closing0 > 0.0 or closing1 > 0.0 or closing_step > 0.0:
+                    hit = True
+    return hit
+
+
+@inlined
+def outside(i, state, low, high):
+    """Is the chaser of row ``i`` on or beyond the bounds?"""
+    oob = False
+    for a in range(low.shape[1]):
+        if state[i, a] <= low[i, a] or state[i, a] >= high[i, a]:
+            oob = True
+    return oob
+
+
+@inlined
+def succeeds(i, slow, rules, state, captured, dock):
+    """Every target captured and (if a return is required) the chaser within
+    ``capture_radius`` of the dock, slow."""
+    done = True
+    for j in range(captured.shape[1]):
+        done = done and captured[i, j]
+    if done and rules.return_to_dock:
+        s = 0.0
+        for a in range(dock.shape[1]):
+            off = state[i, a] - dock[i, a]
+            s += off * off
+        done = math.sqrt(s) <= rules.capture_radius and slow
+    return done
+
+
+@inlined
+def reward(i, new, dv, ended, phi, before, rules, success, collision, out_of_bounds, terms):
+    """The named reward terms of the step into ``terms[i]`` (potential Φ ``before`` and ``phi``
+    after it); returns their sum."""
+    terms[i, _T_CAPTURE] = rules.reward_capture * new
+    terms[i, _T_SUCCESS] = rules.reward_success * success[i]
+    terms[i, _T_PROGRESS] = rules.reward_progress * (rules.gamma * phi - before)
+    terms[i, _T_DV] = -rules.reward_delta_v * dv
+    terms[i, _T_COLLISION] = -rules.reward_collision * collision[i]
+    terms[i, _T_OOB] = -rules.reward_out_of_bounds * out_of_bounds[i]
+    terms[i, _T_TIME] = -rules.reward_time
+    if ended and rules.terminal_zero:
+        terms[i, _T_PROGRESS] -= rules.reward_progress * rules.gamma * phi  # Φ(terminal) = 0
+    total = 0.0
+    for k in range(terms.shape[1]):
+        total += terms[i, k]
+    return total
+
+
+# --- the potential ----------------------------------------------------------------------------
+
+
+@inlined
+def potential(i, rules, shaping, state, gaps, captured, centers, dock, length_scale, speed_scale):
+    """Φ of mission ``i``: −(gap to the current goal / L + goals after it), less the optional
+    terms of ``shaping`` (:func:`shaping_terms`; see :mod:`debris_gym.rewards`).
+
+    ``shaping`` is None when those terms are off (:func:`debris_gym.mission_data.make_shaping`):
+    numba then compiles the kernels without the call, whose mere presence cost time in every
+    step (docs/benchmarks.md).
+    """
+    goal, gap, after = current_goal(
+        i, gaps, captured, rules.queued, rules.return_to_dock, rules.chaser_radius
+    )
+    if goal == DOCK_GOAL:  # the distance to the dock, written out for 2 or 3 axes (no loop)
+        off = state[i, 0] - dock[i, 0]
+        s = off * off
+        off = state[i, 1] - dock[i, 1]
+        s += off * off
+        if dock.shape[1] == 3:
+            off = state[i, 2] - dock[i, 2]
+            s += off * off
+        gap = math.sqrt(s)
+    goal_gap = max(gap, 0.0)
+    phi = -(goal_gap / length_scale[i] + after)
+    if shaping is not None:
+        phi = shaping_terms(
+            phi, goal, goal_gap, i, rules, shaping, state, gaps, centers, speed_scale[i]
+        )
+    return phi
+
+
+@kernel  # not inlined: off by default (see potential's ``shaping``)
+def shaping_terms(phi, goal, goal_gap, i, rules, shaping, state, gaps, centers, speed_scale):
+    """Φ less the optional approach-speed, clearance and closing terms: ``shaping.speed`` ·
+    max(0, speed − (capture_speed + slope · goal gap)) / V; ``shaping.clearance`` ·
+    max(0, 1 − c / d)² (c: the chaser surface's gap to the nearest obstacle);
+    ``shaping.closing`` · the largest, over bodies b other than the goal within
+    ``closing_distance`` d, of max(0, v_b − capture_speed) / V · (1 − c_b / d) (v_b: the
+    chaser's speed toward b's centre). ``speed_scale`` is the row's V (m/s)."""
+    dim = centers.shape[2]
+    n_targets, chaser_r = rules.n_targets, rules.chaser_radius
+    if shaping.speed > 0.0 and goal != NO_GOAL:
+        allowed = rules.capture_speed + shaping.speed_slope * goal_gap
+        phi -= shaping.speed * max(speed_of(i, state) - allowed, 0.0) / speed_scale
+    if shaping.clearance > 0.0 and gaps.shape[1] > n_targets:
+        clearance = max(nearest_obstacle(i, n_targets, gaps, math.inf) - chaser_r, 0.0)
+        closeness = max(1.0 - clearance / shaping.clearance_distance, 0.0)
+        phi -= shaping.clearance * closeness * closeness
+    if shaping.closing > 0.0:
+        worst = 0.0
+        reach = shaping.closing_distance
+        for b in range(gaps.shape[1]):
+            c = gaps[i, b] - chaser_r
+            if b == goal or not c < reach:
+                continue
+            toward = 0.0
+            dist2 = 0.0
+            for a in range(dim):
+                rel = centers[i, b, a] - state[i, a]
+                toward += rel * state[i, dim + a]
+                dist2 += rel * rel
+            closing = toward / math.sqrt(dist2) if dist2 > 0.0 else 0.0
+            excess = max(closing - rules.capture_speed, 0.0) / speed_scale
+            worst = max(worst, excess * (1.0 - max(c, 0.0) / reach))
+        phi -= shaping.closing * worst
+    return phi
+
+
+@inlined
+def sort_by_gap(gaps, order):
+    """Sort the body indices ``order`` by ``gaps`` (B,), nearest first, equal gaps by index.
+
+    An insertion sort, started from the order of the step before: the chaser moves little in a
+    step, so the order is nearly sorted already and the sort costs about one comparison per
+    body, with branches that predict well (selecting the nearest few afresh every step, by
+    insertion into a short sorted list, costs more: its branches mispredict). The result is the
+    same (gap, index) order whatever the starting permutation.
+    """
+    for j in range(1, order.shape[0]):
+        x = order[j]
+        g = gaps[x]
+        k = j - 1
+        while k >= 0:
+            y = order[k]
+            h = gaps[y]
+            if h < g or (h == g and y < x):
+                break
+            order[k + 1] = y
+            k -= 1
+        order[k + 1] = x
+
+
+# --- kernels ----------------------------------------------------------------------------------
+
+
+@kernel
+def begin_rows(rows, states, rules, shaping, missions, field):
+    """Start new episodes in ``rows``: the chaser at ``states`` (R, 2·dim) or, if None, at rest
+    at the dock; clocks, Δv and flags cleared; gaps, clearance and potential computed."""
+    (state, time, steps, delta_v, captured, collision, out_of_bounds, success, gaps, nearest,
+     min_clearance, potentials, applied) = missions  # fmt: skip
+    (centers, radii, polygon_start, polygons, n_vertices, vertices, dock, _low, _high,
+     length_scale, speed_scale) = field  # fmt: skip
+    dim = dock.shape[1]
+    n_targets = rules.n_targets
+    for r in range(rows.shape[0]):
+        i = rows[r]
+        for k in range(nearest.shape[1]):  # a new field: sort from index order
+            nearest[i, k] = n_targets + k
+        for a in range(dim):
+            if states is None:
+                state[i, a] = dock[i, a]
+                state[i, dim + a] = 0.0
+            else:
+                state[i, a] = states[r, a]
+                state[i, dim + a] = states[r, dim + a]
+            applied[i, a] = 0.0
+        time[i] = 0.0
+        steps[i] = 0
+        delta_v[i] = 0.0
+        for j in range(n_targets):
+            captured[i, j] = False
+        collision[i] = False
+        out_of_bounds[i] = False
+        success[i] = False
+        measure(
+            i, state, gaps, nearest, centers, radii, polygon_start, polygons, n_vertices, vertices
+        )
+        min_clearance[i] = nearest_obstacle(i, n_targets, gaps, math.inf)
+        potentials[i] = potential(
+            i, rules, shaping, state, gaps, captured, centers, dock, length_scale, speed_scale
+        )
+
+
+@kernel
+def step_all(live, actions, rules, shaping, missions, field, out):
+    """One step of every mission in ``live`` (see :meth:`MissionBatch.step`)."""
+    step_rows(0, live.shape[0], live, actions, rules, shaping, missions, field, out)
+
+
+@threaded
+def step_all_threaded(n_chunks, live, actions, rules, shaping, missions, field, out):
+    """:func:`step_all` with the missions split into ``n_chunks`` row ranges run in parallel."""
+    num = live.shape[0]
+    for c in numba.prange(n_chunks):
+        lo, hi = c * num // n_chunks, (c + 1) * num // n_chunks
+        step_rows(lo, hi, live, actions, rules, shaping, missions, field, out)
+
+
+@kernel  # called once per row range: no need to inline it
+def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out):
+    """One step of the missions ``lo … hi − 1`` that are ``live``: the phases in order."""
+    (state, time, steps, delta_v, captured, collision, out_of_bounds, success, gaps, nearest,
+     min_clearance, potentials, applied) = missions  # fmt: skip
+    (centers, radii, polygon_start, polygons, n_vertices, vertices, dock, low, high,
+     length_scale, speed_scale) = field  # fmt: skip
+    rewards, terminated, truncated, terms = out
+    matrix_t = rules.step_matrix_t
+    n_targets = rules.n_targets
+    dim = dock.shape[1]
+    path = np.empty((matrix_t.shape[1] // dim, dim))  # start + every sub-step
+    start = np.empty(2 * dim)
+    accel = np.empty(dim)
+    touched = np.empty(centers.shape[1], dtype=np.bool_)
+    for i in range(lo, hi):
+        if not live[i]:
+            for k in range(terms.shape[1]):
+                terms[i, k] = 0.0
+            rewards[i] = 0.0
+            terminated[i] = False
+            truncated[i] = False
+            continue
+        # burn, propagate
+        dv = burn(i, actions[i], rules, delta_v, applied, accel)
+        propagate(i, accel, matrix_t, rules, state, time, steps, start, path)
+        # contacts along the path, swept from the gaps at its start
+        path_touches(
+            path, gaps[i], rules.chaser_radius, i, centers, radii, polygon_start, n_vertices,
+            vertices, touched,
+        )  # fmt: skip
+        # measure at the end
+        measure(
+            i, state, gaps, nearest, centers, radii, polygon_start, polygons, n_vertices, vertices
+        )
+        min_clearance[i] = nearest_obstacle(i, n_targets, gaps, min_clearance[i])
+        # captures
+        slow = speed_of(i, state) <= rules.capture_speed
+        new = captures(i, slow, rules, gaps, captured)
+        # judge
+        collision[i] = collision[i] or collides(i, start, touched, slow, n_targets, state, centers)
+        out_of_bounds[i] = outside(i, state, low, high)
+        success[i] = success[i] or (
+            not collision[i] and succeeds(i, slow, rules, state, captured, dock)
+        )
+        spent = delta_v[i] >= rules.delta_v_budget
+        ended = success[i] or collision[i] or out_of_bounds[i] or spent
+        terminated[i] = ended
+        truncated[i] = rules.max_steps > 0 and steps[i] >= rules.max_steps
+        # reward
+        phi = potential(
+            i, rules, shaping, state, gaps, captured, centers, dock, length_scale, speed_scale
+        )
+        before = potentials[i]
+        potentials[i] = phi
+        rewards[i] = reward(
+            i, new, dv, ended, phi, before, rules, success, collision, out_of_bounds, terms
+        )
+
+
+@kernel
+def count_rows(flags, out):
+    """out[i] = number of True in flags[i] (cheaper than numpy's bool sum along a short axis)."""
+    for i in range(flags.shape[0]):
+        count = 0
+        for j in range(flags.shape[1]):
+            count += flags[i, j]
+        out[i] = count

@@ -1,0 +1,326 @@
+"""The kinematics / lidar observation: one table of slots, the names and the compiled writer.
+
+:data:`OBSERVATION_BLOCKS` lists the observation's blocks in order, each with the names of the
+elements of one slot and how many slots the config gives it. From that one table come both
+:func:`observation_names` (what every element means) and :func:`observation_layout` (where each
+block starts), and the compiled writer :func:`observe_rows` writes each block from the offset
+the layout gives it, in the element order of its table row. No gymnasium import.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numba
+import numpy as np
+
+from debris_gym.batch_geometry import ray_ranges
+from debris_gym.config import EnvConfig
+from debris_gym.geometry import lidar_directions
+from debris_gym.goal import DOCK_GOAL, NO_GOAL, current_goal
+from debris_gym.jit import inlined, kernel, threaded
+
+OBS_LIMIT = 10.0
+"""Observation values are normalised to about [−1, 1] and clipped to ±OBS_LIMIT."""
+
+
+class ObservationBlock(NamedTuple):
+    """One block of the observation: ``slots(cfg)`` slots of the elements ``elements``.
+
+    An element name with ``{a}`` stands for one element per axis (x, y, z); ``{k}`` is the
+    slot's number.
+    """
+
+    name: str
+    elements: tuple[str, ...]
+    slots: Callable[[EnvConfig], int]
+
+
+def _kinematics(cfg: EnvConfig) -> bool:
+    return cfg.observation == "kinematics"
+
+
+OBSERVATION_BLOCKS: tuple[ObservationBlock, ...] = (
+    ObservationBlock("chaser", ("chaser_pos_{a}", "chaser_vel_{a}"), lambda cfg: 1),
+    ObservationBlock(
+        "targets",
+        (
+            "target{k}_rel_pos_{a}",
+            "target{k}_rel_vel_{a}",
+            "target{k}_radius",
+            "target{k}_captured",
+        ),
+        lambda cfg: cfg.obs_targets,
+    ),
+    ObservationBlock("dock", ("dock_rel_pos_{a}",), lambda cfg: 1),
+    ObservationBlock(
+        "obstacles",
+        ("obstacle{k}_rel_pos_{a}", "obstacle{k}_radius", "obstacle{k}_gap"),
+        lambda cfg: cfg.obs_obstacles if _kinematics(cfg) else 0,
+    ),
+    ObservationBlock("lidar", ("lidar{k}",), lambda cfg: 0 if _kinematics(cfg) else cfg.lidar_rays),
+    ObservationBlock("budgets", ("delta_v_remaining", "time_remaining"), lambda cfg: 1),
+    ObservationBlock(
+        "goal", ("goal_rel_pos_{a}", "goal_rel_vel_{a}", "goal_gap"), lambda cfg: int(cfg.obs_goal)
+    ),
+)
+"""The observation's blocks in order (docs/environments.md has the table with units)."""
+
+
+def _block_names(block: ObservationBlock, cfg: EnvConfig) -> list[str]:
+    axes = "xyz"[: cfg.dim]
+    names = []
+    for k in range(block.slots(cfg)):
+        for element in block.elements:
+            if "{a}" in element:
+                names += [element.format(k=k, a=a) for a in axes]
+            else:
+                names.append(element.format(k=k))
+    return names
+
+
+def observation_names(cfg: EnvConfig) -> list[str]:
+    """Name of every observation element, in order (see docs/environments.md)."""
+    return [name for block in OBSERVATION_BLOCKS for name in _block_names(block, cfg)]
+
+
+class ObservationLayout(NamedTuple):
+    """Where the writer puts each block (offsets into the observation) and what it shows."""
+
+    size: int
+    chaser: int
+    targets: int
+    target_slots: int
+    dock: int
+    obstacles: int
+    obstacle_slots: int
+    lidar: int
+    lidar_rays: int
+    budgets: int
+    goal: int
+    goal_slots: int
+    other_targets: bool
+    """``obs_other_targets``: the obstacle slots show the nearest bodies other than the goal."""
+    lidar_range: float
+    """Longest lidar range (m)."""
+    lidar_directions: np.ndarray
+    """(rays, dim) unit ray directions ((1, dim) zeros without lidar)."""
+
+
+def observation_layout(cfg: EnvConfig) -> ObservationLayout:
+    """The :class:`ObservationLayout` of ``cfg``, from :data:`OBSERVATION_BLOCKS`."""
+    offsets, slots, k = {}, {}, 0
+    for block in OBSERVATION_BLOCKS:
+        offsets[block.name], slots[block.name] = k, block.slots(cfg)
+        k += len(_block_names(block, cfg))
+    lidar = not _kinematics(cfg)
+    return ObservationLayout(
+        size=k,
+        chaser=offsets["chaser"],
+        targets=offsets["targets"],
+        target_slots=slots["targets"],
+        dock=offsets["dock"],
+        obstacles=offsets["obstacles"],
+        obstacle_slots=slots["obstacles"],
+        lidar=offsets["lidar"],
+        lidar_rays=slots["lidar"],
+        budgets=offsets["budgets"],
+        goal=offsets["goal"],
+        goal_slots=slots["goal"],
+        other_targets=bool(cfg.obs_other_targets),
+        lidar_range=float(cfg.lidar_range),
+        lidar_directions=lidar_directions(cfg.dim, cfg.lidar_rays)
+        if lidar
+        else np.zeros((1, cfg.dim)),
+    )
+
+
+# --- compiled writer --------------------------------------------------------------------------
+
+
+@kernel
+def observe_all(rules, layout, missions, field, horizon, out):
+    """Every mission's observation into ``out`` (N, size) float32."""
+    observe_rows(0, out.shape[0], rules, layout, missions, field, horizon, out)
+
+
+@threaded
+def observe_all_threaded(n_chunks, rules, layout, missions, field, horizon, out):
+    """:func:`observe_all` with the missions split into ``n_chunks`` row ranges run in parallel."""
+    num = out.shape[0]
+    for c in numba.prange(n_chunks):
+        lo, hi = c * num // n_chunks, (c + 1) * num // n_chunks
+        observe_rows(lo, hi, rules, layout, missions, field, horizon, out)
+
+
+@inlined
+def _put(out, i, k, value):
+    """out[i, k] = value clipped to ±OBS_LIMIT (in float64, then rounded once to float32)."""
+    out[i, k] = min(max(value, -OBS_LIMIT), OBS_LIMIT)
+    return k + 1
+
+
+@kernel  # called once per row range
+def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
+    """Observations of the missions ``lo … hi − 1`` into ``out``, block by block."""
+    state, gaps, captured = missions.state, missions.gaps, missions.captured
+    nearest, delta_v, steps = missions.nearest, missions.delta_v, missions.steps
+    centers, radii, dock = field.centers, field.radii, field.dock
+    length_scale, speed_scale = field.length_scale, field.speed_scale
+    n_vertices, vertices = field.n_vertices, field.vertices
+    lidar_directions = layout.lidar_directions
+    dim = dock.shape[1]
+    n_targets = rules.n_targets
+    order = np.empty(n_targets, dtype=np.int64)
+    n_near = min(layout.obstacle_slots, nearest.shape[1])
+    if layout.other_targets:  # every body but the goal is a candidate
+        n_near = min(layout.obstacle_slots, gaps.shape[1] - 1)
+    near = np.empty(n_near, dtype=np.int64)  # the bodies in the obstacle slots
+    near_gap = np.empty(n_near)
+    ranges = np.empty(lidar_directions.shape[0])
+    for i in range(lo, hi):
+        goal, gap = NO_GOAL, 0.0  # the current goal, for the options that show it
+        if layout.goal_slots or layout.other_targets:
+            goal, gap, _ = current_goal(
+                i, gaps, captured, rules.queued, rules.return_to_dock, rules.chaser_radius
+            )
+        # x / L as x · (1 / L): one division per scale instead of one per element
+        L = length_scale[i]
+        V = speed_scale[i]
+        inv_l = 1.0 / L
+        inv_v = 1.0 / V
+
+        # chaser: position / L, velocity / V
+        k = layout.chaser
+        for a in range(dim):
+            k = _put(out, i, k, state[i, a] * inv_l)
+        for a in range(dim):
+            k = _put(out, i, k, state[i, dim + a] * inv_v)
+
+        # targets: uncaptured first (nearest first, or queue order), then captured, each group
+        # in index order among equals; per slot relative position, velocity, radius, captured
+        k = layout.targets
+        for j in range(n_targets):
+            order[j] = j
+        for j in range(1, n_targets):  # insertion sort on (captured, key, index)
+            x = order[j]
+            m = j - 1
+            while m >= 0 and _target_before(x, order[m], i, captured, gaps, rules.queued):
+                order[m + 1] = order[m]
+                m -= 1
+            order[m + 1] = x
+        m = min(layout.target_slots, n_targets)
+        for s in range(m):
+            j = order[s]
+            for a in range(dim):
+                k = _put(out, i, k, (centers[i, j, a] - state[i, a]) * inv_l)
+            for a in range(dim):
+                k = _put(out, i, k, -state[i, dim + a] * inv_v)  # targets at rest: minus chaser's
+            k = _put(out, i, k, radii[i, j] * inv_l)
+            k = _put(out, i, k, 1.0 if captured[i, j] else 0.0)
+        for _slot in range(m, layout.target_slots):  # empty slots read as "captured"
+            for _ in range(2 * dim + 1):
+                k = _put(out, i, k, 0.0)
+            k = _put(out, i, k, 1.0)
+
+        # dock: relative position / L
+        k = layout.dock
+        for a in range(dim):
+            k = _put(out, i, k, (dock[i, a] - state[i, a]) * inv_l)
+
+        # obstacles: the nearest by surface gap, nearest first (the step keeps them ranked);
+        # with obs_other_targets the nearest bodies other than the current goal
+        if layout.obstacle_slots:
+            k = layout.obstacles
+            if layout.other_targets:
+                _select_nearest(gaps[i], 0, goal, near, near_gap)
+            else:
+                for s in range(n_near):
+                    near[s] = nearest[i, s]
+            for s in range(n_near):
+                b = near[s]
+                for a in range(dim):
+                    k = _put(out, i, k, (centers[i, b, a] - state[i, a]) * inv_l)
+                k = _put(out, i, k, radii[i, b] * inv_l)
+                k = _put(out, i, k, gaps[i, b] * inv_l)
+            for _slot in range(n_near, layout.obstacle_slots):
+                for _ in range(dim + 1):
+                    k = _put(out, i, k, 0.0)
+                k = _put(out, i, k, 1.0)
+
+        # lidar: ray ranges / lidar_range
+        if layout.lidar_rays:
+            k = layout.lidar
+            ray_ranges(
+                state[i, :dim], lidar_directions, layout.lidar_range, i, centers, radii,
+                field.polygon_start, n_vertices, vertices, ranges,
+            )  # fmt: skip
+            for r in range(ranges.shape[0]):
+                k = _put(out, i, k, ranges[r] / layout.lidar_range)
+
+        # budgets: Δv remaining, time remaining (fractions)
+        k = layout.budgets
+        budget = rules.delta_v_budget
+        spent = delta_v[i]
+        k = _put(out, i, k, 1.0 if budget == math.inf else max(budget - spent, 0.0) / budget)
+        k = _put(out, i, k, max(horizon - steps[i], 0.0) / horizon)
+
+        # goal: the current goal at a 10x finer scale
+        if layout.goal_slots:
+            k = layout.goal
+            fine_l = L / 10.0
+            s = 0.0
+            for a in range(dim):
+                if goal >= 0:
+                    rel = centers[i, goal, a] - state[i, a]
+                elif goal == DOCK_GOAL:
+                    rel = dock[i, a] - state[i, a]
+                else:
+                    rel = 0.0
+                s += rel * rel
+                k = _put(out, i, k, rel / fine_l)
+            for a in range(dim):
+                k = _put(out, i, k, 0.0 if goal == NO_GOAL else -state[i, dim + a] / (V / 10.0))
+            if goal == DOCK_GOAL:
+                gap = math.sqrt(s)
+            k = _put(out, i, k, (gap if goal != NO_GOAL else 0.0) / fine_l)
+
+
+@inlined
+def _target_before(x, y, i, captured, gaps, queued):
+    """Does target x come before target y in the observation's slot order?"""
+    cx, cy = captured[i, x], captured[i, y]
+    if cx != cy:
+        return cy  # uncaptured first
+    if not cx and not queued:
+        if gaps[i, x] != gaps[i, y]:
+            return gaps[i, x] < gaps[i, y]  # nearest first
+    return x < y
+
+
+@inlined
+def _select_nearest(gaps, first, skip, nearest, best):
+    """The bodies ``first …`` except ``skip`` with the smallest ``gaps`` (B,), nearest first (ties
+    by index), into ``nearest``; ``best`` is scratch of its length (their gaps, kept beside the
+    indices: comparing with them directly is cheaper than through ``gaps[nearest[k]]``)."""
+    n = nearest.shape[0]
+    count = 0
+    for b in range(first, gaps.shape[0] if n else first):
+        if b == skip:
+            continue
+        g = gaps[b]
+        if count == n:
+            if not g < best[n - 1]:
+                continue
+            pos = n - 1
+        else:
+            pos = count
+            count += 1
+        while pos > 0 and g < best[pos - 1]:  # strict: an equal gap stays behind (by index)
+            best[pos] = best[pos - 1]
+            nearest[pos] = nearest[pos - 1]
+            pos -= 1
+        best[pos] = g
+        nearest[pos] = b
