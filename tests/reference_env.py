@@ -17,10 +17,11 @@ from gymnasium import spaces
 
 from debris_gym.config import EnvConfig
 from debris_gym.dynamics import discretize, substep_position_matrix
-from debris_gym.geometry import FieldGeometry, lidar_directions
+from debris_gym.geometry import lidar_directions
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.scenario import Scenario, as_scenario
 from debris_gym.thrust import commanded_accel, delta_v_rate
+from tests.geometry_oracle import OracleField
 
 OBS_LIMIT = 10.0
 """Observations are clipped to ±10 (docs/environments.md)."""
@@ -59,11 +60,10 @@ def reference_discrete_actions(dim: int) -> np.ndarray:
 class ReferenceDebrisFieldEnv(gym.Env):
     """The rules of docs/environments.md, one env at a time, in plain numpy and pymunk.
 
-    This was debris-gym's single env before both envs moved onto the compiled
-    :class:`debris_gym.mission_batch.MissionBatch`; it is kept here, unchanged in its rules, as
-    the independent reference the compiled step is tested against (``tests/test_mission_batch.py``).
-    Its geometry is :class:`debris_gym.geometry.FieldGeometry`: numpy clearance, pymunk swept
-    contacts and lidar.
+    The independent reference the compiled step is tested against
+    (``tests/test_mission_batch.py``): one env at a time, in plain Python, with the tests' own
+    geometry (:class:`tests.geometry_oracle.OracleField`: pymunk in 2D, closed forms for
+    spheres) instead of the library's compiled one.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 15}
@@ -128,7 +128,7 @@ class ReferenceDebrisFieldEnv(gym.Env):
         if scenario.dim != self.dim:
             raise ValueError(f"scenario has dim={scenario.dim} but the env has dim={self.dim}")
         self.scenario = scenario
-        self._geometry = FieldGeometry(scenario, inflate=cfg.chaser_radius)
+        self._geometry = OracleField(scenario, inflate=cfg.chaser_radius)
         model = discretize(scenario.mean_motion, scenario.dt, self.dim)
         sub_positions = substep_position_matrix(
             scenario.mean_motion, scenario.dt, self.dim, cfg.collision_substeps

@@ -22,6 +22,8 @@ from agents.planners.apf import (
     total_force,
 )
 from agents.planners.rrt import apf_rrt_path
+from debris_gym.config import DEFAULT_ORBIT_RADIUS
+from debris_gym.dynamics import mean_motion
 from debris_gym.generators import paper_field
 from debris_gym.geometry import FieldGeometry
 from debris_gym.scenario import Body, Scenario
@@ -31,7 +33,7 @@ from tests.geometry_oracle import OracleField
 # fields
 # --------------------------------------------------------------------------------------------------
 
-N_LEO = 1.1314e-3
+N_LEO = mean_motion(DEFAULT_ORBIT_RADIUS)  # the envs' default orbit, as the envs compute it
 
 
 def _field(obstacles, dim=2, target=(400.0, 400.0), target_radius=5.0, n=N_LEO) -> Scenario:

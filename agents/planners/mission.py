@@ -17,6 +17,7 @@ import numpy as np
 
 from agents.planners.ordering import polygon_order, shortest_order
 from debris_gym.config import EnvConfig
+from debris_gym.goal import current_goal
 from debris_gym.scenario import Scenario
 
 ORDERINGS = ("shortest", "polygon", "nearest")
@@ -101,11 +102,13 @@ class MissionPlan:
         if not self.nearest:
             return left
         out: list[int] = []
-        here = position
-        while left:
-            # the env's rule: smallest gap |p - c| - r, the lowest index on a tie
-            gaps = [float(np.linalg.norm(self.centres[i] - here)) - self.radii[i] for i in left]
-            i = left.pop(int(np.argmin(gaps)))
+        here = np.asarray(position, dtype=float)
+        taken = np.array(captured, dtype=bool).reshape(1, -1)
+        while len(out) < len(left):
+            # the env's own rule, from each approach point in turn
+            gaps = np.linalg.norm(self.centres - here, axis=1) - self.radii
+            i = int(current_goal(0, gaps[None], taken, False, False, 0.0)[0])
+            taken[0, i] = True
             out.append(i)
             here = self.approach_point(i, here)
         return out
