@@ -38,6 +38,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from agents.experiments import cli
+
 EXAMPLES = """\
 examples:
   python evaluate.py                                   # every baseline, 20 episodes, runs/eval
@@ -88,12 +90,7 @@ def build_parser() -> argparse.ArgumentParser:
     from agents import BASELINES
     from agents.experiments.evaluation.command import DEFAULT_ENV, DEFAULT_EPISODES
 
-    parser = argparse.ArgumentParser(
-        prog="evaluate.py",
-        description=__doc__,
-        epilog=EXAMPLES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    parser = cli.script_parser("evaluate.py", __doc__, EXAMPLES)
     parser.add_argument(
         "--env",
         default=None,
@@ -157,7 +154,10 @@ def build_parser() -> argparse.ArgumentParser:
         "apf-mpc if evaluated, else the first agent)",
     )
     parser.add_argument(
-        "--no-progress", action="store_true", help="no progress bar (it goes to stderr)"
+        "--no-progress",
+        dest="progress",
+        action="store_false",
+        help="no progress bar (it goes to stderr)",
     )
     parser.add_argument(
         "--paper",
@@ -178,19 +178,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from agents.experiments.evaluation.command import EvaluateOptions, UsageError, run_evaluation
 
-    options = EvaluateOptions(
-        out=args.out,
-        env=args.env,
-        agents=args.agents,
-        episodes=args.episodes,
-        seed=args.seed,
-        plots=args.plots,
-        env_kwargs=args.env_kwargs,
-        max_steps=args.max_steps,
-        reference=args.reference,
-        progress=not args.no_progress,
-        paper=args.paper,
-    )
+    options = EvaluateOptions(**vars(args))  # the parser's destinations are the option names
     try:
         text = run_evaluation(options)
     except UsageError as exc:

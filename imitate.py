@@ -13,9 +13,10 @@ docs/training.md has the measured runs.
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 from pathlib import Path
+
+from agents.experiments import cli
 
 EXAMPLES = """\
 examples:
@@ -27,31 +28,12 @@ examples:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="imitate.py",
-        description=__doc__,
-        epilog=EXAMPLES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    parser = cli.script_parser("imitate.py", __doc__, EXAMPLES)
     parser.add_argument("--out", type=Path, metavar="DIR", required=True, help="run directory")
     parser.add_argument(
         "--env", metavar="ID", default="DebrisGym/Rendezvous2D-v0", help="environment ID"
     )
-    parser.add_argument(
-        "--config",
-        type=Path,
-        metavar="FILE",
-        help="config YAML (default: agents/configs/<env>_imitation.yaml)",
-    )
-    parser.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a config key (dotted, value parsed as YAML), e.g. --set dagger_rounds=2; "
-        "repeatable",
-    )
+    cli.add_config_options(parser, "agents/configs/<env>_imitation.yaml", "--set dagger_rounds=2")
     parser.add_argument("--seed", type=int, metavar="S", help="base seed (default: the config's)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
     return parser
@@ -60,16 +42,13 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    # Ctrl-C must reach Python even when the parent ignores SIGINT; SIGTERM is treated alike.
-    signal.signal(signal.SIGINT, signal.default_int_handler)
-    signal.signal(signal.SIGTERM, signal.default_int_handler)
+    cli.interrupt_on_signals()
     from agents.experiments.imitation.config import load_imitation_config
     from agents.experiments.imitation.run import imitate
 
     try:
         config = load_imitation_config(args.env, args.config, args.overrides, args.seed)
-        words = sys.argv[1:] if argv is None else argv
-        command = " ".join(["python", Path(sys.argv[0]).name, *words])
+        command = " ".join(["python", *cli.command_words(argv)])
         result = imitate(config, args.out, progress=not args.no_progress, command=command)
     except (FileNotFoundError, FileExistsError, ValueError) as exc:
         parser.error(str(exc))

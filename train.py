@@ -11,9 +11,10 @@ The library is agents/experiments/training/; docs/training.md explains the confi
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 from pathlib import Path
+
+from agents.experiments import cli
 
 EXAMPLES = """\
 examples:
@@ -40,14 +41,13 @@ def build_parser() -> argparse.ArgumentParser:
     from agents.experiments.training.config import available_configs
     from agents.policies.model_files import ALGOS
 
-    parser = argparse.ArgumentParser(
-        prog="train.py",
-        description=__doc__,
-        epilog=EXAMPLES + "\nchecked-in configs: " + ", ".join(available_configs()),
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    epilog = EXAMPLES + "\nchecked-in configs: " + ", ".join(available_configs())
+    parser = cli.script_parser("train.py", __doc__, epilog)
     parser.add_argument(
-        "--env", metavar="ID", help="environment ID (default: DebrisGym/Rendezvous2D-v0)"
+        "--env",
+        dest="env_id",
+        metavar="ID",
+        help="environment ID (default: DebrisGym/Rendezvous2D-v0)",
     )
     parser.add_argument("--algo", choices=ALGOS, help="algorithm (default: ppo)")
     parser.add_argument(
@@ -67,20 +67,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="base seed; training sub-env i is seeded with S + i (default: 0)",
     )
     parser.add_argument("--out", type=Path, metavar="DIR", help="run directory (created)")
-    parser.add_argument(
-        "--config",
-        type=Path,
-        metavar="FILE",
-        help="config YAML (default: agents/configs/<env>_<algo>.yaml)",
-    )
-    parser.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a config key (dotted, value parsed as YAML), e.g. "
-        "--set algo_kwargs.batch_size=512 --set normalize.enabled=false; repeatable",
+    cli.add_config_options(
+        parser,
+        "agents/configs/<env>_<algo>.yaml",
+        "--set algo_kwargs.batch_size=512 --set normalize.enabled=false",
     )
     parser.add_argument(
         "--resume",
@@ -88,7 +78,9 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="DIR",
         help="continue the run in DIR from its latest checkpoint, with its own config",
     )
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--no-progress", dest="progress", action="store_false", help="no progress bar"
+    )
     parser.add_argument(
         "--threads",
         type=lambda t: _int(t, 1),
@@ -106,27 +98,12 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.out is None and args.resume is None:
         parser.error("give --out DIR (a new run) or --resume DIR")
-    # Ctrl-C must reach Python even when the parent ignores SIGINT; SIGTERM is treated alike.
-    signal.signal(signal.SIGINT, signal.default_int_handler)
-    signal.signal(signal.SIGTERM, signal.default_int_handler)
+    cli.interrupt_on_signals()
 
     from agents.experiments.training.run import TrainOptions, train
 
-    options = TrainOptions(
-        out=args.out,
-        env_id=args.env,
-        algo=args.algo,
-        config=args.config,
-        overrides=args.overrides,
-        timesteps=args.timesteps,
-        n_envs=args.n_envs,
-        seed=args.seed,
-        resume=args.resume,
-        progress=not args.no_progress,
-        threads=args.threads,
-        device=args.device,
-        argv=[Path(sys.argv[0]).name, *(sys.argv[1:] if argv is None else argv)],
-    )
+    # the parser's destinations are the option names
+    options = TrainOptions(**vars(args), argv=cli.command_words(argv))
     try:
         result = train(options)
     except (FileNotFoundError, FileExistsError, ValueError) as exc:

@@ -170,11 +170,7 @@ def _vector_lines(vec: list[dict[str, Any]]) -> list[str]:
         first = [BACKENDS.get(row["level"], row["level"]), _env_name(row), str(row["num_envs"])]
         reset = "–" if row["level"] == "subproc" else _f(row["reset_ms_per_env"], 2)
         rest = [
-            str(row["count"]),
-            _f(row["env_steps_per_s"], 0),
-            _f(row["env_steps_per_s_best"], 0),
-            _f(row["us_per_env_step"], 2),
-            _f(row["ends_per_1000"], 2),
+            *_throughput_cells(row),
             reset,
             _range(row, "ratio_sync"),
             _range(row, "ratio_cartpole", 4),
@@ -260,15 +256,7 @@ def _vector_scaling_lines(scal: list[dict[str, Any]]) -> list[str]:
         n = row["n_obstacles"]
         label = f"{n} (reference)" if n == DEFAULT_OBSTACLES else str(n)
         first = [label, _f(row["field_size"], 0), str(row["num_envs"])]
-        rest = [
-            str(row["count"]),
-            _f(row["env_steps_per_s"], 0),
-            _f(row["env_steps_per_s_best"], 0),
-            _f(row["us_per_env_step"], 2),
-            _f(row["ends_per_1000"], 2),
-            _f(row["reset_ms_per_env"], 2),
-            _range(row, "ratio"),
-        ]
+        rest = [*_throughput_cells(row), _f(row["reset_ms_per_env"], 2), _range(row, "ratio")]
         lines.append(_line(row, first, rest, "env_steps_per_s"))
     return [*lines, ""]
 
@@ -419,6 +407,18 @@ def _step_line(
         *(extra or []),
     ]
     return _line(row, first, rest, "median_us")
+
+
+def _throughput_cells(row: dict[str, Any]) -> list[str]:
+    """A vector row's steps per repeat, env-steps/s (median, best), µs per env-step and
+    episodes ended per 1000 env-steps."""
+    return [
+        str(row["count"]),
+        _f(row["env_steps_per_s"], 0),
+        _f(row["env_steps_per_s_best"], 0),
+        _f(row["us_per_env_step"], 2),
+        _f(row["ends_per_1000"], 2),
+    ]
 
 
 def _name_row(row: dict[str, Any]) -> str:

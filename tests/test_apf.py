@@ -18,7 +18,7 @@ from agents.planners.apf import (
     apf_path,
     attractive_force,
     is_local_minimum,
-    repulsive_force,
+    repulsive_field,
     total_force,
 )
 from agents.planners.rrt import apf_rrt_path
@@ -86,16 +86,18 @@ def test_forces_match_hand_computed_values():
     params = APFParams(k_att=2e-3, d_star=10.0, k_rep=24.0, d0=60.0, margin=0.0)
     geometry = FieldGeometry(_field([_circle(0.0, 0.0, 10.0)]))
     # repulsion: clearance 10 m → η(1/10 − 1/60)/10² = 24 · (1/12) / 100 = 0.02 m/s², along +x
-    f = repulsive_force(np.array([20.0, 0.0]), geometry, params)
+    f = repulsive_field(np.array([20.0, 0.0]), geometry, params)[1]
     np.testing.assert_allclose(f, [0.02, 0.0], atol=1e-12)
     # inflate and margin shrink the clearance: 10 − 3 − 2 = 5 m → 24 (1/5 − 1/60)/25 = 0.176
     p2 = APFParams(k_att=2e-3, d_star=10.0, k_rep=24.0, d0=60.0, margin=2.0)
     np.testing.assert_allclose(
-        repulsive_force(np.array([0.0, 20.0]), geometry, p2, inflate=3.0), [0.0, 0.176], rtol=1e-12
+        repulsive_field(np.array([0.0, 20.0]), geometry, p2, inflate=3.0)[1],
+        [0.0, 0.176],
+        rtol=1e-12,
     )
     # beyond d0, or ignored: nothing (body 1 is the obstacle; body 0 the far target)
-    assert not repulsive_force(np.array([71.0, 0.0]), geometry, params).any()
-    assert not repulsive_force(np.array([20.0, 0.0]), geometry, params, ignore=(1,)).any()
+    assert not repulsive_field(np.array([71.0, 0.0]), geometry, params)[1].any()
+    assert not repulsive_field(np.array([20.0, 0.0]), geometry, params, ignore=(1,))[1].any()
     # attraction: quadratic inside d*, conic (magnitude ζd* = 0.02) beyond
     np.testing.assert_allclose(
         attractive_force(np.array([3.0, 4.0]), np.zeros(2), params), [-0.006, -0.008]

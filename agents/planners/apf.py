@@ -261,7 +261,7 @@ def active_mask(n_bodies: int, ignore: Iterable[int]) -> np.ndarray:
     return mask
 
 
-def repulsive_potential(
+def repulsive_field(
     x: np.ndarray,
     geometry: FieldGeometry,
     params: APFParams,
@@ -270,8 +270,10 @@ def repulsive_potential(
     inflate: float = 0.0,
     goal: np.ndarray | None = None,
     virtual: Sequence[VirtualPoint] = (),
-) -> float:
-    """U_rep = Σᵢ ½η(1/dᵢ − 1/d₀)² over bodies with clearance dᵢ ≤ d₀ (m²/s²).
+) -> tuple[float, np.ndarray]:
+    """(U_rep, F_rep) at ``x``: U_rep = Σᵢ ½η(1/dᵢ − 1/d₀)² over bodies with clearance dᵢ ≤ d₀
+    (m²/s²) and F_rep = −∇U_rep = Σᵢ η(1/dᵢ − 1/d₀)(1/dᵢ²)∇dᵢ (m/s²), ∇dᵢ the unit normal from
+    ``FieldGeometry.gaps_and_normals``.
 
     Args:
         x: position (m).
@@ -286,27 +288,7 @@ def repulsive_potential(
     gaps, normals = geometry.gaps_and_normals(x)
     active = active_mask(geometry.n_bodies, ignore)
     goal_arr = None if goal is None else np.asarray(goal, float)
-    return repulsion(x, gaps, normals, params, active, inflate, goal_arr, virtual)[0]
-
-
-def repulsive_force(
-    x: np.ndarray,
-    geometry: FieldGeometry,
-    params: APFParams,
-    ignore: Iterable[int] = (),
-    *,
-    inflate: float = 0.0,
-    goal: np.ndarray | None = None,
-    virtual: Sequence[VirtualPoint] = (),
-) -> np.ndarray:
-    """F_rep = −∇U_rep = Σᵢ η(1/dᵢ − 1/d₀)(1/dᵢ²)∇dᵢ (m/s²); arguments as
-    :func:`repulsive_potential`. ∇dᵢ is the unit normal from ``FieldGeometry.gaps_and_normals``.
-    """
-    x = np.asarray(x, float)
-    gaps, normals = geometry.gaps_and_normals(x)
-    active = active_mask(geometry.n_bodies, ignore)
-    goal_arr = None if goal is None else np.asarray(goal, float)
-    return repulsion(x, gaps, normals, params, active, inflate, goal_arr, virtual)[1]
+    return repulsion(x, gaps, normals, params, active, inflate, goal_arr, virtual)
 
 
 def total_force(
@@ -370,6 +352,33 @@ class Descent:
         self.inflate = inflate
         self.active = active_mask(geometry.n_bodies, ignore)
         self.virtual: list[VirtualPoint] = []
+
+    @classmethod
+    def from_start(
+        cls,
+        scenario: Scenario,
+        start: np.ndarray,
+        goal: np.ndarray,
+        params: APFParams | None,
+        *,
+        inflate: float,
+        geometry: FieldGeometry | None,
+        ignore: Iterable[int],
+    ) -> tuple[Descent, list[np.ndarray]]:
+        """A planner's descent from ``start`` to ``goal`` and its path so far (``[start]``);
+        arguments as :func:`apf_path` (``params`` None: the LEO defaults; ``geometry`` None:
+        built from ``scenario``).
+
+        Raises:
+            ValueError: ``start`` or ``goal`` is not a point of the scenario's dimension.
+        """
+        params = APFParams() if params is None else params
+        geometry = FieldGeometry(scenario) if geometry is None else geometry
+        x = np.asarray(start, dtype=float).copy()
+        goal = np.asarray(goal, dtype=float)
+        if x.shape != (scenario.dim,) or goal.shape != (scenario.dim,):
+            raise ValueError(f"start and goal must have shape ({scenario.dim},)")
+        return cls(geometry, params, goal, ignore, inflate), [x]
 
     def forces(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
         """(F_att, F_rep, physical clearance (m)) at ``x``; ignored bodies count for clearance."""
@@ -475,15 +484,10 @@ def apf_path(
         success. ``info``: ``steps``, ``stalled``, ``stall_point`` (m, or None), ``stall_reason``,
         ``min_clearance`` (m, to the inflated bodies).
     """
-    params = APFParams() if params is None else params
-    geometry = FieldGeometry(scenario) if geometry is None else geometry
-    x = np.asarray(start, dtype=float).copy()
-    goal = np.asarray(goal, dtype=float)
-    if x.shape != (scenario.dim,) or goal.shape != (scenario.dim,):
-        raise ValueError(f"start and goal must have shape ({scenario.dim},)")
-    descent = Descent(geometry, params, goal, ignore, inflate)
-    points = [x]
-    status, stall_point, min_clear = descent.run(points, params.max_steps)
+    descent, points = Descent.from_start(
+        scenario, start, goal, params, inflate=inflate, geometry=geometry, ignore=ignore
+    )
+    status, stall_point, min_clear = descent.run(points, descent.params.max_steps)
     stalled = stall_point is not None
     waypoints = np.asarray(points)
     info: dict[str, Any] = {
@@ -507,7 +511,6 @@ __all__ = [
     "attractive_potential",
     "is_local_minimum",
     "repulsion",
-    "repulsive_force",
-    "repulsive_potential",
+    "repulsive_field",
     "total_force",
 ]

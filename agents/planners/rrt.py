@@ -303,18 +303,14 @@ def apf_rrt_path(
         positions, m), ``stall_points``, ``rrt_nodes`` (total tree size), ``steps``,
         ``stalled``/``stall_reason`` (why it finally failed, if it did), ``min_clearance``.
     """
-    params = APFParams() if params is None else params
+    ignore = tuple(int(i) for i in ignore)
+    descent, points = Descent.from_start(
+        scenario, start, goal, params, inflate=inflate, geometry=geometry, ignore=ignore
+    )
+    params, geometry, goal = descent.params, descent.geometry, descent.goal
     rrt = RRTParams.for_scenario(scenario) if rrt is None else rrt
     rng = np.random.default_rng(0) if rng is None else rng
-    geometry = FieldGeometry(scenario) if geometry is None else geometry
-    x = np.asarray(start, dtype=float).copy()
-    goal = np.asarray(goal, dtype=float)
-    if x.shape != (scenario.dim,) or goal.shape != (scenario.dim,):
-        raise ValueError(f"start and goal must have shape ({scenario.dim},)")
-    ignore = tuple(int(i) for i in ignore)
-    descent = Descent(geometry, params, goal, ignore, inflate)
     checkers: dict[tuple, EdgeChecker] = {}
-    points = [x]
     info: dict[str, Any] = {"escapes": 0, "stall_points": [], "rrt_nodes": 0}
     status = "max_steps"
     while len(points) - 1 < params.max_steps:

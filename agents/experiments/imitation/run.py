@@ -83,38 +83,25 @@ def imitate(
                 bar.close()
 
     model, venv = make_model(config)
-    t0 = time.time()
-    observations, actions, stats = rollouts(config.bc_episodes, None, "expert rollouts")
-    set_observation_stats(venv, observations)
-    collect_time = time.time() - t0
-    t0 = time.time()
-    losses = fit(model, venv, observations, actions, config.epochs, config, rng)
-    history.append(
-        {
-            "round": 0,
-            "flown_by": config.expert,
-            **stats.summary(),
-            "dataset": len(observations),
-            "loss_first": losses[0],
-            "loss_last": losses[-1],
-            "collect_s": collect_time,
-            "fit_s": time.time() - t0,
-        }
-    )
-    log(_round_line(history[-1]))
-    for r in range(1, config.dagger_rounds + 1):
-        actor = export_actor(model, venv, config.activation_fn)
+    for r in range(config.dagger_rounds + 1):
+        cloning = r == 0  # round 0: behaviour cloning on the expert's own flights
+        actor = None if cloning else export_actor(model, venv, config.activation_fn)
         t0 = time.time()
-        obs_r, act_r, stats = rollouts(config.dagger_episodes, actor, f"DAgger round {r}")
+        if cloning:
+            observations, actions, stats = rollouts(config.bc_episodes, None, "expert rollouts")
+            set_observation_stats(venv, observations)
+        else:
+            obs_r, act_r, stats = rollouts(config.dagger_episodes, actor, f"DAgger round {r}")
+            observations = np.concatenate([observations, obs_r])
+            actions = np.concatenate([actions, act_r])
         collect_time = time.time() - t0
-        observations = np.concatenate([observations, obs_r])
-        actions = np.concatenate([actions, act_r])
         t0 = time.time()
-        losses = fit(model, venv, observations, actions, config.refit_epochs, config, rng)
+        epochs = config.epochs if cloning else config.refit_epochs
+        losses = fit(model, venv, observations, actions, epochs, config, rng)
         history.append(
             {
                 "round": r,
-                "flown_by": "policy",
+                "flown_by": config.expert if cloning else "policy",
                 **stats.summary(),
                 "dataset": len(observations),
                 "loss_first": losses[0],

@@ -243,53 +243,17 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
     )
     algo_kwargs = validate_algo_kwargs(data.get("algo_kwargs"), cls, algo, source)
 
-    normalize = section(
-        NormalizeConfig,
-        data.get("normalize"),
-        "normalize.",
-        source,
-        {
-            "enabled": (bool, False),
-            "norm_obs": (bool, False),
-            "norm_reward": (bool, False),
-            "clip_obs": (float, False),
-            "clip_reward": (float, False),
-            "gamma": (float, True),
-            "epsilon": (float, False),
-        },
-    )
+    normalize = section(NormalizeConfig, data.get("normalize"), "normalize.", source)
     for key in ("clip_obs", "clip_reward", "epsilon"):
         if getattr(normalize, key) <= 0:
             raise config_error(source, f"normalize.{key}", "must be > 0")
     if normalize.gamma is not None and not 0.0 <= normalize.gamma <= 1.0:
         raise config_error(source, "normalize.gamma", f"must lie in [0, 1], got {normalize.gamma}")
-    evaluation = section(
-        EvalConfig,
-        data.get("eval"),
-        "eval.",
-        source,
-        {
-            "freq": (int, False),
-            "n_episodes": (int, False),
-            "n_envs": (int, False),
-            "deterministic": (bool, False),
-        },
-    )
+    evaluation = section(EvalConfig, data.get("eval"), "eval.", source)
     at_least(evaluation.freq, 0, "eval.freq", source)
     at_least(evaluation.n_episodes, 1, "eval.n_episodes", source)
     at_least(evaluation.n_envs, 1, "eval.n_envs", source)
-    checkpoint = section(
-        CheckpointConfig,
-        data.get("checkpoint"),
-        "checkpoint.",
-        source,
-        {
-            "freq": (int, False),
-            "keep": (int, False),
-            "replay_buffer": (str, False),
-            "replay_buffer_max_mb": (float, False),
-        },
-    )
+    checkpoint = section(CheckpointConfig, data.get("checkpoint"), "checkpoint.", source)
     at_least(checkpoint.freq, 0, "checkpoint.freq", source)
     at_least(checkpoint.keep, 0, "checkpoint.keep", source)
     at_least(checkpoint.replay_buffer_max_mb, 0, "checkpoint.replay_buffer_max_mb", source)

@@ -41,39 +41,36 @@ def make_train_env(config: TrainConfig, seed: int, stats: Path | None = None) ->
             venv.training = True
             venv.norm_obs, venv.norm_reward = norm.norm_obs, norm.norm_reward
         else:
-            venv = VecNormalize(
-                venv,
-                training=True,
-                norm_obs=norm.norm_obs,
-                norm_reward=norm.norm_reward,
-                clip_obs=norm.clip_obs,
-                clip_reward=norm.clip_reward,
-                gamma=norm.gamma if norm.gamma is not None else config.gamma,
-                epsilon=norm.epsilon,
-            )
+            venv = _vec_normalize(venv, config, training=True)
     venv.seed(seed)
     return venv
 
 
 def make_eval_env(config: TrainConfig) -> Any:
     """Evaluation VecEnv (seeds ``EVAL_SEED + i``; VecNormalize frozen, synced from training)."""
-    from stable_baselines3.common.vec_env import VecNormalize
-
     venv = _vec_env(config, config.eval.n_envs)
     if config.normalize.enabled:
-        norm = config.normalize
-        venv = VecNormalize(
-            venv,
-            training=False,
-            norm_obs=norm.norm_obs,
-            norm_reward=False,
-            clip_obs=norm.clip_obs,
-            clip_reward=norm.clip_reward,
-            gamma=norm.gamma if norm.gamma is not None else config.gamma,
-            epsilon=norm.epsilon,
-        )
+        venv = _vec_normalize(venv, config, training=False)
     venv.seed(EVAL_SEED)
     return venv
+
+
+def _vec_normalize(venv: Any, config: TrainConfig, training: bool) -> Any:
+    """``venv`` in a fresh VecNormalize with the config's options; rewards are scaled only in
+    training (evaluation reports the env's own returns)."""
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    norm = config.normalize
+    return VecNormalize(
+        venv,
+        training=training,
+        norm_obs=norm.norm_obs,
+        norm_reward=norm.norm_reward and training,
+        clip_obs=norm.clip_obs,
+        clip_reward=norm.clip_reward,
+        gamma=norm.gamma if norm.gamma is not None else config.gamma,
+        epsilon=norm.epsilon,
+    )
 
 
 def policy_kwargs(config: TrainConfig) -> dict[str, Any]:

@@ -11,7 +11,9 @@ import difflib
 import inspect
 import math
 import re
+import typing
 from collections.abc import Iterable, Sequence
+from types import NoneType
 from typing import Any
 
 from agents.policies.model_files import ConfigError
@@ -104,15 +106,18 @@ def at_least(value: float | None, low: float, key: str, source: str) -> None:
         raise config_error(source, key, f"must be >= {low}, got {value!r}")
 
 
-def section(cls: type, data: Any, prefix: str, source: str, rules: dict[str, tuple]) -> Any:
-    """Build a flat dataclass section; ``rules[name] = (type, optional)``."""
+def section(cls: type, data: Any, prefix: str, source: str) -> Any:
+    """Build a flat dataclass section, each value checked against its field's annotation
+    (``bool``, ``int``, ``float`` or ``str``, optionally ``| None``)."""
+    hints = typing.get_type_hints(cls)
     names = [f.name for f in dataclasses.fields(cls)]
     data = check_keys({} if data is None else data, names, prefix, source)
     values = {}
     for name in names:
         if name in data:
-            kind, optional = rules[name]
-            values[name] = typed(data[name], kind, f"{prefix}{name}", source, optional)
+            args = typing.get_args(hints[name])  # (float, NoneType) for ``float | None``
+            kind = next(k for k in args or (hints[name],) if k is not NoneType)
+            values[name] = typed(data[name], kind, f"{prefix}{name}", source, NoneType in args)
     return cls(**values)
 
 
