@@ -99,12 +99,12 @@ def memory_child(num_envs: int, env_id: str = ID_2D) -> dict[str, Any]:
     gc.collect()
     rss_steps = rss_bytes()
     un = env.unwrapped
-    # An inventory of what the env holds has to look behind its public API: the batches and the
-    # per-sub-env generators are private by design.
+    # An inventory of what the env holds looks at every attribute of the env and of its batch,
+    # arrays inside named structures included; the per-sub-env generators are private by design.
     arrays = []
     seen: set[int] = set()  # an array held by two attributes counts once
-    for owner, obj in (("env", un), ("missions", un._missions), ("field", un._field)):
-        for name, value in vars(obj).items():
+    for owner, obj in (("env", un), ("field", un.batch.field), ("missions", un.batch)):
+        for name, value in _named_values(obj):
             if isinstance(value, np.ndarray) and id(value) not in seen:
                 seen.add(id(value))
                 arrays.append(
@@ -120,7 +120,7 @@ def memory_child(num_envs: int, env_id: str = ID_2D) -> dict[str, Any]:
     return {
         "num_envs": num_envs,
         "env_id": env_id,
-        "n_bodies": int(un._field.n_bodies),
+        "n_bodies": int(un.batch.field.n_bodies),
         "rss_before": rss_before,
         "rss_after_reset": rss_reset,
         "rss_after_steps": rss_steps,
@@ -130,6 +130,19 @@ def memory_child(num_envs: int, env_id: str = ID_2D) -> dict[str, Any]:
             "rngs": deep_size(list(un._rngs)),
         },
     }
+
+
+def _named_values(obj: Any) -> list[tuple[str, Any]]:
+    """``obj``'s attributes as (name, value), then the fields of its named-tuple attributes
+    spelled ``attribute.field`` (the compiled core keeps some arrays only in such structures)."""
+    plain = [(name, value) for name, value in vars(obj).items() if not hasattr(value, "_fields")]
+    nested = [
+        (f"{name}.{field}", v)
+        for name, value in vars(obj).items()
+        if isinstance(value, tuple) and hasattr(value, "_fields")
+        for field, v in zip(value._fields, value)
+    ]
+    return plain + nested
 
 
 def _memory_child_run(num_envs: int) -> dict[str, Any]:

@@ -425,6 +425,20 @@ def _segment_touches_polygon(ax, ay, bx, by, cx, cy, verts, m, inflate):
 
 
 @inlined
+def path_reach(path):
+    """Largest distance (m) from ``path[0]`` to a later point of the polyline ``path`` (K+1,
+    dim): the path lies in that ball around its start (the broad phase of the swept checks)."""
+    reach2 = 0.0
+    for k in range(1, path.shape[0]):
+        s = 0.0
+        for a in range(path.shape[1]):
+            d = path[k, a] - path[0, a]
+            s += d * d
+        reach2 = max(reach2, s)
+    return math.sqrt(reach2)
+
+
+@inlined
 def path_touches(
     path, start_gaps, inflate, i, centers, radii, polygon_start, n_vertices, vertices, out
 ):
@@ -434,14 +448,7 @@ def path_touches(
     ``inflate`` (m).
     """
     n_points, dim = path.shape
-    reach2 = 0.0
-    for k in range(1, n_points):
-        s = 0.0
-        for a in range(dim):
-            d = path[k, a] - path[0, a]
-            s += d * d
-        reach2 = max(reach2, s)
-    reach = math.sqrt(reach2) + inflate
+    reach = path_reach(path) + inflate
     for b in range(centers.shape[1]):
         out[b] = False
         if not start_gaps[b] <= reach:  # broad phase

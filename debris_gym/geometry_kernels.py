@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 
+from debris_gym.batch_geometry import path_reach
 from debris_gym.jit import inlined, kernel
 
 GRADIENT_EPSILON = 1e-5
@@ -238,14 +239,7 @@ def first_contacts(
         alpha: out (B,) fraction along that segment where the contact begins, inf if none.
     """
     n_points, dim = path.shape
-    reach2 = 0.0
-    for k in range(1, n_points):
-        s = 0.0
-        for a in range(dim):
-            d = path[k, a] - path[0, a]
-            s += d * d
-        reach2 = max(reach2, s)
-    reach = math.sqrt(reach2) + inflate
+    reach = path_reach(path) + inflate
     for b in range(centers.shape[0]):
         segment[b] = -1
         alpha[b] = math.inf
