@@ -53,7 +53,7 @@ OPTIONS: dict[str, Option] = {
     "dim": Option(choices=(2, 3), doc="2 = in-plane (x, y) motion, 3 = full 3D"),
     "scenario": Option(
         choices=("random", "paper"),
-        doc="field source on reset: a seeded random field, or seed 000's fixed world",
+        doc="field source on reset: a seeded random field, or the fixed world of [APF-MPC]",
     ),
     "n_targets": Option(low=1, high=20, doc="debris to rendezvous with"),
     "n_obstacles": Option(low=0, high=2000, doc="other debris to avoid"),

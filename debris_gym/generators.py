@@ -486,7 +486,7 @@ def _convex_polygons(shape, radius):
 
 
 def paper_field(dt: float = 0.1, max_accel: float = 1.0) -> Scenario:
-    """Seed 000's world: a 20 × 20 unit square, spherical debris between the targets, a dock.
+    """The [APF-MPC] world: a 20 × 20 unit square, spherical debris between the targets, a dock.
 
     The paper's exact obstacle file (``sphereWorld1.mat``) is not published; this preset follows
     its description and figures: four targets visited from a dock in a corner, obstacles set

@@ -86,7 +86,7 @@ def field_spec(cfg: EnvConfig) -> FieldSpec:
 
 
 def new_scenario(cfg: EnvConfig, spec: FieldSpec, rng: np.random.Generator) -> Scenario:
-    """The field an env draws on reset: seed 000's world, or a random field from ``rng``."""
+    """The field an env draws on reset: the [APF-MPC] world, or a random field from ``rng``."""
     if cfg.scenario == "paper":
         return paper_field(dt=cfg.dt, max_accel=cfg.max_accel)
     return random_field(

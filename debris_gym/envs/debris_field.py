@@ -34,9 +34,10 @@ class DebrisFieldEnv(gym.Env):
     circular reference orbit, and must rendezvous with every target — come within
     ``capture_radius`` of its surface at a relative speed of at most ``capture_speed`` — without
     touching any other debris, then (if ``return_to_dock``) come back to the dock the same way.
-    Motion follows the Clohessy-Wiltshire-Hill equations, propagated exactly (zero-order hold) over
-    each step; collisions are checked continuously along the path, not only at step ends. Debris is
-    frozen in LVLH (exact only for ``mean_motion = 0``; see ``docs/environments.md``).
+    Motion follows the Clohessy-Wiltshire-Hill equations ([Clohessy60], [Hill1878]; keys of
+    docs/references.md), propagated exactly (zero-order hold) over each step; collisions are
+    checked continuously along the path, not only at step ends. Debris is frozen in LVLH (exact
+    only for ``mean_motion = 0``; see ``docs/environments.md``).
 
     ## Action Space
 
@@ -67,7 +68,7 @@ class DebrisFieldEnv(gym.Env):
 
     The chaser at rest at the dock, unless ``reset(options={"chaser_state": ...})`` says
     otherwise. A new random field each reset (from the reset seed), unless
-    ``options={"scenario": ...}`` pins one or ``scenario="paper"`` selects seed 000's world.
+    ``options={"scenario": ...}`` pins one or ``scenario="paper"`` selects the [APF-MPC] world.
 
     ## Episode End
 
