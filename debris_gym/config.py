@@ -49,6 +49,34 @@ class Option:
         return text + (" or None" if self.optional else "")
 
 
+MAX_FIELD_SIZE = 1e6
+"""Largest ``field_size`` (m)."""
+
+WORLD_FRACTION = 0.25
+"""In random fields (``scenario="random"``) every body radius, ``min_gap``, ``capture_radius``
+and ``chaser_radius`` is at most this share of ``field_size``: a body, gap or capture zone a
+quarter of the world wide leaves no room for a field (the generator could never place it)."""
+
+MAX_LENGTH = WORLD_FRACTION * MAX_FIELD_SIZE
+"""Upper bound (m) of the lengths tied to the world (radii, gaps, capture zone, chaser)."""
+
+MAX_RANGE = 10.0 * MAX_FIELD_SIZE
+"""Upper bound (m) of sensing and shaping distances (lidar range, shaping distances)."""
+
+MAX_SPEED = 1e4
+"""Upper bound (m/s) of ``capture_speed`` (above any relative speed in low Earth orbit)."""
+
+MAX_DELTA_V = 1e6
+"""Upper bound (m/s) of ``delta_v_budget``."""
+
+MAX_SLOPE = 1e3
+"""Upper bound (1/s) of ``shaping_speed_slope``."""
+
+MAX_WEIGHT = 1e6
+"""Upper bound of every reward weight and shaping weight: with every weight, length and speed
+bounded, no reward term can overflow to inf or NaN."""
+
+
 OPTIONS: dict[str, Option] = {
     "dim": Option(choices=(2, 3), doc="2 = in-plane (x, y) motion, 3 = full 3D"),
     "scenario": Option(
@@ -57,15 +85,17 @@ OPTIONS: dict[str, Option] = {
     ),
     "n_targets": Option(low=1, high=20, doc="debris to rendezvous with"),
     "n_obstacles": Option(low=0, high=2000, doc="other debris to avoid"),
-    "field_size": Option("m", 20.0, 1e6, doc="edge of the square / cubic world, dock at centre"),
-    "obstacle_radius_min": Option("m", 0.01, None, doc="smallest obstacle (bounding) radius"),
-    "obstacle_radius_max": Option("m", 0.01, None, doc="largest obstacle (bounding) radius"),
-    "target_radius_min": Option("m", 0.01, None, doc="smallest target radius"),
-    "target_radius_max": Option("m", 0.01, None, doc="largest target radius"),
+    "field_size": Option(
+        "m", 20.0, MAX_FIELD_SIZE, doc="edge of the square / cubic world, dock at centre"
+    ),
+    "obstacle_radius_min": Option("m", 0.01, MAX_LENGTH, doc="smallest obstacle (bounding) radius"),
+    "obstacle_radius_max": Option("m", 0.01, MAX_LENGTH, doc="largest obstacle (bounding) radius"),
+    "target_radius_min": Option("m", 0.01, MAX_LENGTH, doc="smallest target radius"),
+    "target_radius_max": Option("m", 0.01, MAX_LENGTH, doc="largest target radius"),
     "polygon_fraction": Option(
         "", 0.0, 1.0, doc="share of 2D obstacles that are convex polygons (3D: all spheres)"
     ),
-    "min_gap": Option("m", 0.0, None, doc="smallest free gap between generated bodies"),
+    "min_gap": Option("m", 0.0, MAX_LENGTH, doc="smallest free gap between generated bodies"),
     "orbit_radius": Option(
         "m", R_EARTH, 1e9, doc="reference orbit radius; sets the mean motion n = sqrt(μ/r³)"
     ),
@@ -84,30 +114,36 @@ OPTIONS: dict[str, Option] = {
         choices=("ball", "box"),
         doc="'ball': one gimballed engine, |u| <= max_accel; 'box': per-axis thrusters",
     ),
-    "capture_radius": Option("m", 1e-6, None, doc="capture zone depth around a target's surface"),
-    "capture_speed": Option("m/s", 0.0, None, doc="largest relative speed that still captures"),
+    "capture_radius": Option(
+        "m", 1e-6, MAX_LENGTH, doc="capture zone depth around a target's surface"
+    ),
+    "capture_speed": Option(
+        "m/s", 0.0, MAX_SPEED, doc="largest relative speed that still captures"
+    ),
     "target_order": Option(
         choices=("any", "queued"), doc="'any': agent chooses; 'queued': env fixes the order"
     ),
     "return_to_dock": Option(choices=(True, False), doc="after the last capture, return to dock"),
     "delta_v_budget": Option(
-        "m/s", 1e-6, None, optional=True, doc="Δv available; the episode ends when spent"
+        "m/s", 1e-6, MAX_DELTA_V, optional=True, doc="Δv available; the episode ends when spent"
     ),
-    "chaser_radius": Option("m", 0.0, None, doc="chaser radius (bodies are inflated by it)"),
+    "chaser_radius": Option("m", 0.0, MAX_LENGTH, doc="chaser radius (bodies are inflated by it)"),
     "collision_substeps": Option(
         "", 1, 256, doc="sub-samples per step swept for continuous collision checking"
     ),
     "obs_targets": Option("", 1, 20, doc="target slots K in the observation"),
     "obs_obstacles": Option("", 0, 64, doc="nearest-obstacle slots in 'kinematics' observations"),
     "lidar_rays": Option("", 4, 1024, doc="rays in 'lidar' observations"),
-    "lidar_range": Option("m", 1e-3, None, doc="lidar range"),
-    "reward_capture": Option("", 0.0, None, doc="bonus per target captured"),
-    "reward_success": Option("", 0.0, None, doc="bonus for completing the mission"),
-    "reward_progress": Option("", 0.0, None, doc="weight of potential-based progress shaping"),
-    "reward_delta_v": Option("1/(m/s)", 0.0, None, doc="penalty per m/s of Δv spent"),
-    "reward_collision": Option("", 0.0, None, doc="penalty for a collision"),
-    "reward_out_of_bounds": Option("", 0.0, None, doc="penalty for leaving the world bounds"),
-    "reward_time": Option("", 0.0, None, doc="penalty per step"),
+    "lidar_range": Option("m", 1e-3, MAX_RANGE, doc="lidar range"),
+    "reward_capture": Option("", 0.0, MAX_WEIGHT, doc="bonus per target captured"),
+    "reward_success": Option("", 0.0, MAX_WEIGHT, doc="bonus for completing the mission"),
+    "reward_progress": Option(
+        "", 0.0, MAX_WEIGHT, doc="weight of potential-based progress shaping"
+    ),
+    "reward_delta_v": Option("1/(m/s)", 0.0, MAX_WEIGHT, doc="penalty per m/s of Δv spent"),
+    "reward_collision": Option("", 0.0, MAX_WEIGHT, doc="penalty for a collision"),
+    "reward_out_of_bounds": Option("", 0.0, MAX_WEIGHT, doc="penalty for leaving the world bounds"),
+    "reward_time": Option("", 0.0, MAX_WEIGHT, doc="penalty per step"),
     "shaping_gamma": Option("", 0.0, 1.0, doc="γ of the shaping term F = γΦ(s′) − Φ(s)"),
     "shaping_terminal": Option(
         choices=("zero", "hold"),
@@ -117,33 +153,39 @@ OPTIONS: dict[str, Option] = {
     "shaping_speed": Option(
         "",
         0.0,
-        None,
+        MAX_WEIGHT,
         doc="weight of Φ's approach-speed term: −w·max(0, speed − allowed) / V, allowed = "
         "capture_speed + shaping_speed_slope · gap to the goal (0 = off)",
     ),
     "shaping_speed_slope": Option(
-        "1/s", 0.0, None, doc="allowed approach speed per metre of gap to the goal (shaping_speed)"
+        "1/s",
+        0.0,
+        MAX_SLOPE,
+        doc="allowed approach speed per metre of gap to the goal (shaping_speed)",
     ),
     "shaping_clearance": Option(
         "",
         0.0,
-        None,
+        MAX_WEIGHT,
         doc="weight of Φ's clearance term: −w·max(0, 1 − c / shaping_clearance_distance)², c = "
         "gap from the chaser's surface to the nearest debris that is not a target (0 = off)",
     ),
     "shaping_clearance_distance": Option(
-        "m", 1e-3, None, doc="clearance below which Φ's clearance term acts (shaping_clearance)"
+        "m",
+        1e-3,
+        MAX_RANGE,
+        doc="clearance below which Φ's clearance term acts (shaping_clearance)",
     ),
     "shaping_closing": Option(
         "",
         0.0,
-        None,
+        MAX_WEIGHT,
         doc="weight of Φ's closing term: −w·max over bodies b other than the goal with clearance "
         "c_b < shaping_closing_distance of max(0, v_b − capture_speed) / V · (1 − c_b / d), v_b "
         "the speed toward b's centre (0 = off)",
     ),
     "shaping_closing_distance": Option(
-        "m", 1e-3, None, doc="clearance below which Φ's closing term acts (shaping_closing)"
+        "m", 1e-3, MAX_RANGE, doc="clearance below which Φ's closing term acts (shaping_closing)"
     ),
     "obs_other_targets": Option(
         choices=(False, True),
@@ -210,17 +252,12 @@ class EnvConfig:
     obs_other_targets: bool = False
 
     def __post_init__(self) -> None:
+        # each key alone (stored normalised: whole numbers as int, reals as float, flags as
+        # bool), then the rules that tie keys together
         for f in dataclasses.fields(self):
-            _check(f.name, getattr(self, f.name), f.type)
-        pairs = (
-            ("obstacle_radius_min", "obstacle_radius_max"),
-            ("target_radius_min", "target_radius_max"),
-        )
-        for lo_key, hi_key in pairs:
-            if getattr(self, lo_key) > getattr(self, hi_key):
-                raise ValueError(f"{lo_key} must be <= {hi_key}")
-        if self.scenario == "paper" and self.dim != 2:
-            raise ValueError("scenario='paper' is a 2D world; use dim=2")
+            value = _checked(f.name, getattr(self, f.name), _kind(f.type))
+            object.__setattr__(self, f.name, value)
+        _check_cross_keys(self)
 
     @classmethod
     def from_kwargs(cls, **kwargs: Any) -> EnvConfig:
@@ -242,25 +279,102 @@ class EnvConfig:
         return dataclasses.asdict(self)
 
 
-def _check(key: str, value: Any, annotation: Any) -> None:
+_WORLD_TIED = (
+    "obstacle_radius_max",
+    "target_radius_max",
+    "min_gap",
+    "capture_radius",
+    "chaser_radius",
+)
+"""Keys bounded by ``WORLD_FRACTION · field_size`` in random fields (the lower radius of each
+pair is bounded by its upper one)."""
+
+
+def _kind(annotation: Any) -> str:
+    """'int', 'float', 'str' or 'bool' from a field's annotation (a string: the module uses
+    postponed evaluation)."""
+    text = str(annotation)
+    for kind in ("bool", "int", "float", "str"):
+        if text.startswith(kind):
+            return kind
+    raise TypeError(f"EnvConfig field annotated {text!r} has no validation rule")
+
+
+def _show(value: Any) -> str:
+    """``repr(value)`` cut to a readable length (a 400-digit integer is still named)."""
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _checked(key: str, value: Any, kind: str) -> Any:
+    """``value`` validated against :data:`OPTIONS` ``[key]`` and normalised to ``kind``.
+
+    Raises:
+        ValueError: naming ``key``, the value and the allowed range; checks run in the order
+            type, finite, whole number, range, so that every bad value gets this error (never
+            a ``TypeError`` or ``OverflowError`` from a conversion).
+    """
     opt = OPTIONS[key]
     allowed = opt.describe()
+    unit = f" {opt.unit}" if opt.unit else ""
     if value is None:
         if opt.optional:
-            return
+            return None
         raise ValueError(f"{key} must not be None; allowed: {allowed}")
-    if opt.choices is not None:
-        is_bool = isinstance(value, (bool, np.bool_))
-        if is_bool != isinstance(opt.choices[0], bool) or value not in opt.choices:
-            raise ValueError(f"{key}={value!r} is not allowed; allowed: {allowed}")
-        return
-    integral = "int" in str(annotation)
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{key} must be a number, got {type(value).__name__}; allowed: {allowed}")
-    if integral and float(value) != int(value):
-        raise ValueError(f"{key} must be a whole number, got {value!r}; allowed: {allowed}")
-    if not math.isfinite(value):
-        raise ValueError(f"{key} must be finite, got {value!r}; allowed: {allowed}")
-    if (opt.low is not None and value < opt.low) or (opt.high is not None and value > opt.high):
-        unit = f" {opt.unit}" if opt.unit else ""
-        raise ValueError(f"{key}={value!r}{unit} is out of range; allowed: {allowed}{unit}")
+    if kind == "bool":
+        if not isinstance(value, (bool, np.bool_)):
+            raise ValueError(f"{key}={_show(value)} is not allowed; allowed: {allowed}")
+        return bool(value)
+    if kind == "str":
+        if not isinstance(value, str) or value not in opt.choices:
+            raise ValueError(f"{key}={_show(value)} is not allowed; allowed: {allowed}")
+        return str(value)
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise ValueError(
+            f"{key} must be a number, got {_show(value)} ({type(value).__name__}); "
+            f"allowed: {allowed}"
+        )
+    if isinstance(value, numbers.Integral):
+        number: int | float = int(value)  # exact, however large: compared without rounding
+    else:
+        try:
+            number = float(value)
+        except OverflowError:  # e.g. a Fraction beyond float range
+            number = math.inf if value > 0 else -math.inf
+        if not math.isfinite(number):
+            raise ValueError(f"{key} must be finite, got {_show(value)}; allowed: {allowed}{unit}")
+        if kind == "int":
+            if not number.is_integer():
+                raise ValueError(
+                    f"{key} must be a whole number, got {_show(value)}; allowed: {allowed}"
+                )
+            number = int(number)  # 3.0 from JSON / YAML is the integer 3
+    if (opt.low is not None and number < opt.low) or (opt.high is not None and number > opt.high):
+        raise ValueError(f"{key}={_show(value)}{unit} is out of range; allowed: {allowed}{unit}")
+    if opt.choices is not None and number not in opt.choices:
+        raise ValueError(f"{key}={_show(value)} is not allowed; allowed: {allowed}")
+    return int(number) if kind == "int" else float(number)
+
+
+def _check_cross_keys(cfg: EnvConfig) -> None:
+    """The rules between keys (each key is already valid on its own)."""
+    pairs = (
+        ("obstacle_radius_min", "obstacle_radius_max"),
+        ("target_radius_min", "target_radius_max"),
+    )
+    for lo_key, hi_key in pairs:
+        lo, hi = getattr(cfg, lo_key), getattr(cfg, hi_key)
+        if lo > hi:
+            raise ValueError(f"{lo_key}={lo!r} m must be <= {hi_key}={hi!r} m")
+    if cfg.scenario == "paper" and cfg.dim != 2:
+        raise ValueError("scenario='paper' is a 2D world; use dim=2")
+    if cfg.scenario == "random":
+        limit = WORLD_FRACTION * cfg.field_size
+        for key in _WORLD_TIED:
+            value = getattr(cfg, key)
+            if value > limit:
+                raise ValueError(
+                    f"{key}={value!r} m is too large for field_size={cfg.field_size!r} m; "
+                    f"allowed: [{OPTIONS[key].low:g}, {limit:g}] m ({WORLD_FRACTION:g} · "
+                    "field_size) in random fields"
+                )

@@ -24,7 +24,7 @@ import numpy as np
 
 from debris_gym.jit import inlined, kernel
 from debris_gym.scenario import Body, Scenario
-from debris_gym.solvability import is_solvable, route_proof
+from debris_gym.solvability import grid_route_exists, route_proof
 
 
 @dataclass(frozen=True)
@@ -58,6 +58,15 @@ class FieldSpec:
     target_clearance: float = 15.0
     min_target_distance: float = 150.0
     chaser_radius: float = 1.0
+
+    def __post_init__(self) -> None:
+        # the counts size arrays and key the cached helpers (draw_size, route_by_construction):
+        # a float count such as 3.0 hashes like 3 and would poison their caches for every
+        # equal spec (EnvConfig stores whole numbers as int; this guards direct callers)
+        for key in ("dim", "n_targets", "n_obstacles"):
+            value = getattr(self, key)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+                raise ValueError(f"FieldSpec.{key} must be an int, got {value!r}")
 
 
 MAX_POLYGON_VERTICES = 7
@@ -310,10 +319,11 @@ def _accepted(centers, radii, vertices, n_vertices, placed, spec: FieldSpec, cap
         ok[ok] = route_proof(
             centers[ok], radii[ok], t, low, high, np.zeros(dim), spec.chaser_radius, capture_radius
         )
-    for j in np.flatnonzero(placed & ~ok):  # the proof does not apply: search a grid
+    for j in np.flatnonzero(placed & ~ok):  # the proof failed: search a grid
         draw = FieldArrays(dim, half, t, centers, radii, vertices, n_vertices)
         scenario = draw.scenario(int(j), mean_motion=0.0, dt=1.0, max_accel=1.0)
-        ok[j] = is_solvable(scenario, spec.chaser_radius, capture_radius)
+        # is_solvable without its first step: route_proof just failed on this very field
+        ok[j] = grid_route_exists(scenario, spec.chaser_radius, capture_radius)
     return ok
 
 

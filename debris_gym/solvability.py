@@ -15,6 +15,7 @@ import math
 import numpy as np
 import scipy.ndimage
 
+from debris_gym.batch_geometry import FieldBatch
 from debris_gym.geometry import FieldGeometry, distance
 from debris_gym.scenario import Scenario
 
@@ -75,10 +76,25 @@ def route_proof(
     return ok
 
 
+TILE_CELLS = {2: 16, 3: 8}
+"""Cells per edge of the square / cubic tiles :func:`occupancy_grid` sorts the bodies into."""
+
+_CHUNK = 4096
+"""Cells per call into the compiled gaps (bounds the (cells, bodies) temporary)."""
+
+
 def occupancy_grid(
     scenario: Scenario, inflate: float, cell: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """Rasterise the field: True where a cell centre is within ``inflate`` (m) of a body.
+
+    The grid is cut into tiles of :data:`TILE_CELLS` cells per edge, and each cell is tested
+    only against the bodies whose reach (bounding radius, or farthest polygon vertex) plus
+    ``inflate`` comes near its tile; every other body is provably farther than ``inflate``
+    from the cell. Each tested (cell, body) gap is the library's own
+    (:meth:`~debris_gym.batch_geometry.FieldBatch.gaps`, the same operations), so the grid is
+    the one a test of every cell against every body gives, at a cost of about cells × (bodies
+    near a tile) instead of cells × bodies.
 
     Returns:
         ``(occupied, centres)``: a boolean array with one axis per dimension and the (…, dim)
@@ -86,13 +102,65 @@ def occupancy_grid(
     """
     axes = [np.arange(lo + cell / 2.0, hi, cell) for lo, hi in scenario.bounds]
     mesh = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
+    shape = mesh.shape[:-1]
+    occupied = np.zeros(shape, dtype=bool)
     geom = FieldGeometry(scenario)
-    flat = mesh.reshape(-1, scenario.dim)
-    occupied = np.zeros(flat.shape[0], dtype=bool)
-    for start in range(0, flat.shape[0], 4096):
-        chunk = flat[start : start + 4096]
-        occupied[start : start + 4096] = (geom.signed_distance(chunk) <= inflate).any(axis=1)
-    return occupied.reshape(mesh.shape[:-1]), mesh
+    if geom.n_bodies == 0 or occupied.size == 0:
+        return occupied, mesh
+    dim, batch = scenario.dim, geom.batch
+    centers = geom.centers
+    reach = geom.radii.copy()
+    vertices, counts = batch.vertex_arrays(0)
+    if dim == 2 and len(counts):
+        far = np.hypot(vertices[..., 0], vertices[..., 1])
+        far[np.arange(vertices.shape[1]) >= counts[:, None]] = 0.0
+        body = batch.polygon_start + np.arange(len(counts))
+        reach[body] = np.maximum(reach[body], far.max(axis=1))
+    # a tile's bodies: those within inflate of its box of cell centres, with a slack far
+    # above rounding (a polygon's vertices lie on its circumcircle to the last bit)
+    tile = TILE_CELLS[dim]
+    n_tiles = [-(-n // tile) for n in shape]
+    first = [ax[::tile] for ax in axes]
+    last = [ax[np.minimum(np.arange(n) * tile + tile - 1, len(ax) - 1)] for ax, n in
+            zip(axes, n_tiles)]  # fmt: skip
+    lo = np.stack(np.meshgrid(*first, indexing="ij"), axis=-1).reshape(-1, dim)
+    hi = np.stack(np.meshgrid(*last, indexing="ij"), axis=-1).reshape(-1, dim)
+    outside = np.maximum(lo[:, None] - centers, 0.0) + np.maximum(centers - hi[:, None], 0.0)
+    slack = 1e-6 * (scenario.size + reach)
+    near = np.sqrt((outside**2).sum(axis=-1)) - reach <= inflate + slack  # (tiles, bodies)
+    per_tile = near.sum(axis=1)
+    width = int(per_tile.max())
+    if width == 0:
+        return occupied, mesh
+    # one batch row per tile holding its bodies, padded with points far outside the world
+    rows = len(per_tile)
+    pad = np.asarray(scenario.high) + scenario.size + inflate + 1.0
+    tile_centers = np.broadcast_to(pad, (rows, width, dim)).copy()
+    tile_radii = np.zeros((rows, width))
+    polygonal = dim == 2 and len(counts)
+    v = vertices.shape[1] if polygonal else 0
+    tile_vertices = np.zeros((rows, width, v, 2))
+    tile_counts = np.zeros((rows, width), dtype=np.int64)
+    tile_of, body_of = np.nonzero(near)
+    slot = np.arange(len(tile_of)) - np.repeat(np.cumsum(per_tile) - per_tile, per_tile)
+    tile_centers[tile_of, slot] = centers[body_of]
+    tile_radii[tile_of, slot] = geom.radii[body_of]
+    if polygonal:
+        poly = body_of - batch.polygon_start
+        has = poly >= 0
+        tile_vertices[tile_of[has], slot[has]] = vertices[poly[has]]
+        tile_counts[tile_of[has], slot[has]] = counts[poly[has]]
+    tiles = FieldBatch(rows, width, dim, max_vertices=max(v, 3))
+    tiles.load_arrays(np.arange(rows), tile_centers, tile_radii, tile_vertices, tile_counts)
+    index = np.indices(shape).reshape(dim, -1) // tile
+    cell_tile = np.ravel_multi_index(tuple(index), n_tiles)
+    flat = mesh.reshape(-1, dim)
+    out = occupied.reshape(-1)
+    for start in range(0, flat.shape[0], _CHUNK):
+        stop = start + _CHUNK
+        gaps = tiles.gaps(flat[start:stop], cell_tile[start:stop])
+        out[start:stop] = (gaps <= inflate).any(axis=1)
+    return occupied, mesh
 
 
 def is_solvable(
