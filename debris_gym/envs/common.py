@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Callable, Mapping
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -18,10 +20,16 @@ from debris_gym.scenario import Scenario
 
 __all__ = [
     "DEFAULT_HORIZON_STEPS",
+    "RESET_OPTIONS",
+    "checked_chaser_states",
+    "checked_continuous_actions",
+    "checked_discrete_action",
+    "checked_reset_options",
     "discrete_action_table",
     "field_spec",
     "new_scenario",
     "observation_names",
+    "real_array",
     "registered_horizon",
     "single_spaces",
     "warn_if_physics_differ",
@@ -121,3 +129,160 @@ def warn_if_physics_differ(cfg: EnvConfig, scenario: Scenario) -> None:
             UserWarning,
             stacklevel=3,
         )
+
+
+# --- user input at reset and step: one check each, shared by the single and the vector env ---
+
+RESET_OPTIONS = ("chaser_state", "scenario")
+"""Keys ``reset(options=...)`` accepts."""
+
+HUGE_ACTION = 1e100
+"""Largest action component (in magnitude) the "ball" thrust model takes as it is; larger
+ones are first divided by the largest (direction kept): the square of 1e155 overflows."""
+
+
+def checked_reset_options(options: Any) -> dict[str, Any]:
+    """``reset``'s ``options`` as a dict, checked for unknown keys (None gives ``{}``)."""
+    if options is None:
+        return {}
+    if not isinstance(options, Mapping):
+        raise ValueError(
+            f"options must be a dict with keys {', '.join(RESET_OPTIONS)}, got "
+            f"{type(options).__name__}"
+        )
+    unknown = sorted(set(options) - set(RESET_OPTIONS), key=str)
+    if unknown:
+        raise ValueError(f"unknown reset option(s) {unknown}; allowed: {', '.join(RESET_OPTIONS)}")
+    return dict(options)
+
+
+def real_array(value: Any, name: str) -> np.ndarray:
+    """``value`` as an array of real numbers (integer or floating dtype).
+
+    Raises:
+        ValueError: naming ``name`` for a masked array (its mask would be dropped), complex
+            numbers (the imaginary part would be dropped), strings, booleans, objects or
+            ragged nesting (each would be silently coerced or fail later).
+    """
+    if isinstance(value, np.ma.MaskedArray):
+        raise ValueError(f"{name} must be a plain array of real numbers, got a masked array")
+    try:
+        array = np.asarray(value)
+    except (TypeError, ValueError) as err:  # ragged nesting
+        raise ValueError(f"{name} must be an array of real numbers, got {value!r}") from err
+    if array.dtype.kind not in "iuf":
+        raise ValueError(
+            f"{name} must be real numbers (integer or float dtype), got {value!r} "
+            f"(dtype {array.dtype})"
+        )
+    return array
+
+
+def checked_continuous_actions(value: Any, shape: tuple[int, ...], cfg: EnvConfig) -> np.ndarray:
+    """Continuous actions as float64 of ``shape``: real, finite, any magnitude (the thrust
+    model saturates them; "ball" actions beyond :data:`HUGE_ACTION` are scaled down first).
+
+    Raises:
+        ValueError: naming ``action`` (wrong type, shape, NaN or inf).
+    """
+    a = real_array(value, "action").astype(float, copy=False)
+    if a.shape != shape:
+        raise ValueError(f"action must have shape {shape}, got {a.shape}")
+    # NaN or ±inf anywhere makes the sum non-finite (one cheap test on the hot path); a sum
+    # that overflows from finite values is fine
+    if not math.isfinite(a.sum()) and not np.isfinite(a).all():
+        bad = np.argwhere(~np.isfinite(a))[0]
+        raise ValueError(
+            f"action must be finite (no NaN or inf); got {a[tuple(bad)]} at index "
+            f"{tuple(bad.tolist())}"
+        )
+    if cfg.thrust_model == "ball" and a.size and np.abs(a).max() > HUGE_ACTION:
+        big = np.abs(a).max(axis=-1, keepdims=True)
+        a = np.where(big > HUGE_ACTION, a / np.maximum(big, 1.0), a)
+    return a
+
+
+def checked_discrete_action(value: Any, dim: int) -> int:
+    """One discrete action index in [0, 2·dim]: an integer, a whole float or a one-element
+    array of either (as gymnasium's ``Discrete.sample()`` gives).
+
+    Raises:
+        ValueError: naming ``action``.
+    """
+    allowed = f"an integer in [0, {2 * dim}]"
+    a = real_array(value, "action")
+    if a.size != 1:
+        raise ValueError(f"a discrete action is one integer ({allowed}), got shape {a.shape}")
+    number = a.reshape(()).item()
+    if not (math.isfinite(number) and float(number).is_integer()):
+        raise ValueError(f"discrete action must be {allowed}, got {value!r}")
+    index = int(number)
+    if not 0 <= index <= 2 * dim:
+        raise ValueError(f"discrete action {index} is outside [0, {2 * dim}]; allowed: {allowed}")
+    return index
+
+
+def checked_chaser_states(
+    value: Any,
+    num: int,
+    low: np.ndarray,
+    high: np.ndarray,
+    max_speed: float,
+    gaps: Callable[[np.ndarray], np.ndarray],
+    chaser_radius: float,
+) -> np.ndarray:
+    """Initial chaser states from ``reset(options={"chaser_state": ...})``, shape (num, 2·dim).
+
+    Args:
+        value: (2·dim,) one state for every env, or (num, 2·dim) one per env: LVLH position
+            (m) and velocity (m/s).
+        num: number of envs.
+        low, high: (dim,) world bounds of the field(s) the states start in (m).
+        max_speed: largest speed allowed (m/s): the world's size over ``dt`` (a faster
+            chaser crosses the whole world in one step).
+        gaps: positions (num, dim) -> signed distances (num, bodies) to each env's bodies (m).
+        chaser_radius: the chaser's radius (m).
+
+    Raises:
+        ValueError: naming ``chaser_state``, the value and what is allowed: real numbers,
+            finite, strictly inside the bounds, speed at most ``max_speed``, clear of debris.
+    """
+    d = len(low)
+    states = real_array(value, "chaser_state").astype(float)
+    if states.shape == (2 * d,):
+        states = np.broadcast_to(states, (num, 2 * d)).copy()
+    if states.shape != (num, 2 * d):
+        expected = f"({2 * d},)" if num == 1 else f"({num}, {2 * d}) or ({2 * d},)"
+        raise ValueError(f"chaser_state must have shape {expected}, got {np.shape(value)}")
+    which = (lambda i: "") if num == 1 else (lambda i: f" of sub-env {i}")
+    finite = np.isfinite(states).all(axis=1)
+    if not finite.all():
+        i = int(np.flatnonzero(~finite)[0])
+        raise ValueError(f"chaser_state{which(i)} must be finite, got {states[i]}")
+    pos, vel = states[:, :d], states[:, d:]
+    outside = np.any(pos <= low, axis=1) | np.any(pos >= high, axis=1)
+    if outside.any():
+        i = int(np.flatnonzero(outside)[0])
+        bounds = tuple(zip(np.asarray(low).tolist(), np.asarray(high).tolist()))
+        raise ValueError(
+            f"chaser_state{which(i)} position {pos[i]} is outside the bounds {bounds}; "
+            "allowed: strictly inside them (m)"
+        )
+    with np.errstate(over="ignore"):  # a speed beyond float range is inf: too fast
+        speed = np.sqrt((vel**2).sum(axis=1))
+    fast = ~(speed <= max_speed)
+    if fast.any():
+        i = int(np.flatnonzero(fast)[0])
+        raise ValueError(
+            f"chaser_state{which(i)} velocity {vel[i]} (speed {speed[i]:.6g} m/s) is too "
+            f"fast; allowed: speed <= {max_speed:.6g} m/s (the world's size over dt)"
+        )
+    clear = gaps(pos).min(axis=1, initial=math.inf) - chaser_radius
+    touching = ~(clear > 0.0)
+    if touching.any():
+        i = int(np.flatnonzero(touching)[0])
+        raise ValueError(
+            f"chaser_state{which(i)} position {pos[i]} touches debris (gap {clear[i]:.3g} m); "
+            "allowed: a gap > 0 to every body"
+        )
+    return states

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections import deque
 from typing import Any
 
 import gymnasium as gym
@@ -10,6 +11,10 @@ import numpy as np
 
 from debris_gym.config import EnvConfig
 from debris_gym.envs.common import (
+    checked_chaser_states,
+    checked_continuous_actions,
+    checked_discrete_action,
+    checked_reset_options,
     discrete_action_table,
     field_spec,
     new_scenario,
@@ -23,6 +28,11 @@ from debris_gym.goal import DOCK_GOAL, Goal, current_goal
 from debris_gym.mission_batch import MissionBatch
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.scenario import Scenario, as_scenario
+
+TRAIL_LENGTH = 4096
+"""Chaser positions the env keeps for :attr:`DebrisFieldEnv.trail` and rendering: the last
+ones, enough for a whole episode of every registered ID (at most 2000 steps); without a time
+limit older positions are dropped, so the memory stays bounded."""
 
 
 class DebrisFieldEnv(gym.Env):
@@ -44,8 +54,9 @@ class DebrisFieldEnv(gym.Env):
     ``action="continuous"``: ``Box(-1, 1, (dim,), float32)``, the commanded acceleration as a
     fraction of ``max_accel`` (m/s²); ``thrust_model="box"`` clips each axis, ``"ball"`` scales
     vectors longer than 1 onto the unit ball. ``action="discrete"``: ``Discrete(2·dim + 1)``:
-    0 coast, then +x, −x, +y, −y (, +z, −z) at full thrust. NaN or infinite actions raise
-    ``ValueError``.
+    0 coast, then +x, −x, +y, −y (, +z, −z) at full thrust. NaN or infinite actions, wrong
+    shapes, and complex, string, boolean or masked-array actions raise ``ValueError`` naming
+    ``action`` (docs/validation.md).
 
     ## Observation Space
 
@@ -128,7 +139,9 @@ class DebrisFieldEnv(gym.Env):
 
     @property
     def trail(self) -> np.ndarray:
-        """Chaser positions at every step end so far, shape (steps + 1, dim) (m)."""
+        """Chaser positions (m) at the reset and every step end since, shape (k, dim): all of
+        them for episodes up to :data:`TRAIL_LENGTH` − 1 steps, else the last
+        :data:`TRAIL_LENGTH`."""
         return np.asarray(self._trail)
 
     @property
@@ -170,9 +183,11 @@ class DebrisFieldEnv(gym.Env):
     def _new_scenario(self) -> Scenario:
         return new_scenario(self.config, self._field_spec, self.np_random)
 
-    def _set_scenario(self, scenario: Scenario) -> None:
+    def _check_dim(self, scenario: Scenario) -> None:
         if scenario.dim != self.dim:
             raise ValueError(f"scenario has dim={scenario.dim} but the env has dim={self.dim}")
+
+    def _set_scenario(self, scenario: Scenario) -> None:
         self.scenario = scenario
         self._field_geometry = None
         n_targets, n_bodies = len(scenario.targets), len(scenario.bodies)
@@ -204,50 +219,54 @@ class DebrisFieldEnv(gym.Env):
     ) -> tuple[np.ndarray, dict[str, Any]]:
         """Start an episode.
 
+        Transactional: the options, the field (drawn or pinned) and the initial state are all
+        checked before anything of the env changes, so a reset that raises leaves the env as
+        it was (same field, state, clock and generator; stepping goes on as before).
+
         Args:
             seed: seeds the env's generator (and so the random field).
             options: ``{"scenario": Scenario | dict | path}`` pins the field;
-                ``{"chaser_state": array (2·dim,)}`` sets the initial LVLH state (m, m/s).
+                ``{"chaser_state": array (2·dim,)}`` sets the initial LVLH state (m, m/s):
+                strictly inside the bounds, clear of every body, speed at most the world size
+                over ``dt`` (:func:`~debris_gym.envs.common.checked_chaser_states`).
+
+        Raises:
+            ValueError: naming the bad option; the env is unchanged.
         """
-        super().reset(seed=seed)
-        options = dict(options or {})
-        unknown = sorted(set(options) - {"scenario", "chaser_state"})
-        if unknown:
-            raise ValueError(f"unknown reset option(s) {unknown}; allowed: chaser_state, scenario")
-        if options.get("scenario") is not None:
-            pinned = as_scenario(options["scenario"])
-            warn_if_physics_differ(self.config, pinned)
-            self._set_scenario(pinned)
-        else:
-            self._set_scenario(self._new_scenario())
+        options = checked_reset_options(options)
+        saved = self._np_random, self._np_random_seed
+        saved_state = None if saved[0] is None else saved[0].bit_generator.state
+        try:
+            super().reset(seed=seed)
+            if options.get("scenario") is not None:
+                scenario = as_scenario(options["scenario"])
+                self._check_dim(scenario)
+                warn_if_physics_differ(self.config, scenario)
+            else:
+                scenario = self._new_scenario()
+            state = None
+            if options.get("chaser_state") is not None:
+                state = checked_chaser_states(
+                    options["chaser_state"], 1, scenario.low, scenario.high,
+                    scenario.size / scenario.dt, FieldGeometry(scenario).signed_distance,
+                    self.config.chaser_radius,
+                )[0]  # fmt: skip
+        except BaseException:  # nothing of the env changed but its generator: put it back
+            self._np_random, self._np_random_seed = saved
+            if saved_state is not None:
+                saved[0].bit_generator.state = saved_state
+            raise
+        # commit: the field and state are valid, nothing below raises on them
+        self._set_scenario(scenario)
         d = self.dim
-        if options.get("chaser_state") is not None:
-            state = self._validated_chaser_state(options["chaser_state"])
-        else:
-            state = np.concatenate([np.asarray(self.scenario.dock, dtype=float), np.zeros(d)])
+        if state is None:
+            state = np.concatenate([np.asarray(scenario.dock, dtype=float), np.zeros(d)])
         self._missions.begin(np.zeros(1, dtype=np.int64), state[None])
-        self._trail = [state[:d].copy()]
+        self._trail = deque([state[:d].copy()], maxlen=TRAIL_LENGTH)
         terms = dict.fromkeys(REWARD_TERMS, 0.0)
         if self.render_mode == "human":
             self.render()
         return self._observe(), self._info(terms)
-
-    def _validated_chaser_state(self, value: Any) -> np.ndarray:
-        d = self.dim
-        state = np.array(value, dtype=float).reshape(-1)
-        if state.shape != (2 * d,):
-            raise ValueError(f"chaser_state must have shape ({2 * d},), got {np.shape(value)}")
-        if not np.all(np.isfinite(state)):
-            raise ValueError("chaser_state must be finite")
-        scen = self.scenario
-        if np.any(state[:d] <= scen.low) or np.any(state[:d] >= scen.high):
-            raise ValueError(
-                f"chaser_state position {state[:d]} is outside the bounds {scen.bounds}"
-            )
-        gap = self._missions.field.gaps(state[None, :d])[0].min() - self.config.chaser_radius
-        if gap <= 0:
-            raise ValueError(f"chaser_state position {state[:d]} touches debris (gap {gap:.3g} m)")
-        return state
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Apply one thrust command for ``dt`` seconds.
@@ -270,24 +289,10 @@ class DebrisFieldEnv(gym.Env):
 
     def _action(self, action: Any) -> np.ndarray:
         """The validated action as a normalised thrust command, shape (1, dim)."""
-        cfg = self.config
-        if cfg.action == "discrete":
-            if isinstance(action, np.ndarray):
-                if action.size != 1:
-                    raise ValueError(f"a discrete action is one integer, got shape {action.shape}")
-                action = action.reshape(()).item()
-            if isinstance(action, (bool, np.bool_)) or not float(action).is_integer():
-                raise ValueError(f"discrete action must be an integer in [0, {2 * self.dim}]")
-            index = int(action)
-            if not 0 <= index <= 2 * self.dim:
-                raise ValueError(f"discrete action {index} is outside [0, {2 * self.dim}]")
+        if self.config.action == "discrete":
+            index = checked_discrete_action(action, self.dim)
             return self._discrete_actions[index : index + 1]
-        a = np.asarray(action, dtype=float)
-        if a.shape != (self.dim,):
-            raise ValueError(f"action must have shape ({self.dim},), got {a.shape}")
-        if not math.isfinite(a.sum()):  # NaN or ±inf anywhere makes the sum non-finite
-            raise ValueError(f"action must be finite (no NaN or inf), got {a}")
-        return a[None]
+        return checked_continuous_actions(action, (self.dim,), self.config)[None]
 
     def _observe(self) -> np.ndarray:
         if self._horizon is None:

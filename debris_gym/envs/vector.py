@@ -29,14 +29,25 @@ from gymnasium.vector.utils import batch_space
 from debris_gym.batch_geometry import FieldBatch
 from debris_gym.config import EnvConfig
 from debris_gym.envs.common import (
+    checked_chaser_states,
+    checked_continuous_actions,
+    checked_reset_options,
     discrete_action_table,
     field_spec,
     observation_names,
+    real_array,
     registered_horizon,
     single_spaces,
     warn_if_physics_differ,
 )
-from debris_gym.generators import paper_field, random_fields, scenario_from_arrays
+from debris_gym.generators import (
+    MAX_POLYGON_VERTICES,
+    FieldArrays,
+    paper_field,
+    random_fields,
+    scenario_from_arrays,
+)
+from debris_gym.geometry import FieldGeometry
 from debris_gym.mission_batch import MissionBatch, check_threads
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.scenario import Scenario, as_scenario
@@ -141,16 +152,25 @@ class DebrisFieldVectorEnv(VectorEnv):
 
     def _load_new(self, rows: np.ndarray) -> None:
         """Give the sub-envs ``rows`` the field a reset draws (each from its own generator)."""
+        self._install(rows, self._draw(rows, self._rngs))
+
+    def _draw(self, rows: np.ndarray, rngs: Sequence[np.random.Generator]) -> FieldArrays | None:
+        """The random fields of the sub-envs ``rows`` from ``rngs`` (one per sub-env), or None
+        for the paper world; changes nothing but the generators."""
         cfg = self.config
         if cfg.scenario == "paper":
-            if self._paper is None:
-                self._paper = paper_field(dt=cfg.dt, max_accel=cfg.max_accel)
-            self._load_scenario(rows, self._paper)
+            return None
+        return random_fields(
+            [rngs[i] for i in rows.tolist()], self._field_spec, capture_radius=cfg.capture_radius
+        )
+
+    def _install(self, rows: np.ndarray, fields: FieldArrays | None) -> None:
+        """Load the fields :meth:`_draw` gave into the sub-envs ``rows``."""
+        cfg = self.config
+        if fields is None:
+            self._load_scenario(rows, self._paper_field())
             return
         listed = rows.tolist()
-        fields = random_fields(
-            [self._rngs[i] for i in listed], self._field_spec, capture_radius=cfg.capture_radius
-        )
         # every random field has the same world (dock, bounds, L): set it only in new batches
         # and in rows that held a pinned field
         stale = (
@@ -166,6 +186,12 @@ class DebrisFieldVectorEnv(VectorEnv):
             half = fields.half_size
             missions.set_world(stale, 0.0, -half, half, (half - -half) / 2.0)  # L = size / 2
 
+    def _paper_field(self) -> Scenario:
+        if self._paper is None:
+            cfg = self.config
+            self._paper = paper_field(dt=cfg.dt, max_accel=cfg.max_accel)
+        return self._paper
+
     def _load_scenario(self, rows: np.ndarray, scenario: Scenario) -> None:
         """Install ``scenario`` in the sub-envs ``rows``."""
         if scenario.dim != self.dim:
@@ -179,6 +205,7 @@ class DebrisFieldVectorEnv(VectorEnv):
 
     def _fit(self, physics: tuple[float, float, float], n_targets: int, n_bodies: int):
         """The mission batch (allocated on first use); checks that a field fits it."""
+        self._check_fits(physics, n_targets, n_bodies)
         missions = self._missions
         if missions is None:
             mean_motion, dt, max_accel = physics
@@ -187,7 +214,12 @@ class DebrisFieldVectorEnv(VectorEnv):
                 max_accel=max_accel, max_episode_steps=self.max_episode_steps,
                 threads=self.num_threads,
             )  # fmt: skip
-        elif (physics, n_targets, n_bodies) != (
+        return missions
+
+    def _check_fits(self, physics: tuple[float, float, float], n_targets: int, n_bodies: int):
+        """Raise ``ValueError`` unless a field of this physics and size fits the batch."""
+        missions = self._missions
+        if missions is not None and (physics, n_targets, n_bodies) != (
             missions.physics,
             missions.n_targets,
             missions.field.n_bodies,
@@ -198,7 +230,6 @@ class DebrisFieldVectorEnv(VectorEnv):
                 f"{n_bodies} bodies, expected {missions.physics} with {missions.n_targets} of "
                 f"{missions.field.n_bodies}"
             )
-        return missions
 
     # --- gymnasium API ------------------------------------------------------------------------
 
@@ -207,68 +238,95 @@ class DebrisFieldVectorEnv(VectorEnv):
     ) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset every sub-env.
 
+        Transactional, as the single env: seeds, options, the fields (drawn or pinned) and the
+        initial states are all checked before anything of the env changes, so a reset that
+        raises leaves every sub-env as it was (fields, states, clocks, generators, pending
+        autoresets).
+
         Args:
             seed: an int seeds sub-env i with ``seed + i``; a list gives one seed per sub-env.
             options: ``{"scenario": ...}`` pins the same field in every sub-env;
-                ``{"chaser_state": array (N, 2·dim) or (2·dim,)}`` sets the initial states.
+                ``{"chaser_state": array (N, 2·dim) or (2·dim,)}`` sets the initial states
+                (:func:`~debris_gym.envs.common.checked_chaser_states`).
+
+        Raises:
+            ValueError: naming the bad seed or option; the env is unchanged.
         """
-        n = self.num_envs
+        n, cfg = self.num_envs, self.config
         if seed is None:
             seeds: list[int | None] = [None] * n
-        elif isinstance(seed, (int, np.integer)):
+        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
             seeds = [int(seed) + i for i in range(n)]
         else:
+            if isinstance(seed, (str, bytes, bool)) or not isinstance(seed, Sequence):
+                raise ValueError(f"seed must be an int, a list of num_envs={n} ints or None")
             seeds = list(seed)
             if len(seeds) != n:
                 raise ValueError(f"seed list must have num_envs={n} entries, got {len(seeds)}")
-        options = dict(options or {})
-        unknown = sorted(set(options) - {"scenario", "chaser_state"})
-        if unknown:
-            raise ValueError(f"unknown reset option(s) {unknown}; allowed: chaser_state, scenario")
-        pinned = options.get("scenario")
-        pinned = as_scenario(pinned) if pinned is not None else None
-        if pinned is not None:
-            warn_if_physics_differ(self.config, pinned)
-        states = options.get("chaser_state")
-        if states is not None:
-            states = np.array(states, dtype=float)
-            if states.ndim == 1:
-                states = np.broadcast_to(states, (n, states.shape[0]))
-            if states.shape != (n, 2 * self.dim):
-                raise ValueError(
-                    f"chaser_state must have shape ({n}, {2 * self.dim}) or ({2 * self.dim},), "
-                    f"got {np.shape(options['chaser_state'])}"
-                )
-        for i in range(n):
-            if seeds[i] is not None:  # like the single env: no seed continues the generator
-                self._rngs[i], _ = seeding.np_random(seeds[i])
+        options = checked_reset_options(options)
         rows = np.arange(n)
+        # the generators of this reset: new ones for seeded sub-envs, the others continue
+        # theirs (their states are put back if the reset fails)
+        rngs = [None if s is None else seeding.np_random(s)[0] for s in seeds]
+        rngs = [r if r is not None else self._rngs[i] for i, r in enumerate(rngs)]
+        saved = [r.bit_generator.state for r in self._rngs]
+        try:
+            pinned = options.get("scenario")
+            fields = None
+            if pinned is not None:
+                pinned = as_scenario(pinned)
+                if pinned.dim != self.dim:
+                    raise ValueError(
+                        f"scenario has dim={pinned.dim} but the env has dim={self.dim}"
+                    )
+                physics = (pinned.mean_motion, pinned.dt, pinned.max_accel)
+                self._check_fits(physics, len(pinned.targets), len(pinned.bodies))
+                warn_if_physics_differ(cfg, pinned)
+            else:
+                fields = self._draw(rows, rngs)
+                if fields is not None:
+                    physics = (cfg.n, cfg.dt, cfg.max_accel)
+                    self._check_fits(physics, fields.n_targets, fields.radii.shape[1])
+            states = options.get("chaser_state")
+            if states is not None:
+                states = self._checked_states(states, pinned, fields)
+        except BaseException:
+            for rng, state in zip(self._rngs, saved):
+                rng.bit_generator.state = state
+            raise
+        # commit: everything is valid, nothing below raises on it
+        self._rngs = rngs
         if pinned is not None:
             self._load_scenario(rows, pinned)
         else:
-            self._load_new(rows)
-        if states is not None:
-            self._check_states(states)
+            self._install(rows, fields)
         self._missions.begin(rows, states)
         self._autoreset[:] = False
         return self._observe(), self._info(np.zeros((n, len(REWARD_TERMS))))
 
-    def _check_states(self, states: np.ndarray) -> None:
-        """Initial chaser states must be finite, inside the bounds and clear of debris."""
-        d, m = self.dim, self._missions
-        if not np.all(np.isfinite(states)):
-            raise ValueError("chaser_state must be finite")
-        pos = states[:, :d]
-        outside = np.any(pos <= m.low, axis=1) | np.any(pos >= m.high, axis=1)
-        if outside.any():
-            raise ValueError(
-                f"chaser_state of sub-env {np.flatnonzero(outside)[0]} is outside the bounds"
-            )
-        gaps = m.field.gaps(pos).min(axis=1) - self.config.chaser_radius
-        if np.any(gaps <= 0.0):
-            raise ValueError(
-                f"chaser_state of sub-env {np.flatnonzero(gaps <= 0)[0]} touches debris"
-            )
+    def _checked_states(
+        self, value: Any, pinned: Scenario | None, fields: FieldArrays | None
+    ) -> np.ndarray:
+        """Initial chaser states checked against the fields this reset installs."""
+        n, cfg = self.num_envs, self.config
+        if fields is None:
+            scenario = pinned if pinned is not None else self._paper_field()
+            geometry = FieldGeometry(scenario)
+            return checked_chaser_states(
+                value, n, scenario.low, scenario.high, scenario.size / scenario.dt,
+                geometry.signed_distance, cfg.chaser_radius,
+            )  # fmt: skip
+        # the drawn fields in a batch of their own: the gaps the env's batch would give
+        bodies = fields.radii.shape[1]
+        check = FieldBatch(n, bodies, self.dim, MAX_POLYGON_VERTICES, fields.n_targets)
+        check.load_arrays(
+            np.arange(n), fields.centers, fields.radii, fields.vertices, fields.n_vertices
+        )
+        low, high = np.array(fields.bounds).T
+        return checked_chaser_states(
+            value, n, low, high, self._field_spec.field_size / cfg.dt, check.gaps,
+            cfg.chaser_radius,
+        )  # fmt: skip
 
     def step(
         self, actions: Any
@@ -311,22 +369,13 @@ class DebrisFieldVectorEnv(VectorEnv):
         """Validated actions as normalised thrust commands (N, dim)."""
         cfg, n, d = self.config, self.num_envs, self.dim
         if cfg.action == "discrete":
-            idx = np.asarray(actions)
-            if idx.shape != (n,) or not np.issubdtype(idx.dtype, np.integer):
-                raise ValueError(f"discrete actions must be {n} integers, got {idx!r}")
+            idx = real_array(actions, "action")
+            if idx.shape != (n,) or idx.dtype.kind not in "iu":
+                raise ValueError(f"discrete actions must be {n} integers, got {actions!r}")
             if np.any((idx < 0) | (idx > 2 * d)):
                 raise ValueError(f"discrete actions must lie in [0, {2 * d}], got {idx}")
             return self._discrete_actions[idx]
-        a = np.asarray(actions, dtype=float)
-        if a.shape != (n, d):
-            raise ValueError(f"actions must have shape ({n}, {d}), got {a.shape}")
-        if not np.isfinite(a).all():
-            bad = ~np.isfinite(a).all(axis=1)
-            raise ValueError(
-                f"actions must be finite (no NaN or inf); sub-env {np.flatnonzero(bad)[0]} "
-                f"got {a[bad][0]}"
-            )
-        return a
+        return checked_continuous_actions(actions, (n, d), cfg)
 
     def _observe(self) -> np.ndarray:
         """A new (N, obs size) array of every sub-env's observation."""
