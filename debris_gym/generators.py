@@ -194,6 +194,31 @@ def random_field(
     return fields.scenario(0, mean_motion=mean_motion, dt=dt, max_accel=max_accel)
 
 
+def unplaceable(spec: FieldSpec) -> str | None:
+    """Why no field of ``spec`` can ever be placed, or None.
+
+    The placement (:func:`_draw`) puts a body's centre in the box that keeps ``min_gap`` to
+    the bounds, at least its dock distance plus its radius from the dock at the origin. When
+    even the smallest target (or obstacle) cannot meet both anywhere in the box — its corner
+    is the farthest point — every draw fails. A spec this refuses can never give a field; one
+    it lets through may still fail when crowded (:func:`random_fields` then says so).
+    """
+    dock_clearance = spec.dock_clearance
+    kinds = [("target", spec.target_radius[0], max(spec.min_target_distance, dock_clearance))]
+    if spec.n_obstacles:
+        kinds.append(("obstacle", spec.obstacle_radius[0], dock_clearance))
+    for kind, radius, dock_distance in kinds:
+        lim = spec.field_size / 2.0 - radius - spec.min_gap
+        reach = dock_distance + radius
+        if not (lim > 0.0 and spec.dim * lim * lim >= reach * reach):
+            return (
+                f"no {kind} of radius {radius:g} m fits: its centre must lie {reach:g} m or more "
+                f"from the dock and {radius + spec.min_gap:g} m or more inside the bounds, "
+                f"which are {spec.field_size / 2.0:g} m from the dock"
+            )
+    return None
+
+
 @functools.lru_cache(maxsize=64)  # called on every reset; the spec is frozen
 def draw_size(spec: FieldSpec) -> int:
     """Uniform numbers one draw of one field consumes from its generator (a fixed block)."""

@@ -14,7 +14,7 @@ from gymnasium import spaces
 from gymnasium.envs.registration import EnvSpec
 
 from debris_gym.config import EnvConfig
-from debris_gym.generators import FieldSpec, paper_field, random_field
+from debris_gym.generators import FieldSpec, paper_field, random_field, unplaceable
 from debris_gym.observation import OBS_LIMIT, observation_names
 from debris_gym.scenario import Scenario
 
@@ -75,8 +75,41 @@ def discrete_action_table(dim: int) -> np.ndarray:
     return table
 
 
+FIELD_KEYS = (
+    "field_size",
+    "n_targets",
+    "n_obstacles",
+    "target_radius_min",
+    "obstacle_radius_min",
+    "min_gap",
+    "capture_radius",
+    "chaser_radius",
+)
+"""The options that decide whether a random field can be placed at all."""
+
+
 def field_spec(cfg: EnvConfig) -> FieldSpec:
-    """Generator settings of the random fields an env with ``cfg`` draws."""
+    """Generator settings of the random fields an env with ``cfg`` draws.
+
+    Raises:
+        ValueError: for a random-field env whose fields can never be placed
+            (:func:`~debris_gym.generators.unplaceable`), naming the options that decide it,
+            before any draw.
+    """
+    spec = _field_spec(cfg)
+    why = unplaceable(spec) if cfg.scenario == "random" else None
+    if why is not None:
+        settings = ", ".join(f"{key}={getattr(cfg, key)!r}" for key in FIELD_KEYS)
+        raise ValueError(
+            f"these options leave no room for a random field: {why} (a target's dock distance "
+            f"is max(0.15 · field_size, 5 · capture_radius), an obstacle's max(0.05 · "
+            f"field_size, 5 · capture_radius)); options: {settings}. Raise field_size or "
+            "lower capture_radius, min_gap or the smallest radii"
+        )
+    return spec
+
+
+def _field_spec(cfg: EnvConfig) -> FieldSpec:
     return FieldSpec(
         dim=cfg.dim,
         n_targets=cfg.n_targets,
