@@ -24,7 +24,7 @@ import numpy as np
 
 from debris_gym.jit import inlined, kernel
 from debris_gym.scenario import Body, Scenario
-from debris_gym.solvability import grid_route_exists, route_proof
+from debris_gym.solvability import field_route_exists, route_proof
 
 
 @dataclass(frozen=True)
@@ -338,17 +338,19 @@ def _accepted(centers, radii, vertices, n_vertices, placed, spec: FieldSpec, cap
         return placed
     dim, t = spec.dim, spec.n_targets
     half = spec.field_size / 2.0
+    low, high = np.full(dim, -half), np.full(dim, half)
     ok = placed.copy()
     if ok.any():
-        low, high = np.full(dim, -half), np.full(dim, half)
         ok[ok] = route_proof(
             centers[ok], radii[ok], t, low, high, np.zeros(dim), spec.chaser_radius, capture_radius
         )
     for j in np.flatnonzero(placed & ~ok):  # the proof failed: search a grid
-        draw = FieldArrays(dim, half, t, centers, radii, vertices, n_vertices)
-        scenario = draw.scenario(int(j), mean_motion=0.0, dt=1.0, max_accel=1.0)
-        # is_solvable without its first step: route_proof just failed on this very field
-        ok[j] = grid_route_exists(scenario, spec.chaser_radius, capture_radius)
+        # is_solvable without its first step (route_proof just failed on this very field),
+        # on the arrays: the same grid as on the field's Scenario, without building one
+        ok[j] = field_route_exists(
+            centers[j], radii[j], vertices[j], n_vertices[j], t, t, low, high, np.zeros(dim),
+            spec.chaser_radius, capture_radius,
+        )  # fmt: skip
     return ok
 
 

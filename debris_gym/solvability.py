@@ -100,21 +100,47 @@ def occupancy_grid(
         ``(occupied, centres)``: a boolean array with one axis per dimension and the (…, dim)
         cell-centre coordinates (m).
     """
-    axes = [np.arange(lo + cell / 2.0, hi, cell) for lo, hi in scenario.bounds]
+    geom = FieldGeometry(scenario)
+    vertices, counts = geom.batch.vertex_arrays(0)
+    return field_occupancy(
+        geom.centers, geom.radii, vertices, counts, geom.batch.polygon_start, scenario.low,
+        scenario.high, inflate, cell,
+    )  # fmt: skip
+
+
+def field_occupancy(
+    centers: np.ndarray,
+    radii: np.ndarray,
+    vertices: np.ndarray,
+    n_vertices: np.ndarray,
+    polygon_start: int,
+    low: np.ndarray,
+    high: np.ndarray,
+    inflate: float,
+    cell: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`occupancy_grid` of a field given as arrays (no :class:`Scenario` built).
+
+    Args:
+        centers: (B, dim) body centres (m); ``radii`` (B,) their bounding radii (m).
+        vertices: (P, V, 2) polygon vertices of bodies ``polygon_start …`` relative to their
+            centres (m); ``n_vertices`` (P,) their counts, 0 for a circle (2D; empty in 3D).
+        low, high: (dim,) world bounds (m).
+        inflate, cell: as :func:`occupancy_grid`.
+    """
+    dim = len(low)
+    axes = [np.arange(lo + cell / 2.0, hi, cell) for lo, hi in zip(low.tolist(), high.tolist())]
     mesh = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
     shape = mesh.shape[:-1]
     occupied = np.zeros(shape, dtype=bool)
-    geom = FieldGeometry(scenario)
-    if geom.n_bodies == 0 or occupied.size == 0:
+    if len(radii) == 0 or occupied.size == 0:
         return occupied, mesh
-    dim, batch = scenario.dim, geom.batch
-    centers = geom.centers
-    reach = geom.radii.copy()
-    vertices, counts = batch.vertex_arrays(0)
+    counts = n_vertices
+    reach = np.array(radii, dtype=float)
     if dim == 2 and len(counts):
         far = np.hypot(vertices[..., 0], vertices[..., 1])
         far[np.arange(vertices.shape[1]) >= counts[:, None]] = 0.0
-        body = batch.polygon_start + np.arange(len(counts))
+        body = polygon_start + np.arange(len(counts))
         reach[body] = np.maximum(reach[body], far.max(axis=1))
     # a tile's bodies: those within inflate of its box of cell centres, with a slack far
     # above rounding (a polygon's vertices lie on its circumcircle to the last bit)
@@ -126,7 +152,8 @@ def occupancy_grid(
     lo = np.stack(np.meshgrid(*first, indexing="ij"), axis=-1).reshape(-1, dim)
     hi = np.stack(np.meshgrid(*last, indexing="ij"), axis=-1).reshape(-1, dim)
     outside = np.maximum(lo[:, None] - centers, 0.0) + np.maximum(centers - hi[:, None], 0.0)
-    slack = 1e-6 * (scenario.size + reach)
+    size = float(np.max(high - low))
+    slack = 1e-6 * (size + reach)
     near = np.sqrt((outside**2).sum(axis=-1)) - reach <= inflate + slack  # (tiles, bodies)
     per_tile = near.sum(axis=1)
     width = int(per_tile.max())
@@ -134,7 +161,7 @@ def occupancy_grid(
         return occupied, mesh
     # one batch row per tile holding its bodies, padded with points far outside the world
     rows = len(per_tile)
-    pad = np.asarray(scenario.high) + scenario.size + inflate + 1.0
+    pad = high + size + inflate + 1.0
     tile_centers = np.broadcast_to(pad, (rows, width, dim)).copy()
     tile_radii = np.zeros((rows, width))
     polygonal = dim == 2 and len(counts)
@@ -144,9 +171,9 @@ def occupancy_grid(
     tile_of, body_of = np.nonzero(near)
     slot = np.arange(len(tile_of)) - np.repeat(np.cumsum(per_tile) - per_tile, per_tile)
     tile_centers[tile_of, slot] = centers[body_of]
-    tile_radii[tile_of, slot] = geom.radii[body_of]
+    tile_radii[tile_of, slot] = radii[body_of]
     if polygonal:
-        poly = body_of - batch.polygon_start
+        poly = body_of - polygon_start
         has = poly >= 0
         tile_vertices[tile_of[has], slot[has]] = vertices[poly[has]]
         tile_counts[tile_of[has], slot[has]] = counts[poly[has]]
@@ -205,22 +232,50 @@ def grid_route_exists(
     disc the chaser's surface gets within ``capture_radius`` of the target surface must share a
     component. Works for any field, overlapping bodies included.
     """
+    geom = FieldGeometry(scenario)
+    vertices, counts = geom.batch.vertex_arrays(0)
+    return field_route_exists(
+        geom.centers, geom.radii, vertices, counts, geom.batch.polygon_start,
+        len(scenario.targets), scenario.low, scenario.high, np.asarray(scenario.dock, float),
+        chaser_radius, capture_radius, cell,
+    )  # fmt: skip
+
+
+def field_route_exists(
+    centers: np.ndarray,
+    radii: np.ndarray,
+    vertices: np.ndarray,
+    n_vertices: np.ndarray,
+    polygon_start: int,
+    n_targets: int,
+    low: np.ndarray,
+    high: np.ndarray,
+    dock: np.ndarray,
+    chaser_radius: float,
+    capture_radius: float,
+    cell: float | None = None,
+) -> bool:
+    """:func:`grid_route_exists` of a field given as arrays (:func:`field_occupancy`'s; the
+    first ``n_targets`` bodies are the targets, ``dock`` (dim,) is in m)."""
+    dim = len(low)
     if cell is None:
-        cell = scenario.size / (200.0 if scenario.dim == 2 else 60.0)
-    half_diag = cell * math.sqrt(scenario.dim) / 2.0
-    occupied, centres = occupancy_grid(scenario, chaser_radius + half_diag, cell)
+        cell = float(np.max(high - low)) / (200.0 if dim == 2 else 60.0)
+    half_diag = cell * math.sqrt(dim) / 2.0
+    occupied, centres = field_occupancy(
+        centers, radii, vertices, n_vertices, polygon_start, low, high,
+        chaser_radius + half_diag, cell,
+    )  # fmt: skip
     labels, _ = scipy.ndimage.label(~occupied)
-    low = scenario.low
 
     def cell_of(p):
         idx = np.floor((np.asarray(p) - low) / cell).astype(int)
         return tuple(np.clip(idx, 0, np.array(occupied.shape) - 1))
 
-    dock_label = labels[cell_of(scenario.dock)]
+    dock_label = labels[cell_of(dock)]
     if dock_label == 0:
         return False
-    for target in scenario.targets:
-        gap = np.linalg.norm(centres - np.asarray(target.position), axis=-1) - target.radius
+    for position, radius in zip(centers[:n_targets], radii[:n_targets].tolist()):
+        gap = np.linalg.norm(centres - position, axis=-1) - radius
         # From a free cell centre the chaser may move half a diagonal in any direction (the free
         # disc), e.g. straight at the target, which shortens the surface gap by that much.
         zone = (gap - chaser_radius <= capture_radius + half_diag) & (labels == dock_label)
