@@ -34,6 +34,10 @@ def _capture_directions(dim: int) -> np.ndarray:
     return dirs
 
 
+PROOF_PAIRS = 1 << 21
+"""Most body pairs :func:`route_proof` holds at once (about 50 MB of temporaries in 2D)."""
+
+
 def route_proof(
     centers: np.ndarray,
     radii: np.ndarray,
@@ -48,8 +52,19 @@ def route_proof(
 
     True where the bounding balls inflated by ``chaser_radius`` are pairwise disjoint and
     strictly inside the bounds, the dock is free, and each target has a free capture point.
+    Fields are taken :data:`PROOF_PAIRS` body pairs at a time (the pairwise gaps of 64 fields
+    of 2000 bodies would take gigabytes); each field's answer is its own.
     """
     num, n_bodies, dim = centers.shape
+    rows = max(1, PROOF_PAIRS // max(n_bodies * n_bodies, 1))
+    if num > rows:
+        return np.concatenate([
+            route_proof(
+                centers[k : k + rows], radii[k : k + rows], n_targets, low, high, dock,
+                chaser_radius, capture_radius,
+            )
+            for k in range(0, num, rows)
+        ])  # fmt: skip
     reach = radii + chaser_radius
 
     def inside(points: np.ndarray, margin) -> np.ndarray:  # (K, P, dim) -> (K, P)
