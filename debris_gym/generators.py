@@ -333,7 +333,8 @@ def random_fields(
 
 def _accepted(centers, radii, vertices, n_vertices, placed, spec: FieldSpec, capture_radius):
     """Which placed fields of a draw are solvable, (K,) bool: by construction, by
-    :func:`route_proof`, or (where the proof does not apply, rarely) by :func:`is_solvable`."""
+    :func:`route_proof`, or (where the proof does not apply) by the grid search of
+    :func:`is_solvable` (:func:`~debris_gym.solvability.field_route_exists`)."""
     if route_by_construction(spec, capture_radius):
         return placed
     dim, t = spec.dim, spec.n_targets

@@ -269,6 +269,19 @@ def test_options_must_be_a_dict():
         DebrisFieldEnv().reset(seed=0, options=[("chaser_state", [0, 0, 0, 0])])
 
 
+@pytest.mark.parametrize("seed", ["a", -1, 1.5, True])
+def test_a_bad_seed_is_a_value_error_and_changes_nothing(seed):
+    env, twin = stepped_single(), stepped_single()
+    with pytest.raises(ValueError, match="seed"):
+        env.reset(seed=seed)
+    np.testing.assert_array_equal(env.step(PUSH)[0], twin.step(PUSH)[0])
+    vector = stepped_vector()
+    with pytest.raises(ValueError, match="seed"):
+        vector.reset(seed=seed)
+    with pytest.raises(ValueError, match=r"seed\[1\]"):
+        vector.reset(seed=[0, seed])
+
+
 def test_chaser_speed_is_bounded_by_the_world_over_dt():
     env = DebrisFieldEnv()  # 1000 m world, dt 10 s: at most 100 m/s
     env.reset(seed=0, options={"chaser_state": [0.0, 0.0, 60.0, -79.0]})  # 99.4 m/s

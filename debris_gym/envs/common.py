@@ -25,6 +25,7 @@ __all__ = [
     "checked_continuous_actions",
     "checked_discrete_action",
     "checked_reset_options",
+    "checked_seed",
     "discrete_action_table",
     "field_spec",
     "new_scenario",
@@ -172,6 +173,17 @@ RESET_OPTIONS = ("chaser_state", "scenario")
 HUGE_ACTION = 1e100
 """Largest action component (in magnitude) the "ball" thrust model takes as it is; larger
 ones are first divided by the largest (direction kept): the square of 1e155 overflows."""
+
+
+def checked_seed(seed: Any, name: str = "seed") -> int | None:
+    """A reset seed: None or a whole number >= 0 (Python or numpy integer, not a bool)."""
+    if seed is None:
+        return None
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)):
+        raise ValueError(f"{name} must be an integer >= 0 or None, got {seed!r}")
+    if seed < 0:
+        raise ValueError(f"{name}={seed} is out of range; allowed: an integer >= 0 or None")
+    return int(seed)
 
 
 def checked_reset_options(options: Any) -> dict[str, Any]:

@@ -15,6 +15,7 @@ from debris_gym.envs.common import (
     checked_continuous_actions,
     checked_discrete_action,
     checked_reset_options,
+    checked_seed,
     discrete_action_table,
     field_spec,
     new_scenario,
@@ -233,6 +234,7 @@ class DebrisFieldEnv(gym.Env):
         Raises:
             ValueError: naming the bad option; the env is unchanged.
         """
+        seed = checked_seed(seed)
         options = checked_reset_options(options)
         saved = self._np_random, self._np_random_seed
         saved_state = None if saved[0] is None else saved[0].bit_generator.state

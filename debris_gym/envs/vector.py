@@ -32,6 +32,7 @@ from debris_gym.envs.common import (
     checked_chaser_states,
     checked_continuous_actions,
     checked_reset_options,
+    checked_seed,
     discrete_action_table,
     field_spec,
     observation_names,
@@ -256,11 +257,12 @@ class DebrisFieldVectorEnv(VectorEnv):
         if seed is None:
             seeds: list[int | None] = [None] * n
         elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
-            seeds = [int(seed) + i for i in range(n)]
+            first = checked_seed(seed)
+            seeds = [first + i for i in range(n)]
         else:
             if isinstance(seed, (str, bytes, bool)) or not isinstance(seed, Sequence):
                 raise ValueError(f"seed must be an int, a list of num_envs={n} ints or None")
-            seeds = list(seed)
+            seeds = [checked_seed(s, f"seed[{i}]") for i, s in enumerate(seed)]
             if len(seeds) != n:
                 raise ValueError(f"seed list must have num_envs={n} entries, got {len(seeds)}")
         options = checked_reset_options(options)
