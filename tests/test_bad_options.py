@@ -336,6 +336,21 @@ def test_a_vector_reset_refuses_a_bad_seed_list():
         env.reset(seed=[1, 2, 3])
 
 
+@pytest.mark.parametrize(
+    ("kwargs", "key"),
+    [
+        ({"num_envs": True}, "num_envs"),
+        ({"num_envs": 2.0}, "num_envs"),
+        ({"max_episode_steps": "5"}, "max_episode_steps"),
+        ({"max_episode_steps": 2.5}, "max_episode_steps"),
+        ({"autoreset_mode": "sometimes"}, "autoreset_mode"),
+    ],
+)
+def test_bad_vector_env_arguments_are_value_errors_naming_them(kwargs, key):
+    with pytest.raises(ValueError, match=key):
+        DebrisFieldVectorEnv(**{"num_envs": 2, **kwargs})
+
+
 # --- bounded trail, action types (item 7 of the issue) ---------------------------------------
 
 

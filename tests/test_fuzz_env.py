@@ -24,7 +24,7 @@ from debris_gym.envs.common import FIELD_KEYS
 from debris_gym.envs.vector import DebrisFieldVectorEnv
 
 FUZZ = settings(
-    max_examples=80,
+    max_examples=120,
     deadline=None,
     derandomize=True,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much],

@@ -83,18 +83,27 @@ class DebrisFieldVectorEnv(VectorEnv):
         num_threads: int = 1,
         **kwargs: Any,
     ) -> None:
-        if not (isinstance(num_envs, (int, np.integer)) and num_envs >= 1):
+        if not (_is_int(num_envs) and num_envs >= 1):
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
-        if max_episode_steps is not None and max_episode_steps < 1:
-            raise ValueError(f"max_episode_steps must be >= 1 or None, got {max_episode_steps!r}")
+        if max_episode_steps is not None and not (
+            _is_int(max_episode_steps) and max_episode_steps >= 1
+        ):
+            raise ValueError(
+                f"max_episode_steps must be an integer >= 1 or None, got {max_episode_steps!r}"
+            )
         if render_mode is not None:
             raise ValueError(
                 "the vector env does not render; make a single env with render_mode='rgb_array'"
             )
         self.num_threads = check_threads(num_threads)
-        mode = AutoresetMode(autoreset_mode)
+        try:
+            mode = AutoresetMode(autoreset_mode)
+        except ValueError:
+            mode = None
         if mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
-            raise ValueError(f"autoreset_mode must be NEXT_STEP or SAME_STEP, got {mode!r}")
+            raise ValueError(
+                f"autoreset_mode must be NEXT_STEP or SAME_STEP, got {autoreset_mode!r}"
+            )
         self.metadata = {**self.metadata, "autoreset_mode": mode}
         self.autoreset_mode = mode
         self.config = cfg = EnvConfig.from_kwargs(**kwargs)
@@ -412,6 +421,11 @@ class DebrisFieldVectorEnv(VectorEnv):
     def observation_names(self) -> list[str]:
         """Name of every observation element, in order (as the single env)."""
         return list(self._obs_names)
+
+
+def _is_int(value: Any) -> bool:
+    """A Python or numpy integer, not a bool."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
 
 
 class _ScenarioList(Sequence):
