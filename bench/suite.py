@@ -34,7 +34,11 @@ def choose_sections(sections: Iterable[str] | None) -> tuple[str, ...]:
         return SECTIONS
     chosen = tuple(s.strip() for s in sections if s.strip())
     unknown = sorted(set(chosen) - set(SECTIONS))
-    if unknown or not chosen:
+    if not chosen:
+        raise ValueError(
+            f"names no section (got {','.join(sections)!r}); choose from {', '.join(SECTIONS)}"
+        )
+    if unknown:
         raise ValueError(f"unknown section(s) {unknown}; choose from {', '.join(SECTIONS)}")
     return tuple(s for s in SECTIONS if s in chosen)
 
