@@ -201,9 +201,10 @@ class ImitationConfig:
 
 def _check_int(key: str, value: Any, low: int, high: int | None) -> None:
     """``value`` is an integer in ``[low, high]`` (``high`` None: no upper bound)."""
-    allowed = f"an integer in [{low}, {high}]" if high is not None else f"an integer >= {low}"
+    allowed = f"[{low}, {high}]" if high is not None else f">= {low}"
     if isinstance(value, bool) or not isinstance(value, int):
-        raise ValueError(f"{key}={value!r} is out of range; allowed: {allowed}")
+        words = f"in {allowed}" if high is not None else allowed
+        raise ValueError(f"{key} must be an integer {words}, got {value!r}")
     if value < low or (high is not None and value > high):
         raise ValueError(f"{key}={value} is out of range; allowed: {allowed}")
 

@@ -340,6 +340,7 @@ def validate_algo_kwargs(data: Any, cls: type, algo: str, source: str) -> dict[s
     kwargs = dict(check_keys(data, known, "algo_kwargs.", source))
     for key, value in list(kwargs.items()):
         allowed = algo_kwarg_range(algo, key)
+        value = kwargs[key] = number(value)  # YAML 1.1 reads 3e-4 as a string
         if value is None and key in ("clip_range_vf", "target_kl"):
             continue
         if key in ("learning_rate", "clip_range") and isinstance(value, str):
