@@ -106,14 +106,13 @@ class ImitationConfig:
         }
         for key, (low, high, low_open) in floats.items():
             value = getattr(self, key)
-            allowed = f"{'(' if low_open else '['}{low}, {high if high is not None else 'inf'}]"
-            bad = isinstance(value, bool) or not isinstance(value, (int, float))
-            if bad or not (
-                np.isfinite(value)
-                and (value > low if low_open else value >= low)
-                and (high is None or value <= high)
-            ):
-                raise ValueError(f"{key}={value!r} is out of range; allowed: a number in {allowed}")
+            upper = f"{high:g}]" if high is not None else "inf)"
+            allowed = f"{'(' if low_open else '['}{low:g}, {upper}"
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ValueError(f"{key} must be a number in {allowed}, got {value!r}")
+            inside = (value > low if low_open else value >= low) and (high is None or value <= high)
+            if not (np.isfinite(value) and inside):
+                raise ValueError(f"{key}={value!r} is out of range; allowed: {allowed}")
         arch = self.net_arch
         if (
             not isinstance(arch, tuple)
