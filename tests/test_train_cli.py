@@ -256,10 +256,14 @@ def test_bad_algo_kwargs_are_usage_errors_before_anything_is_written(
 ):
     """Regression: ``--set algo_kwargs.n_steps=0`` ended in an AssertionError from SB3 (others
     in TypeErrors, or an UnboundLocalError after the first rollout)."""
-    out = tmp_path / "run"
-    err = refused(train_cli, [*TINY, "--out", str(out), "--set", setting], capsys)
-    assert message in err
-    assert not out.exists()
+    new, existing = tmp_path / "new", tmp_path / "existing"
+    existing.mkdir()
+    (existing / "keep.txt").write_text("")
+    for out in (new, existing):
+        err = refused(train_cli, [*TINY, "--out", str(out), "--set", setting], capsys)
+        assert message in err
+    assert not new.exists()
+    assert [p.name for p in existing.iterdir()] == ["keep.txt"]
 
 
 def test_a_ppo_rollout_needs_two_samples():

@@ -23,7 +23,7 @@ from stable_baselines3.common.callbacks import ProgressBarCallback
 
 from agents.experiments.config_files import CONFIG_DIR, apply_overrides
 from agents.experiments.provenance import library_versions, utc_now
-from agents.experiments.run_directory import RunDirectoryLock, check_output_dir
+from agents.experiments.run_directory import LOCK_FILE, RunDirectoryLock, check_output_dir
 from agents.experiments.training.callbacks import close_progress_bar, make_callbacks
 from agents.experiments.training.checkpoints import (
     INTERRUPTED,
@@ -245,10 +245,19 @@ def train(options: TrainOptions) -> TrainResult:
                 segment = _prepare_resume(options, out, device, command)
                 return _run_segment(segment, options)
         out = check_output_dir(options.out if options.out is not None else "")
-        _refuse_used_directory(out)  # early, before the model is built
-        segment = _prepare_fresh(options, out, device, command)
-        with RunDirectoryLock(out, "--out"):
-            _refuse_used_directory(out)  # again, now that no other run can change it
+        lock = RunDirectoryLock(out, "--out")
+        # a directory with a lock file may be busy: lock it at once, so that a busy one is
+        # refused before anything else; otherwise lock (and create) it once all is checked
+        held = (out / LOCK_FILE).is_file()
+        if held:
+            lock.acquire()
+        try:
+            _refuse_used_directory(out)
+            segment = _prepare_fresh(options, out, device, command)
+            if not held:
+                lock.acquire()
+                held = True
+                _refuse_used_directory(out)  # another run may have made it meanwhile
             removed = clear_unstarted_run(out)
             if removed:
                 print(
@@ -257,6 +266,8 @@ def train(options: TrainOptions) -> TrainResult:
                     file=sys.stderr,
                 )
             return _run_segment(segment, options)
+        finally:
+            lock.release()
     finally:
         if segment is not None:
             for env in (segment.train_env, segment.eval_env):
