@@ -356,3 +356,14 @@ def test_other_bad_options_are_usage_errors(argv, message, train_cli, tmp_path, 
     before = snapshot(tmp_path)
     assert message in refused(train_cli, argv, capsys)
     assert snapshot(tmp_path) == before
+
+
+def test_a_lock_that_cannot_be_created_is_an_output_dir_error(tmp_path):
+    """A place check_output_dir cannot foresee (here: made a file after the check) is still an
+    error naming the flag, not an OSError traceback."""
+    from agents.experiments.run_directory import OutputDirError
+
+    (tmp_path / "afile").write_text("")
+    with pytest.raises(OutputDirError, match="cannot create") as info:
+        RunDirectoryLock(tmp_path / "afile" / "x", flag="--out").acquire()
+    assert info.value.flag == "--out"

@@ -1,8 +1,10 @@
 """One training run, fresh or resumed: ``train(TrainOptions(...))`` — the library call of
 ``train.py``.
 
-A ``KeyboardInterrupt`` during learning saves ``DIR/checkpoints/interrupted.zip`` and returns;
-``train(TrainOptions(resume=DIR))`` continues from the latest checkpoint.
+Everything is checked, and the envs and model built, before the run directory is written; the
+run holds the directory's lock throughout (docs/validation.md lists the rules). A
+``KeyboardInterrupt`` during learning saves ``DIR/checkpoints/interrupted.zip`` and returns;
+``train(TrainOptions(resume=DIR))`` continues from the latest complete checkpoint.
 """
 
 from __future__ import annotations
