@@ -356,6 +356,7 @@ def tiny_sets() -> list[str]:
         ("weight_decay=abc", "weight_decay"),
         ("bc_episodes=2.0", "bc_episodes must be an integer >= 1, got 2.0"),
         ("workers=100", "workers=100 is out of range; allowed: [1, 64]"),
+        ("seed=100000000000000000000", "is out of range; allowed: [0, 2147483647]"),
     ],
 )
 def test_bad_settings_are_usage_errors_naming_the_key(setting, message, tmp_path, capsys):

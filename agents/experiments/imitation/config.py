@@ -31,6 +31,9 @@ ACTIVATION_NAMES = ("tanh", "relu")
 MAX_WIDTH = 4096
 """Widest hidden layer of the policy network (a wider one is a typo, and costs gigabytes)."""
 
+MAX_SEED = 2**31 - 1
+"""Largest base seed (torch's manual_seed and the field seeds derived from it stay in range)."""
+
 TRAIN_SEED = 5_000_000
 """Fields of imitation runs are reset with seeds ``seed + TRAIN_SEED + k``: apart from the
 held-out evaluation seeds of train.py (1 000 000 + i) and of the docs (10 000 000, 20 000 000)."""
@@ -93,7 +96,7 @@ class ImitationConfig:
             "refit_epochs": (1, None),
             "batch_size": (1, None),
             "workers": (1, 64),
-            "seed": (0, None),
+            "seed": (0, MAX_SEED),
         }
         for key, (low, high) in ints.items():
             _check_int(key, getattr(self, key), low, high)
