@@ -18,8 +18,10 @@ resume); ``evaluate.py --resume DIR`` (:attr:`EvaluateOptions.resume`) continues
 from __future__ import annotations
 
 import dataclasses
+import re
 import shlex
 import sys
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -118,6 +120,8 @@ class EvaluationPlan:
         reference: the agent others' Δv is paired with, or None for the default.
         paper: write ``paper_table.*`` ([APF-MPC] Table I beside ours).
         skipped: agents left out of a default list, {label: reason}.
+        warnings: what building an agent warned about, {label: message} (shown in the
+            summary).
     """
 
     out: Path
@@ -131,6 +135,7 @@ class EvaluationPlan:
     reference: str | None = None
     paper: bool = False
     skipped: dict[str, str] = field(default_factory=dict)
+    warnings: dict[str, str] = field(default_factory=dict)
 
     @property
     def specs(self) -> list[AgentSpec]:
@@ -216,25 +221,32 @@ def _default_agents(
 
 def _usable(
     specs: list[AgentSpec], explicit: bool, flag: str, env_for: Callable[[AgentSpec], gym.Env]
-) -> tuple[list[AgentSpec], dict[str, str]]:
+) -> tuple[list[AgentSpec], dict[str, str], dict[str, str]]:
     """Check each agent can be built: a :class:`UsageError` if listed explicitly, else a note.
 
     Every agent is built once here (``env_for(spec)`` gives the env), so a wrong file, a space
     mismatch (a baseline in a discrete-action env), a missing pretrained policy or an object
-    without ``predict`` fails before any episode runs.
+    without ``predict`` fails before any episode runs. A ``UserWarning`` while an agent is built
+    (a learned model without its VecNormalize statistics and run config, say) becomes a note
+    and is kept for the summary.
+
+    Returns:
+        The agents to run, {skipped agent: reason} and {agent: warning}.
     """
-    keep, skipped = [], {}
+    keep, skipped, warned = [], {}, {}
     for spec in specs:
         try:
             check_agent_available(spec)
             env = env_for(spec)
             try:
-                try:
-                    build_agent(spec, env)
-                except ValueError as exc:
-                    if spec.kind != "baseline":
-                        raise
-                    raise ValueError(f"{exc}; {_who_can_act(env)}") from exc
+                with warnings.catch_warnings(record=True) as caught:
+                    warnings.simplefilter("always", UserWarning)
+                    try:
+                        build_agent(spec, env)
+                    except ValueError as exc:
+                        if spec.kind != "baseline":
+                            raise
+                        raise ValueError(f"{exc}; {_who_can_act(env)}") from exc
             finally:
                 env.close()
         except AGENT_ERRORS as exc:
@@ -243,8 +255,12 @@ def _usable(
             _note(f"skipped — {exc}")
             skipped[spec.label] = str(exc)
             continue
+        messages = [str(w.message) for w in caught if issubclass(w.category, UserWarning)]
+        if messages:
+            warned[spec.label] = "\n".join(dict.fromkeys(messages))
+            _note(f"agent {spec.label!r}: {warned[spec.label]}")
         keep.append(spec)
-    return keep, skipped
+    return keep, skipped, warned
 
 
 def _who_can_act(env: gym.Env) -> str:
@@ -283,8 +299,8 @@ def _resolve_env(options: EvaluateOptions) -> tuple[str, int]:
 
 def _choose_agents(
     options: EvaluateOptions, env_id: str, env_kwargs: dict[str, Any]
-) -> tuple[list[AgentSpec], dict[str, str]]:
-    """The agents to run (checked) and {skipped agent: reason}."""
+) -> tuple[list[AgentSpec], dict[str, str], dict[str, str]]:
+    """The agents to run (checked), {skipped agent: reason} and {agent: warning}."""
     from agents import BASELINES
 
     explicit = options.agents is not None
@@ -309,7 +325,7 @@ def _choose_agents(
         kwargs = {**env_kwargs, **agent_env_options(spec, env_id)}
         return make_env(env_id, kwargs, options.max_steps)
 
-    specs, skipped = _usable(specs, explicit, "--agents", env_for)
+    specs, skipped, warned = _usable(specs, explicit, "--agents", env_for)
     if not specs:
         flag = "--paper" if options.paper else "--agents"
         raise UsageError(flag, "none of its agents can be built (see the notes above)")
@@ -319,7 +335,7 @@ def _choose_agents(
             "--reference",
             f"{options.reference!r} is not an evaluated agent; agents: {', '.join(labels)}",
         )
-    return specs, {**unregistered, **skipped}
+    return specs, {**unregistered, **skipped}, warned
 
 
 def _debris_env_ids() -> list[str]:
@@ -336,7 +352,7 @@ def _check_env(env_id: str, env_kwargs: dict[str, Any], max_steps: int | None, s
         raise UsageError("--env", f"must name an env, got an empty string; DebrisGym IDs: {ids}")
     try:
         env = make_env(env_id, env_kwargs, max_steps)
-    except gym.error.Error as exc:
+    except (gym.error.Error, ImportError) as exc:  # ImportError: a "module:ID" that fails
         raise UsageError("--env", f"{exc}; DebrisGym IDs: {ids}") from exc
     except (TypeError, ValueError, OverflowError) as exc:
         raise UsageError("--env-kwargs", str(exc)) from exc
@@ -364,7 +380,7 @@ def _fresh_plan(options: EvaluateOptions) -> EvaluationPlan:
         raise UsageError("--plots", f"must be an integer >= 0, got {plots!r}")
     env_kwargs = dict(options.env_kwargs or {})
     _check_env(env_id, env_kwargs, options.max_steps, seed)
-    specs, skipped = _choose_agents(options, env_id, env_kwargs)
+    specs, skipped, warned = _choose_agents(options, env_id, env_kwargs)
     return EvaluationPlan(
         out=Path(options.out if options.out is not None else DEFAULT_OUT),
         env_id=env_id,
@@ -377,6 +393,7 @@ def _fresh_plan(options: EvaluateOptions) -> EvaluationPlan:
         reference=options.reference,
         paper=options.paper,
         skipped=skipped,
+        warnings=warned,
     )
 
 
@@ -408,8 +425,8 @@ def _resume_plan(options: EvaluateOptions) -> EvaluationPlan:
         kwargs = {**plan.env_kwargs, **agent_env_options(spec, plan.env_id)}
         return make_env(plan.env_id, kwargs, plan.max_steps)
 
-    _usable(plan.specs, True, "--resume", env_for)
-    return plan
+    _, _, warned = _usable(plan.specs, True, "--resume", env_for)
+    return dataclasses.replace(plan, warnings=warned)
 
 
 def _lock(plan: EvaluationPlan, flag: str) -> RunDirectoryLock:
@@ -469,20 +486,26 @@ def _run_locked(plan: EvaluationPlan, resuming: bool, progress: bool) -> str:
         count[0] += 1
 
     try:
-        results = evaluate_agents(
-            plan.env_id,
-            plan.specs,
-            episodes=plan.episodes,
-            seed=plan.seed,
-            env_kwargs=plan.env_kwargs,
-            progress=progress,
-            max_episode_steps=plan.max_steps,
-            finished=finished,
-            on_episode=keep,
-        )
+        with warnings.catch_warnings():
+            for text in plan.warnings.values():  # already noted when the agents were checked
+                for message in text.split("\n"):
+                    warnings.filterwarnings("ignore", re.escape(message), UserWarning)
+            results = evaluate_agents(
+                plan.env_id,
+                plan.specs,
+                episodes=plan.episodes,
+                seed=plan.seed,
+                env_kwargs=plan.env_kwargs,
+                progress=progress,
+                max_episode_steps=plan.max_steps,
+                finished=finished,
+                on_episode=keep,
+            )
         summary = summarize(results, reference=plan.reference)
         if plan.skipped:
             summary["skipped"] = plan.skipped
+        if plan.warnings:
+            summary["warnings"] = plan.warnings
         text = summary_markdown(summary)
         extra: dict[str, str] = {}
         if plan.paper:

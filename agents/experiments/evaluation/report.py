@@ -106,6 +106,8 @@ def summary_markdown(summary: dict[str, Any]) -> str:
                 f"| {format_number(e['reference_delta_v_mean'])} "
                 f"| {_with_ci(e, 'difference_mean')} |"
             )
+    for label, message in (summary.get("warnings") or {}).items():
+        lines += ["", f"Warning — {label}: {message}"]
     return "\n".join(lines) + "\n"
 
 

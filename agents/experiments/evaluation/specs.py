@@ -225,7 +225,16 @@ def resolve_python_agent(target: str) -> Any:
 def _as_policy(label: str, obj: Any, env: gym.Env) -> Any:
     """``obj`` itself if it is a policy instance, else ``obj(env)``; checked for ``predict``."""
     is_instance_policy = callable(getattr(obj, "predict", None)) and not isinstance(obj, type)
-    policy = obj if is_instance_policy else obj(env) if callable(obj) else obj
+    policy = obj
+    if not is_instance_policy and callable(obj):
+        try:
+            policy = obj(env)
+        except (TypeError, ValueError) as exc:
+            kind = TypeError if isinstance(exc, TypeError) else ValueError
+            raise kind(
+                f"agent {label!r}: its factory {getattr(obj, '__name__', obj)!r} failed on the "
+                f"env ({exc}); give a policy or a factory callable(env) -> policy"
+            ) from exc
     if not callable(getattr(policy, "predict", None)):
         raise TypeError(
             f"agent {label!r}: {type(policy).__name__} has no predict(obs, state, episode_start, "
