@@ -331,13 +331,17 @@ def read_vecnormalize(stats: Path) -> Any:
         raise ValueError(
             f"{stats}: holds a {type(normalizer).__name__}, not VecNormalize statistics; {fix}"
         )
-    try:  # a VecNormalize object whose statistics are missing or corrupt fails only later
-        norm_obs = bool(normalizer.norm_obs)
+    # A VecNormalize object whose statistics are missing or corrupt would fail only later, on
+    # the first observation; its own attributes are read from vars() because VecNormalize
+    # forwards unknown attributes to its (absent) venv.
+    state = vars(normalizer)
+    try:
+        norm_obs = bool(state["norm_obs"])
         if norm_obs:
-            mean = np.asarray(normalizer.obs_rms.mean, dtype=float)
-            var = np.asarray(normalizer.obs_rms.var, dtype=float)
-            clip, eps = float(normalizer.clip_obs), float(normalizer.epsilon)
-    except (AttributeError, TypeError, ValueError) as exc:
+            mean = np.asarray(state["obs_rms"].mean, dtype=float)
+            var = np.asarray(state["obs_rms"].var, dtype=float)
+            clip, eps = float(state["clip_obs"]), float(state["epsilon"])
+    except (AttributeError, KeyError, TypeError, ValueError) as exc:
         raise ValueError(
             f"{stats}: incomplete VecNormalize statistics ({type(exc).__name__}: {exc}); {fix}"
         ) from None
