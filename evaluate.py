@@ -231,7 +231,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"\n{exc.message()}", file=sys.stderr)
         return 130
     except KeyboardInterrupt:  # while the arguments were checked: nothing ran
-        print("\ninterrupted before any episode ran; nothing saved", file=sys.stderr)
+        kept = f"{args.resume}/unfinished/ is unchanged" if args.resume else "nothing saved"
+        print(f"\ninterrupted before any episode ran; {kept}", file=sys.stderr)
         return 130
     print(text, end="")
     return 0

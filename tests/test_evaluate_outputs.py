@@ -335,3 +335,21 @@ def test_a_journaled_record_reads_back_bit_for_bit():
             getattr(back.trajectory, name), getattr(record.trajectory, name)
         )
     assert scenario_fingerprint(back.scenario) == record.scenario_id
+
+
+def test_resume_refuses_a_journal_of_another_evaluation(cli, capsys, monkeypatch, tmp_path):
+    def stop(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(command, "write_outputs", stop)
+    out = tmp_path / "eval"
+    argv = ["--agents", "zero", "--episodes", "2", "--plots", "0", *QUICK, "--out", str(out)]
+    assert cli.main(argv) == 130
+    journal = EvaluationJournal(out)
+    options = json.loads(journal.options_path.read_text())
+    journal.options_path.write_text(json.dumps({**options, "seed": 7}))  # not what was flown
+    err = _usage_error(cli, capsys, ["--resume", str(out)])
+    assert "argument --resume" in err and "episodes.jsonl" in err and "reset seed 0" in err
+    journal.options_path.write_text("{not json")
+    err = _usage_error(cli, capsys, ["--resume", str(out)])
+    assert "argument --resume" in err and "options.json" in err

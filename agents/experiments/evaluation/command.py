@@ -37,7 +37,7 @@ from agents.experiments.evaluation.paper import (
     paper_table_markdown,
 )
 from agents.experiments.evaluation.report import summary_markdown, to_json, write_outputs
-from agents.experiments.evaluation.runner import evaluate_agents, make_env
+from agents.experiments.evaluation.runner import evaluate_agents, index_finished, make_env
 from agents.experiments.evaluation.specs import (
     PRETRAINED,
     AgentSpec,
@@ -471,6 +471,10 @@ def _run_locked(plan: EvaluationPlan, resuming: bool, progress: bool) -> str:
             finished = journal.read_records()
         except JournalError as exc:
             raise UsageError("--resume", str(exc)) from exc
+        try:
+            index_finished(finished, plan.specs, plan.episodes, plan.seed)
+        except ValueError as exc:
+            raise UsageError("--resume", f"{journal.episodes_path}: {exc}") from exc
         journal.drop_partial_line()
     else:
         if journal.exists():

@@ -39,7 +39,7 @@ from agents.experiments.evaluation.specs import (
 )
 from debris_gym.scenario import Scenario
 
-__all__ = ["evaluate_agents", "make_env", "run_episode"]
+__all__ = ["evaluate_agents", "index_finished", "make_env", "run_episode"]
 
 
 def _outcome(info: dict[str, Any], truncated: bool) -> str:
@@ -186,7 +186,7 @@ def evaluate_agents(
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
     specs = parse_agent_specs(agent_specs)
     env_kwargs = dict(env_kwargs or {})
-    done = _finished_by_pair(finished, specs, episodes)
+    done = index_finished(finished, specs, episodes, seed)
     records: list[EpisodeRecord] = []
     time_limit = max_episode_steps
     start = time.perf_counter()
@@ -240,18 +240,28 @@ def evaluate_agents(
     )
 
 
-def _finished_by_pair(
-    finished: Sequence[EpisodeRecord], specs: list[AgentSpec], episodes: int
+def index_finished(
+    finished: Sequence[EpisodeRecord], specs: list[AgentSpec], episodes: int, seed: int
 ) -> dict[tuple[str, int], EpisodeRecord]:
-    """``finished`` by (agent label, episode), checked to belong to this evaluation."""
+    """``finished`` by (agent label, episode), checked to belong to the evaluation of ``specs``
+    over ``episodes`` episodes from reset seed ``seed``.
+
+    Raises:
+        ValueError: a record of another agent, episode or seed, or one pair twice.
+    """
     labels = {spec.label for spec in specs}
     done: dict[tuple[str, int], EpisodeRecord] = {}
     for record in finished:
         key = (record.agent, record.episode)
-        if record.agent not in labels or not 0 <= record.episode < episodes:
+        if (
+            record.agent not in labels
+            or not 0 <= record.episode < episodes
+            or record.seed != seed + record.episode
+        ):
             raise ValueError(
-                f"finished record of agent {record.agent!r}, episode {record.episode} is not "
-                f"part of this evaluation (agents {sorted(labels)}, episodes 0..{episodes - 1})"
+                f"finished record of agent {record.agent!r}, episode {record.episode} (reset "
+                f"seed {record.seed}) is not part of this evaluation (agents {sorted(labels)}, "
+                f"episodes 0..{episodes - 1} with reset seeds {seed}…{seed + episodes - 1})"
             )
         if key in done:
             raise ValueError(f"agent {record.agent!r}, episode {record.episode} finished twice")
