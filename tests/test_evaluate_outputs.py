@@ -246,7 +246,7 @@ def test_ctrl_c_for_real_in_a_run_started_with_sigint_ignored(tmp_path):
     out = tmp_path / "eval"
     argv = [
         sys.executable, str(SCRIPT), "--agents", "zero,slow=slowpolicy:Slow", "--episodes", "6",
-        "--env-kwargs", '{"n_obstacles": 3}', "--max-steps", "15", "--plots", "0",
+        "--env-kwargs", '{"n_obstacles": 3}', "--max-steps", "25", "--plots", "0",
         "--no-progress", "--out", str(out),
     ]  # fmt: skip
     env = {**os.environ, "PYTHONPATH": str(ROOT)}

@@ -483,12 +483,6 @@ def _run_locked(plan: EvaluationPlan, resuming: bool, progress: bool) -> str:
             )
         journal.start(plan.to_json())
         finished = []
-    count = [len(finished)]
-
-    def keep(record: Any) -> None:
-        journal.append(record)
-        count[0] += 1
-
     try:
         with warnings.catch_warnings():
             for text in plan.warnings.values():  # already noted when the agents were checked
@@ -503,7 +497,7 @@ def _run_locked(plan: EvaluationPlan, resuming: bool, progress: bool) -> str:
                 progress=progress,
                 max_episode_steps=plan.max_steps,
                 finished=finished,
-                on_episode=keep,
+                on_episode=journal.append,
             )
         summary = summarize(results, reference=plan.reference)
         if plan.skipped:
@@ -526,7 +520,7 @@ def _run_locked(plan: EvaluationPlan, resuming: bool, progress: bool) -> str:
             manifest={"evaluation": plan.to_json()},
         )
     except KeyboardInterrupt:
-        raise EvaluationInterrupted(plan.out, count[0], total) from None
+        raise EvaluationInterrupted(plan.out, journal.count, total) from None
     journal.remove()
     text += f"\nwrote {len(written)} files to {plan.out}/ ({results.elapsed:.1f} s):\n"
     text += "".join(f"  {path}\n" for path in written)

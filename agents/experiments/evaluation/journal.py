@@ -106,6 +106,9 @@ class EvaluationJournal:
         self.dir = Path(out) / JOURNAL_DIR
         self.options_path = self.dir / "options.json"
         self.episodes_path = self.dir / "episodes.jsonl"
+        self.count = 0
+        """Records in the journal: set by :meth:`start` and :meth:`read_records`, counted by
+        :meth:`append` together with the write (a Ctrl-C never falls between the two)."""
 
     def exists(self) -> bool:
         """Whether ``out`` holds an unfinished evaluation."""
@@ -117,15 +120,18 @@ class EvaluationJournal:
         self.remove()
         self.dir.mkdir(parents=True)
         self.episodes_path.touch()
+        self.count = 0
         write_atomic(self.options_path, json.dumps({"format": FORMAT, **options}, indent=1) + "\n")
 
     def append(self, record: EpisodeRecord) -> None:
         """Add a finished episode: one line, written whole and flushed to disk."""
         line = (json.dumps(record_to_json(record), separators=(",", ":")) + "\n").encode()
-        with deferred_interrupts(), open(self.episodes_path, "ab") as fh:
-            fh.write(line)
-            fh.flush()
-            os.fsync(fh.fileno())
+        with deferred_interrupts():
+            with open(self.episodes_path, "ab") as fh:
+                fh.write(line)
+                fh.flush()
+                os.fsync(fh.fileno())
+            self.count += 1
 
     def drop_partial_line(self) -> None:
         """Cut a last line left unfinished by a killed process, so appends start on a line of
@@ -186,6 +192,7 @@ class EvaluationJournal:
                     f"{path}, line {number}: not an episode record ({type(exc).__name__}: "
                     f"{exc}); delete the line to run that episode again"
                 ) from None
+        self.count = len(records)
         return records
 
     def remove(self) -> None:
