@@ -367,3 +367,23 @@ def test_a_lock_that_cannot_be_created_is_an_output_dir_error(tmp_path):
     with pytest.raises(OutputDirError, match="cannot create") as info:
         RunDirectoryLock(tmp_path / "afile" / "x", flag="--out").acquire()
     assert info.value.flag == "--out"
+
+
+@pytest.mark.slow
+def test_resume_with_a_damaged_replay_buffer_starts_an_empty_one(train_cli, tmp_path, capsys):
+    """A replay buffer cut short ended the resume in an unpickling traceback; it now resumes
+    with an empty buffer and says so."""
+    out = tmp_path / "run"
+    argv = ["--algo", "sac", "--no-progress", "--n-envs", "2", "--timesteps", "64"]
+    for item in ("eval.freq=0", "checkpoint.freq=0", "checkpoint.replay_buffer=always",
+                 "env_kwargs.max_episode_steps=40", "env_kwargs.n_obstacles=5",
+                 "algo_kwargs.buffer_size=2000", "algo_kwargs.learning_starts=32",
+                 "algo_kwargs.batch_size=32", "policy_kwargs.net_arch=[16]"):  # fmt: skip
+        argv += ["--set", item]
+    assert train_cli.main([*argv, "--out", str(out)]) == 0
+    buffer = out / "replay_buffer.pkl"
+    buffer.write_bytes(buffer.read_bytes()[:100])
+    capsys.readouterr()
+    assert train_cli.main(["--resume", str(out), "--timesteps", "32", "--no-progress"]) == 0
+    err = capsys.readouterr().err
+    assert "replay buffer replay_buffer.pkl is damaged" in err and "empty buffer" in err

@@ -272,9 +272,7 @@ def train(options: TrainOptions) -> TrainResult:
             lock.release()
     finally:
         if segment is not None:
-            for env in (segment.train_env, segment.eval_env):
-                if env is not None:
-                    env.close()
+            _close_envs(segment)
 
 
 def _check_resume_options(options: TrainOptions) -> Path:
@@ -330,16 +328,27 @@ def _build(segment: _Segment, stats: Path | None, device: str) -> None:
     config = segment.config
     set_random_seed(segment.segment_seed)
     segment.train_env = make_train_env(config, segment.segment_seed, stats)
-    segment.eval_env = make_eval_env(config) if config.eval.freq > 0 else None
-    if segment.checkpoint is None:
-        segment.model = build_model(
-            config,
-            segment.train_env,
-            seed=segment.segment_seed,
-            device=device,
-            tensorboard_log=tensorboard_dir(segment.out),
-            source=segment.source,
-        )
+    try:
+        segment.eval_env = make_eval_env(config) if config.eval.freq > 0 else None
+        if segment.checkpoint is None:
+            segment.model = build_model(
+                config,
+                segment.train_env,
+                seed=segment.segment_seed,
+                device=device,
+                tensorboard_log=tensorboard_dir(segment.out),
+                source=segment.source,
+            )
+    except BaseException:
+        _close_envs(segment)
+        raise
+
+
+def _close_envs(segment: _Segment) -> None:
+    for env in (segment.train_env, segment.eval_env):
+        if env is not None:
+            env.close()
+    segment.train_env = segment.eval_env = None
 
 
 def _prepare_fresh(options: TrainOptions, out: Path, device: str, command: str) -> _Segment:
@@ -393,31 +402,41 @@ def _prepare_resume(options: TrainOptions, out: Path, device: str, command: str)
     try:
         model = algo_class(config.algo).load(str(checkpoint), env=segment.train_env, device=device)
     except (RuntimeError, EOFError, OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:
+        _close_envs(segment)
         raise ValueError(
             f"--resume {out}: checkpoint {checkpoint} is damaged ({type(exc).__name__}: {exc}); "
             "delete it to resume from the previous checkpoint"
         ) from None
     model.tensorboard_log = tensorboard_dir(out)
     model.set_random_seed(segment_seed)
-    buffer = sidecar_path(checkpoint, "replay_buffer")
     if config.algo in OFF_POLICY:
-        if buffer.is_file():
-            model.load_replay_buffer(str(buffer))
-        else:
-            print(
-                f"note: no replay buffer saved with {checkpoint.name}; resuming with an "
-                "empty buffer (random actions until it refills)",
-                file=sys.stderr,
-            )
-            model.learning_starts = model.num_timesteps + int(
-                config.algo_kwargs.get("learning_starts", model.learning_starts)
-            )
+        _restore_replay_buffer(model, config, checkpoint)
     segment.model = model
     segment.run = _run_section(segment, device)
     segment.run.setdefault("resumes", []).append(
         {"command": command, "from": str(checkpoint), "at": utc_now(), "add_timesteps": add}
     )
     return segment
+
+
+def _restore_replay_buffer(model: Any, config: TrainConfig, checkpoint: Path) -> None:
+    """Load the replay buffer saved with ``checkpoint``; without one (or with one cut short) the
+    run resumes with an empty buffer and random actions for ``learning_starts`` steps."""
+    buffer = sidecar_path(checkpoint, "replay_buffer")
+    problem = f"no replay buffer saved with {checkpoint.name}"
+    if buffer.is_file():
+        try:
+            model.load_replay_buffer(str(buffer))
+            return
+        except Exception as exc:  # any unpickling failure means a damaged file
+            problem = f"replay buffer {buffer.name} is damaged ({type(exc).__name__})"
+    print(
+        f"note: {problem}; resuming with an empty buffer (random actions until it refills)",
+        file=sys.stderr,
+    )
+    model.learning_starts = model.num_timesteps + int(
+        config.algo_kwargs.get("learning_starts", model.learning_starts)
+    )
 
 
 def _run_section(segment: _Segment, device: str) -> dict[str, Any]:
