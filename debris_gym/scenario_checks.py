@@ -1,0 +1,386 @@
+"""The rules a debris field must satisfy: the one place scenarios are checked.
+
+Two levels, both raising ``ValueError`` that names the offending key (as a path such as
+``targets[2].radius`` or ``obstacles[0].vertices``), its value and what is allowed:
+
+* :func:`check_values` — every value on its own, run by ``Scenario.__post_init__`` (so on every
+  construction, the generators' too; O(bodies · vertices)): types and shapes, finite numbers,
+  radii, convex polygons, body counts, and the physical parameters inside the env's option
+  ranges (:data:`debris_gym.config.OPTIONS`).
+* :func:`check_layout` — the geometry of the world, run when a scenario comes from outside the
+  library (``Scenario.from_dict`` / ``load`` and :func:`debris_gym.scenario.as_scenario`, the
+  entry of every pinned field into an env): world size, every body inside the bounds, no two
+  bodies overlapping, the dock inside the bounds and clear of every body at t = 0. It reads body
+  positions only through ``Scenario.body_positions(t)`` at the times it is given, so a field
+  whose bodies move can be checked over a horizon by passing more times.
+
+Units are SI: m, s, rad/s, m/s². ``docs/validation.md`` ("Scenarios") lists every rule.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from debris_gym.config import OPTIONS, Option
+
+if TYPE_CHECKING:  # the scenario module imports this one
+    from debris_gym.scenario import Scenario
+
+__all__ = [
+    "MAX_WORLD_COORDINATE",
+    "MIN_WORLD_SIZE",
+    "MOTION_MODELS",
+    "body_names",
+    "check_layout",
+    "check_polygon",
+    "check_values",
+    "number",
+    "vector",
+]
+
+MIN_WORLD_SIZE = float(OPTIONS["field_size"].low)
+"""Shortest allowed edge of the world box (m), the env's smallest ``field_size``.
+
+Rewards and observations are scaled by L = half the world's largest edge: in a world of a few
+metres one step's progress term reaches thousands, and the env's default capture zone (5 m) is
+larger than the world itself."""
+
+MAX_WORLD_COORDINATE = float(OPTIONS["field_size"].high)
+"""Largest allowed |bound| (m): the world lies within the env's largest ``field_size`` of the
+LVLH origin (the reference orbit), where the linear CWH model holds."""
+
+MOTION_MODELS = ("frozen",)
+"""Debris motion models a scenario may declare (moving fields come with the v1 IDs)."""
+
+RELATIVE_TOLERANCE = 1e-9
+"""Rounding allowance of the geometric comparisons, relative to the lengths compared."""
+
+_PAIR_BLOCK = 256
+"""Bodies per block of the pairwise overlap test (bounds its temporaries to ~B · 256 numbers)."""
+
+
+# --- single values ------------------------------------------------------------------------------
+
+
+def number(
+    value: Any, key: str, *, low: float | None = None, high: float | None = None, unit: str = ""
+) -> float:
+    """``value`` as a finite float within ``[low, high]``, else ``ValueError`` naming ``key``.
+
+    Booleans and strings are not numbers here (``"5"`` would otherwise pass as 5.0).
+    """
+    allowed = _interval(low, high, unit)
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{key} must be a number, got {value!r}; allowed: {allowed}")
+    try:
+        out = float(value)
+    except OverflowError:  # an int beyond float range
+        out = math.inf
+    if not math.isfinite(out):
+        raise ValueError(f"{key} must be finite, got {value!r}; allowed: {allowed}")
+    if (low is not None and out < low) or (high is not None and out > high):
+        raise ValueError(f"{key}={out!r}{_unit(unit)} is out of range; allowed: {allowed}")
+    return out
+
+
+def vector(value: Any, dim: int, key: str, unit: str = "m") -> tuple[float, ...]:
+    """``value`` as ``dim`` finite floats, else ``ValueError`` naming ``key`` (or ``key[i]``)."""
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if not isinstance(value, (list, tuple)):
+        raise ValueError(f"{key} must be a list of {dim} numbers ({unit}), got {value!r}")
+    if len(value) != dim:
+        raise ValueError(f"{key} must have {dim} components ({unit}), got {len(value)}: {value!r}")
+    return tuple(number(v, f"{key}[{i}]", unit=unit) for i, v in enumerate(value))
+
+
+def _option(key: str, value: Any, name: str | None = None) -> float:
+    """A scenario value checked against the env option ``key`` of :data:`OPTIONS`."""
+    opt: Option = OPTIONS[key]
+    return number(value, name or key, low=opt.low, high=opt.high, unit=opt.unit)
+
+
+def _interval(low: float | None, high: float | None, unit: str) -> str:
+    if low is None and high is None:
+        return f"a finite number{f' ({unit})' if unit else ''}"
+    lo = "-inf" if low is None else f"{low:g}"
+    hi = "inf" if high is None else f"{high:g}"
+    return f"[{lo}, {hi}]{_unit(unit)}"
+
+
+def _unit(unit: str) -> str:
+    return f" {unit}" if unit else ""
+
+
+# --- polygons -----------------------------------------------------------------------------------
+
+
+def check_polygon(vertices: Any, radius: float | None, key: str) -> tuple[tuple[float, float], ...]:
+    """Check one 2D polygon and return its vertices as float pairs.
+
+    Rules: at least 3 finite vertices (m, relative to the body's position), strictly convex and
+    counter-clockwise (every turn to the left), simple (the boundary winds once around: a
+    pentagram turns left at every corner but winds twice), and, when ``radius`` is given, equal
+    to the vertices' circumradius about the position (their largest distance from it) within
+    :data:`RELATIVE_TOLERANCE`.
+    """
+    if isinstance(vertices, np.ndarray):
+        vertices = vertices.tolist()
+    if not isinstance(vertices, (list, tuple)):
+        raise ValueError(f"{key} must be a list of [x, y] vertices (m), got {vertices!r}")
+    if len(vertices) < 3:
+        raise ValueError(f"{key}: a polygon needs at least 3 vertices, got {len(vertices)}")
+    pts = tuple(vector(v, 2, f"{key}[{k}]") for k, v in enumerate(vertices))
+    xy = np.asarray(pts)
+    edges = np.roll(xy, -1, axis=0) - xy
+    following = np.roll(edges, -1, axis=0)
+    cross = edges[:, 0] * following[:, 1] - edges[:, 1] * following[:, 0]
+    scale = float(np.abs(xy).max())
+    if not np.all(cross > RELATIVE_TOLERANCE * scale * scale):
+        k = int(np.argmin(cross))
+        raise ValueError(
+            f"{key} must form a strictly convex, counter-clockwise polygon; the turn at vertex "
+            f"{(k + 1) % len(pts)} is not to the left (cross product {cross[k]:.3g} m²)"
+        )
+    dot = edges[:, 0] * following[:, 0] + edges[:, 1] * following[:, 1]
+    turns = float(np.arctan2(cross, dot).sum()) / (2.0 * math.pi)
+    if round(turns) != 1:
+        raise ValueError(
+            f"{key} winds {round(turns)} times around its inside; a convex polygon winds once "
+            "(is it a star whose turns are all left?)"
+        )
+    if radius is not None:
+        circumradius = float(np.hypot(xy[:, 0], xy[:, 1]).max())
+        if not math.isclose(radius, circumradius, rel_tol=RELATIVE_TOLERANCE):
+            raise ValueError(
+                f"{key.rsplit('.', 1)[0]}.radius={radius!r} m disagrees with the circumradius of "
+                f"its vertices, {circumradius!r} m (largest vertex distance from the position); "
+                "give that value or leave radius out to derive it"
+            )
+    return pts
+
+
+# --- the whole scenario, value by value ---------------------------------------------------------
+
+
+def check_values(scenario: Scenario) -> None:
+    """Every value of ``scenario`` on its own (see the module docstring); ``ValueError`` if not.
+
+    Raises:
+        ValueError: naming the key path, the value and what is allowed.
+    """
+    dim = scenario.dim
+    integral = isinstance(dim, numbers.Integral) and not isinstance(dim, (bool, np.bool_))
+    if not integral or dim not in (2, 3):
+        raise ValueError(f"dim must be the integer 2 or 3, got {dim!r}")
+    bounds = scenario.bounds
+    if not isinstance(bounds, (list, tuple)) or len(bounds) != dim:
+        raise ValueError(f"bounds must be {dim} [low, high] pairs (m), got {bounds!r}")
+    for axis, pair in enumerate(bounds):
+        lo, hi = vector(pair, 2, f"bounds[{axis}]")
+        if not lo < hi:
+            raise ValueError(f"bounds[{axis}]={[lo, hi]!r} m must have low < high")
+    vector(scenario.dock, dim, "dock")
+    counts = (("targets", "n_targets"), ("obstacles", "n_obstacles"))
+    for kind, option in counts:
+        bodies = getattr(scenario, kind)
+        if not isinstance(bodies, tuple):
+            raise ValueError(f"{kind} must be a tuple of Body, got {type(bodies).__name__}")
+        opt = OPTIONS[option]
+        if not opt.low <= len(bodies) <= opt.high:
+            raise ValueError(
+                f"{kind} has {len(bodies)} bodies; allowed: {opt.describe()} (the env's {option})"
+            )
+    radius_min = {"targets": "target_radius_min", "obstacles": "obstacle_radius_min"}
+    for kind, _ in counts:
+        min_radius = float(OPTIONS[radius_min[kind]].low)
+        for i, body in enumerate(getattr(scenario, kind)):
+            _check_body(body, dim, f"{kind}[{i}]", min_radius, scenario.motion)
+            if kind == "targets" and body.vertices is not None:
+                raise ValueError(f"targets[{i}].vertices: targets must be circles or spheres")
+    _option("mean_motion", scenario.mean_motion)
+    _option("dt", scenario.dt)
+    _option("max_accel", scenario.max_accel)
+    if scenario.motion not in MOTION_MODELS:
+        raise ValueError(f"motion must be one of {MOTION_MODELS}, got {scenario.motion!r}")
+    if not isinstance(scenario.name, str):
+        raise ValueError(f"name must be a string, got {scenario.name!r}")
+
+
+def _check_body(body: Any, dim: int, key: str, min_radius: float, motion: str) -> None:
+    from debris_gym.scenario import Body  # here: the scenario module imports this one
+
+    if not isinstance(body, Body):
+        raise ValueError(f"{key} must be a Body, got {type(body).__name__}")
+    vector(body.position, dim, f"{key}.position")
+    if len(body.velocity) not in (0, dim):
+        raise ValueError(f"{key}.velocity must have {dim} components (m/s), got {body.velocity!r}")
+    velocity = vector(body.velocity, len(body.velocity), f"{key}.velocity", "m/s")
+    if motion == "frozen" and any(v != 0.0 for v in velocity):
+        raise ValueError(
+            f"{key}.velocity={list(velocity)!r} m/s: a frozen field (motion='frozen') needs zero "
+            "body velocities"
+        )
+    number(body.radius, f"{key}.radius", low=min_radius, unit="m")
+    if body.vertices is not None:
+        if dim != 2:
+            raise ValueError(f"{key}.vertices: polygons are only allowed in 2D scenarios")
+        check_polygon(body.vertices, body.radius, f"{key}.vertices")
+
+
+# --- the layout of the world --------------------------------------------------------------------
+
+
+def body_names(scenario: Scenario) -> list[str]:
+    """Key path of every body in :attr:`Scenario.bodies` order (targets first)."""
+    return [f"targets[{i}]" for i in range(len(scenario.targets))] + [
+        f"obstacles[{i}]" for i in range(len(scenario.obstacles))
+    ]
+
+
+def check_layout(scenario: Scenario, times: Sequence[float] = (0.0,)) -> None:
+    """The world's geometry (see the module docstring); ``ValueError`` naming the key if not.
+
+    Args:
+        scenario: a scenario whose values passed :func:`check_values`.
+        times: instants (s) at which the bodies must be inside the bounds and apart. The dock
+            must be clear at the first of them only: a body whose later path crosses the start
+            is a legitimate test case.
+    """
+    low, high = scenario.low, scenario.high
+    for axis, (lo, hi) in enumerate(scenario.bounds):
+        size = hi - lo
+        if not MIN_WORLD_SIZE <= size <= MAX_WORLD_COORDINATE:
+            raise ValueError(
+                f"bounds[{axis}] spans {size!r} m; allowed: "
+                f"{_interval(MIN_WORLD_SIZE, MAX_WORLD_COORDINATE, 'm')} (the env's field_size "
+                "range: rewards and observations are scaled by half the world size)"
+            )
+        if max(abs(lo), abs(hi)) > MAX_WORLD_COORDINATE:
+            raise ValueError(
+                f"bounds[{axis}]={[lo, hi]!r} m reaches beyond ±{MAX_WORLD_COORDINATE:g} m of the "
+                "LVLH origin (the reference orbit), where the linear CWH model stops holding"
+            )
+    dock = np.asarray(scenario.dock, dtype=float)
+    if np.any(dock <= low) or np.any(dock >= high):
+        raise ValueError(
+            f"dock={list(scenario.dock)!r} m must be strictly inside the bounds "
+            f"{[list(b) for b in scenario.bounds]!r} m"
+        )
+    names = body_names(scenario)
+    radii = np.array([b.radius for b in scenario.bodies])
+    for k, t in enumerate(times):
+        centres = np.asarray(scenario.body_positions(t), dtype=float)
+        _check_inside(scenario, centres, radii, names, t)
+        _check_apart(scenario, centres, radii, names, t)
+        if k == 0:
+            _check_dock_clear(scenario, dock, centres, radii, names)
+
+
+def _at(t: float) -> str:
+    return "" if t == 0.0 else f" at t = {t:g} s"
+
+
+def _outline(scenario: Scenario, b: int, centre: np.ndarray) -> np.ndarray | None:
+    """Polygon vertices of body ``b`` in world coordinates (m), or None for a circle / sphere."""
+    vertices = scenario.bodies[b].vertices
+    return None if vertices is None else centre + np.asarray(vertices, dtype=float)
+
+
+def _check_inside(scenario, centres, radii, names, t) -> None:
+    low, high = scenario.low, scenario.high
+    lows, highs = centres - radii[:, None], centres + radii[:, None]
+    for b in np.flatnonzero(np.any(lows < low, axis=1) | np.any(highs > high, axis=1)).tolist():
+        outline = _outline(scenario, b, centres[b])
+        if outline is not None and np.all(outline >= low) and np.all(outline <= high):
+            continue  # the bounding circle sticks out, the polygon itself does not
+        raise ValueError(
+            f"{names[b]} (position {centres[b].tolist()!r} m, radius {radii[b].item()!r} m) is not "
+            f"inside the bounds {[list(p) for p in scenario.bounds]!r} m{_at(t)}; every body must "
+            "lie wholly inside them"
+        )
+
+
+def _check_apart(scenario, centres, radii, names, t) -> None:
+    """No two bodies overlap (touching is allowed): bounding circles / spheres first, in blocks
+    of rows (O(B²) work, O(B) memory per row), then the exact shapes for the pairs they flag."""
+    count = len(radii)
+    for start in range(0, count, _PAIR_BLOCK):
+        rows = slice(start, min(start + _PAIR_BLOCK, count))
+        delta = centres[rows, None, :] - centres[None, :, :]
+        dist = np.sqrt(np.einsum("ijk,ijk->ij", delta, delta))
+        reach = radii[rows, None] + radii[None, :]
+        close = dist < reach * (1.0 - RELATIVE_TOLERANCE)
+        close &= np.arange(count)[None, :] > np.arange(rows.start, rows.stop)[:, None]
+        for i, j in zip(*np.nonzero(close)):
+            a, b = int(i) + start, int(j)
+            if _shapes_overlap(scenario, a, b, centres, radii):
+                raise ValueError(
+                    f"{names[a]} and {names[b]} overlap{_at(t)} (centres "
+                    f"{centres[a].tolist()!r} and {centres[b].tolist()!r} m, {dist[i, j]:.6g} m "
+                    f"apart, radii {radii[a].item()!r} and {radii[b].item()!r} m); bodies must not "
+                    "overlap"
+                )
+
+
+def _shapes_overlap(scenario, a: int, b: int, centres, radii) -> bool:
+    """Whether bodies ``a`` and ``b``, whose bounding circles overlap, overlap themselves."""
+    pa, pb = _outline(scenario, a, centres[a]), _outline(scenario, b, centres[b])
+    if pa is None and pb is None:
+        return True
+    if pa is None or pb is None:
+        circle, poly = (a, pb) if pa is None else (b, pa)
+        gap = _point_polygon_distance(centres[circle], poly)
+        return gap < radii[circle] * (1.0 - RELATIVE_TOLERANCE)
+    return not _separated(pa, pb)
+
+
+def _edge_normals(poly: np.ndarray) -> np.ndarray:
+    """Outward (unnormalised) normals of a counter-clockwise polygon's edges."""
+    edges = np.roll(poly, -1, axis=0) - poly
+    return np.column_stack([edges[:, 1], -edges[:, 0]])
+
+
+def _separated(pa: np.ndarray, pb: np.ndarray) -> bool:
+    """Separating-axis test of two convex polygons; touching counts as separated."""
+    size = max(float(np.abs(pa).max()), float(np.abs(pb).max()), 1.0)
+    for normals in (_edge_normals(pa), _edge_normals(pb)):
+        norm = np.hypot(normals[:, 0], normals[:, 1])[:, None]
+        axes = normals / norm
+        proj_a, proj_b = pa @ axes.T, pb @ axes.T
+        gap = np.maximum(
+            proj_b.min(axis=0) - proj_a.max(axis=0), proj_a.min(axis=0) - proj_b.max(axis=0)
+        )
+        if np.any(gap >= -RELATIVE_TOLERANCE * size):
+            return True
+    return False
+
+
+def _point_polygon_distance(point: np.ndarray, poly: np.ndarray) -> float:
+    """Distance (m) from ``point`` to a convex counter-clockwise polygon; 0 inside it."""
+    start, end = poly, np.roll(poly, -1, axis=0)
+    edge = end - start
+    rel = point - start
+    if np.all(edge[:, 0] * rel[:, 1] - edge[:, 1] * rel[:, 0] >= 0.0):
+        return 0.0
+    s = np.clip(np.einsum("ij,ij->i", rel, edge) / np.einsum("ij,ij->i", edge, edge), 0.0, 1.0)
+    nearest = start + s[:, None] * edge
+    return float(np.hypot(*(point - nearest).T).min())
+
+
+def _check_dock_clear(scenario, dock, centres, radii, names) -> None:
+    dist = np.sqrt(((centres - dock) ** 2).sum(axis=1))
+    for b in np.flatnonzero(dist <= radii).tolist():
+        outline = _outline(scenario, b, centres[b])
+        if outline is not None and _point_polygon_distance(dock, outline) > 0.0:
+            continue
+        raise ValueError(
+            f"dock={list(scenario.dock)!r} m is inside or on {names[b]} (position "
+            f"{centres[b].tolist()!r} m, radius {radii[b].item()!r} m); the dock must be clear of "
+            "every body at t = 0 (the episode would start in collision)"
+        )
