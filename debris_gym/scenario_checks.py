@@ -137,15 +137,16 @@ def check_polygon(vertices: Any, radius: float | None, key: str) -> tuple[tuple[
         raise ValueError(f"{key}: a polygon needs at least 3 vertices, got {len(vertices)}")
     pts = tuple(vector(v, 2, f"{key}[{k}]") for k, v in enumerate(vertices))
     xy = np.asarray(pts)
-    edges = np.roll(xy, -1, axis=0) - xy
+    scale = float(np.abs(xy).max())
+    unit = xy / scale if scale > 0.0 else xy  # turns in units of the polygon's size: no overflow
+    edges = np.roll(unit, -1, axis=0) - unit
     following = np.roll(edges, -1, axis=0)
     cross = edges[:, 0] * following[:, 1] - edges[:, 1] * following[:, 0]
-    scale = float(np.abs(xy).max())
-    if not np.all(cross > RELATIVE_TOLERANCE * scale * scale):
+    if not np.all(cross > RELATIVE_TOLERANCE):
         k = int(np.argmin(cross))
         raise ValueError(
             f"{key} must form a strictly convex, counter-clockwise polygon; the turn at vertex "
-            f"{(k + 1) % len(pts)} is not to the left (cross product {cross[k]:.3g} m²)"
+            f"{(k + 1) % len(pts)} ({list(pts[(k + 1) % len(pts)])!r} m) is not to the left"
         )
     dot = edges[:, 0] * following[:, 0] + edges[:, 1] * following[:, 1]
     turns = float(np.arctan2(cross, dot).sum()) / (2.0 * math.pi)
