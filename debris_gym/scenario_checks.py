@@ -19,6 +19,7 @@ Units are SI: m, s, rad/s, m/s². ``docs/validation.md`` ("Scenarios") lists eve
 
 from __future__ import annotations
 
+import itertools
 import math
 import numbers
 from collections.abc import Sequence
@@ -137,33 +138,59 @@ def check_polygon(vertices: Any, radius: float | None, key: str) -> tuple[tuple[
         raise ValueError(f"{key}: a polygon needs at least 3 vertices, got {len(vertices)}")
     pts = tuple(vector(v, 2, f"{key}[{k}]") for k, v in enumerate(vertices))
     xy = np.asarray(pts)
-    scale = float(np.abs(xy).max())
-    unit = xy / scale if scale > 0.0 else xy  # turns in units of the polygon's size: no overflow
-    edges = np.roll(unit, -1, axis=0) - unit
-    following = np.roll(edges, -1, axis=0)
-    cross = edges[:, 0] * following[:, 1] - edges[:, 1] * following[:, 0]
-    if not np.all(cross > RELATIVE_TOLERANCE):
-        k = int(np.argmin(cross))
+    left, turns, circumradius = _polygon_shapes(xy, np.array([len(pts)]))
+    if left[0] < len(pts):
+        k = int(left[0])
         raise ValueError(
             f"{key} must form a strictly convex, counter-clockwise polygon; the turn at vertex "
-            f"{(k + 1) % len(pts)} ({list(pts[(k + 1) % len(pts)])!r} m) is not to the left"
+            f"{k} ({list(pts[k])!r} m) is not to the left"
         )
-    dot = edges[:, 0] * following[:, 0] + edges[:, 1] * following[:, 1]
-    turns = float(np.arctan2(cross, dot).sum()) / (2.0 * math.pi)
-    if round(turns) != 1:
+    if turns[0] != 1:
         raise ValueError(
-            f"{key} winds {round(turns)} times around its inside; a convex polygon winds once "
+            f"{key} winds {turns[0]} times around its inside; a convex polygon winds once "
             "(is it a star whose turns are all left?)"
         )
-    if radius is not None:
-        circumradius = float(np.hypot(xy[:, 0], xy[:, 1]).max())
-        if not math.isclose(radius, circumradius, rel_tol=RELATIVE_TOLERANCE):
-            raise ValueError(
-                f"{key.rsplit('.', 1)[0]}.radius={radius!r} m disagrees with the circumradius of "
-                f"its vertices, {circumradius!r} m (largest vertex distance from the position); "
-                "give that value or leave radius out to derive it"
-            )
+    if radius is not None and not _radius_matches(np.array([radius]), circumradius)[0]:
+        raise ValueError(
+            f"{key.rsplit('.', 1)[0]}.radius={radius!r} m disagrees with the circumradius of "
+            f"its vertices, {float(circumradius[0])!r} m (largest vertex distance from the "
+            "position); give that value or leave radius out to derive it"
+        )
     return pts
+
+
+def _polygon_shapes(xy: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The shape rules of P polygons at once, vertices (sum(counts), 2) one polygon after another.
+
+    Returns ``(first, turns, circumradius)`` per polygon: the first vertex whose turn is not
+    strictly to the left (``counts`` if none), the winding number of the boundary (round(total
+    turning / 2π)), and the largest vertex distance from the body's position (m). Turns are
+    measured on vertices scaled by the polygon's size, so huge coordinates do not overflow.
+    """
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    poly = np.repeat(np.arange(len(counts)), counts)
+    index = np.arange(len(xy))
+    following = index + 1
+    following[starts + counts - 1] = starts  # the last vertex turns into the first
+    size = np.maximum.reduceat(np.abs(xy).max(axis=1), starts)
+    unit = xy / np.where(size > 0.0, size, 1.0)[poly, None]
+    edges = unit[following] - unit
+    ahead = edges[following]
+    cross = edges[:, 0] * ahead[:, 1] - edges[:, 1] * ahead[:, 0]
+    dot = edges[:, 0] * ahead[:, 0] + edges[:, 1] * ahead[:, 1]
+    # the turn between edge k (vertex k -> k+1) and edge k+1 happens at vertex k+1
+    bad = np.where(cross > RELATIVE_TOLERANCE, counts[poly], following - starts[poly])
+    first = np.minimum.reduceat(bad, starts)
+    turns = np.rint(np.add.reduceat(np.arctan2(cross, dot), starts) / (2.0 * math.pi))
+    circumradius = np.maximum.reduceat(np.hypot(xy[:, 0], xy[:, 1]), starts)
+    return first, turns.astype(np.int64), circumradius
+
+
+def _radius_matches(radius: np.ndarray, circumradius: np.ndarray) -> np.ndarray:
+    """``math.isclose(radius, circumradius, rel_tol=RELATIVE_TOLERANCE)``, element-wise."""
+    return np.abs(radius - circumradius) <= RELATIVE_TOLERANCE * np.maximum(
+        np.abs(radius), np.abs(circumradius)
+    )
 
 
 # --- the whole scenario, value by value ---------------------------------------------------------
@@ -197,13 +224,14 @@ def check_values(scenario: Scenario) -> None:
             raise ValueError(
                 f"{kind} has {len(bodies)} bodies; allowed: {opt.describe()} (the env's {option})"
             )
-    radius_min = {"targets": "target_radius_min", "obstacles": "obstacle_radius_min"}
-    for kind, _ in counts:
-        min_radius = float(OPTIONS[radius_min[kind]].low)
-        for i, body in enumerate(getattr(scenario, kind)):
-            _check_body(body, dim, f"{kind}[{i}]", min_radius, scenario.motion)
-            if kind == "targets" and body.vertices is not None:
-                raise ValueError(f"targets[{i}].vertices: targets must be circles or spheres")
+    if not _bodies_pass(scenario):  # the fast screen found something: find and name it
+        radius_min = {"targets": "target_radius_min", "obstacles": "obstacle_radius_min"}
+        for kind, _ in counts:
+            min_radius = float(OPTIONS[radius_min[kind]].low)
+            for i, body in enumerate(getattr(scenario, kind)):
+                _check_body(body, dim, f"{kind}[{i}]", min_radius, scenario.motion)
+                if kind == "targets" and body.vertices is not None:
+                    raise ValueError(f"targets[{i}].vertices: targets must be circles or spheres")
     _option("mean_motion", scenario.mean_motion)
     _option("dt", scenario.dt)
     _option("max_accel", scenario.max_accel)
@@ -211,6 +239,73 @@ def check_values(scenario: Scenario) -> None:
         raise ValueError(f"motion must be one of {MOTION_MODELS}, got {scenario.motion!r}")
     if not isinstance(scenario.name, str):
         raise ValueError(f"name must be a string, got {scenario.name!r}")
+
+
+_PLAIN = (float, int)
+"""Number types the fast screen accepts as they are (``bool`` is a type of its own here)."""
+
+
+def _plain(values: Any) -> bool:
+    return all(type(v) in _PLAIN for v in values)
+
+
+def _bodies_pass(scenario: Scenario) -> bool:
+    """Whether every body passes :func:`_check_body`, checked as arrays (a random field's
+    thousands of bodies are built on every reset). True only if every rule holds; False sends
+    :func:`check_values` through the bodies one by one, which names the first fault (and
+    accepts what this screen left to it, such as numpy scalars)."""
+    from debris_gym.scenario import Body  # here: the scenario module imports this one
+
+    dim = scenario.dim
+    bodies = scenario.bodies
+    if not all(type(b) is Body for b in bodies):
+        return False
+    if any(b.vertices is not None for b in scenario.targets):
+        return False
+    positions = [b.position for b in bodies]
+    velocities = [b.velocity for b in bodies if len(b.velocity)]
+    radii = [b.radius for b in bodies]
+    if not (
+        all(type(p) is tuple and len(p) == dim for p in positions)
+        and all(type(v) is tuple and len(v) == dim for v in velocities)
+        and _plain(itertools.chain.from_iterable(positions))
+        and _plain(itertools.chain.from_iterable(velocities))
+        and _plain(radii)
+    ):
+        return False
+    if not np.isfinite(np.array(positions, dtype=float)).all():
+        return False
+    if velocities and (scenario.motion != "frozen" or np.any(np.array(velocities) != 0.0)):
+        return False  # moving fields come later; their velocities go the slow way until then
+    low = np.where(
+        np.arange(len(bodies)) < len(scenario.targets),
+        OPTIONS["target_radius_min"].low,
+        OPTIONS["obstacle_radius_min"].low,
+    )
+    r = np.array(radii, dtype=float)
+    if not (np.isfinite(r).all() and np.all(r >= low)):
+        return False
+    polygons = [b for b in scenario.obstacles if b.vertices is not None]
+    if not polygons:
+        return True
+    if dim != 2:
+        return False
+    shapes = [b.vertices for b in polygons]
+    counts = np.array([len(v) for v in shapes])
+    if not (
+        all(type(v) is tuple for v in shapes)
+        and np.all(counts >= 3)
+        and all(type(p) is tuple and len(p) == 2 for v in shapes for p in v)
+        and _plain(itertools.chain.from_iterable(itertools.chain.from_iterable(shapes)))
+    ):
+        return False
+    xy = np.array(list(itertools.chain.from_iterable(shapes)), dtype=float)
+    if not np.isfinite(xy).all():
+        return False
+    first, turns, circumradius = _polygon_shapes(xy, counts)
+    radius = np.array([b.radius for b in polygons], dtype=float)
+    matches = _radius_matches(radius, circumradius)
+    return bool(np.all(first == counts) and np.all(turns == 1) and matches.all())
 
 
 def _check_body(body: Any, dim: int, key: str, min_radius: float, motion: str) -> None:
@@ -308,25 +403,45 @@ def _check_inside(scenario, centres, radii, names, t) -> None:
 
 
 def _check_apart(scenario, centres, radii, names, t) -> None:
-    """No two bodies overlap (touching is allowed): bounding circles / spheres first, in blocks
-    of rows (O(B²) work, O(B) memory per row), then the exact shapes for the pairs they flag."""
+    """No two bodies overlap (touching is allowed).
+
+    Candidate pairs come from sweep and prune: bodies sorted by where their bounding box starts
+    along the axis of widest spread, each paired with those that start before it ends (a few per
+    body in a random field, so ~B log B work rather than B²); then bounding circles / spheres,
+    then the exact shapes for the pairs those flag. At most :data:`_PAIR_BLOCK` · B candidates
+    are held at once, whatever the layout.
+    """
     count = len(radii)
-    for start in range(0, count, _PAIR_BLOCK):
-        rows = slice(start, min(start + _PAIR_BLOCK, count))
-        delta = centres[rows, None, :] - centres[None, :, :]
-        dist = np.sqrt(np.einsum("ijk,ijk->ij", delta, delta))
-        reach = radii[rows, None] + radii[None, :]
-        close = dist < reach * (1.0 - RELATIVE_TOLERANCE)
-        close &= np.arange(count)[None, :] > np.arange(rows.start, rows.stop)[:, None]
-        for i, j in zip(*np.nonzero(close)):
-            a, b = int(i) + start, int(j)
-            if _shapes_overlap(scenario, a, b, centres, radii):
+    if count < 2:
+        return
+    axis = int(np.argmax(np.ptp(centres, axis=0)))
+    order = np.argsort(centres[:, axis] - radii, kind="stable")
+    starts = (centres[:, axis] - radii)[order]
+    ends = (centres[:, axis] + radii)[order]
+    last = np.searchsorted(starts, ends, side="left")  # sorted bodies k+1 .. last-1 may meet k
+    pending = np.maximum(last - np.arange(count) - 1, 0)
+    budget = _PAIR_BLOCK * count
+    k = 0
+    while k < count:
+        stop = k + max(1, int(np.searchsorted(np.cumsum(pending[k:]), budget, side="right")))
+        rows = np.arange(k, min(stop, count))
+        n_pairs = pending[rows]
+        first = np.repeat(rows, n_pairs)
+        offset = np.arange(n_pairs.sum()) - np.repeat(np.cumsum(n_pairs) - n_pairs, n_pairs)
+        a, b = order[first], order[first + 1 + offset]
+        delta = centres[a] - centres[b]
+        dist = np.sqrt(np.einsum("ij,ij->i", delta, delta))
+        close = np.flatnonzero(dist < (radii[a] + radii[b]) * (1.0 - RELATIVE_TOLERANCE))
+        for m in close[np.lexsort((b[close], a[close]))].tolist():  # report in index order
+            i, j = sorted((int(a[m]), int(b[m])))
+            if _shapes_overlap(scenario, i, j, centres, radii):
                 raise ValueError(
-                    f"{names[a]} and {names[b]} overlap{_at(t)} (centres "
-                    f"{centres[a].tolist()!r} and {centres[b].tolist()!r} m, {dist[i, j]:.6g} m "
-                    f"apart, radii {radii[a].item()!r} and {radii[b].item()!r} m); bodies must not "
-                    "overlap"
+                    f"{names[i]} and {names[j]} overlap{_at(t)} (centres "
+                    f"{centres[i].tolist()!r} and {centres[j].tolist()!r} m, {dist[m]:.6g} m "
+                    f"apart, radii {radii[i].item()!r} and {radii[j].item()!r} m); bodies must "
+                    "not overlap"
                 )
+        k = rows[-1] + 1
 
 
 def _shapes_overlap(scenario, a: int, b: int, centres, radii) -> bool:
