@@ -249,7 +249,7 @@ class Scenario:
             raise ValueError(f"dim must be the integer 2 or 3, got {dim!r}")
         bounds = _sequence(data["bounds"], "bounds", f"{dim} [low, high] pairs (m)")
         if len(bounds) != dim:
-            raise ValueError(f"bounds must be {dim} [low, high] pairs (m), got {len(bounds)}")
+            raise ValueError(f"bounds must be dim={dim} [low, high] pairs (m), got {len(bounds)}")
         bodies = {}
         for kind in ("targets", "obstacles"):
             items = _sequence(data.get(kind, ()), kind, "body dicts")
