@@ -150,7 +150,10 @@ class Scenario:
     max_accel: float = 1.0
     motion: str = "frozen"
     name: str = ""
-    _cache: dict[str, Any] = field(default_factory=dict, compare=False, repr=False, hash=False)
+    # derived data, fresh for every object (init=False: dataclasses.replace must not share it)
+    _cache: dict[str, Any] = field(
+        default_factory=dict, init=False, compare=False, repr=False, hash=False
+    )
 
     def __post_init__(self) -> None:
         check_values(self)
