@@ -12,6 +12,11 @@ Debris motion: wave-1 fields are *frozen* in the LVLH frame (``motion="frozen"``
 its initial position. Under CWH that is exact only for n = 0 (or a body on the V-bar, x = 0); it is
 the simplifying assumption of the source papers. :meth:`Scenario.body_positions` is the one place a
 body's position at time t comes from, so natural CWH motion can be added without touching callers.
+
+Checks (:mod:`debris_gym.scenario_checks`, listed in ``docs/validation.md``): every value is
+checked when a :class:`Scenario` is built; the layout of the world (size, bodies inside the bounds
+and apart, the dock clear) when a scenario comes from outside the library — :meth:`from_dict`,
+:meth:`load` and :func:`as_scenario`, through which every pinned field enters an env.
 """
 
 from __future__ import annotations
