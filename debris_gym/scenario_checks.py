@@ -37,6 +37,7 @@ __all__ = [
     "MIN_WORLD_SIZE",
     "MOTION_MODELS",
     "body_names",
+    "check_dock_clear",
     "check_layout",
     "check_polygon",
     "check_values",
@@ -77,16 +78,22 @@ def number(
     """
     allowed = _interval(low, high, unit)
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{key} must be a number, got {value!r}; allowed: {allowed}")
+        raise ValueError(f"{key} must be a number, got {_show(value)}; allowed: {allowed}")
     try:
         out = float(value)
     except OverflowError:  # an int beyond float range
         out = math.inf
     if not math.isfinite(out):
-        raise ValueError(f"{key} must be finite, got {value!r}; allowed: {allowed}")
+        raise ValueError(f"{key} must be finite, got {_show(value)}; allowed: {allowed}")
     if (low is not None and out < low) or (high is not None and out > high):
         raise ValueError(f"{key}={out!r}{_unit(unit)} is out of range; allowed: {allowed}")
     return out
+
+
+def _show(value: Any) -> str:
+    """``repr(value)``, cut short (a 400-digit integer is still named, not printed whole)."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def vector(value: Any, dim: int, key: str, unit: str = "m") -> tuple[float, ...]:
@@ -94,9 +101,11 @@ def vector(value: Any, dim: int, key: str, unit: str = "m") -> tuple[float, ...]
     if isinstance(value, np.ndarray):
         value = value.tolist()
     if not isinstance(value, (list, tuple)):
-        raise ValueError(f"{key} must be a list of {dim} numbers ({unit}), got {value!r}")
+        raise ValueError(f"{key} must be a list of {dim} numbers ({unit}), got {_show(value)}")
     if len(value) != dim:
-        raise ValueError(f"{key} must have {dim} components ({unit}), got {len(value)}: {value!r}")
+        raise ValueError(
+            f"{key} must have {dim} components ({unit}), got {len(value)}: {_show(value)}"
+        )
     return tuple(number(v, f"{key}[{i}]", unit=unit) for i, v in enumerate(value))
 
 
@@ -262,8 +271,10 @@ def _bodies_pass(scenario: Scenario) -> bool:
         return False
     if any(b.vertices is not None for b in scenario.targets):
         return False
+    if not all(type(b.velocity) is tuple for b in bodies):
+        return False
     positions = [b.position for b in bodies]
-    velocities = [b.velocity for b in bodies if len(b.velocity)]
+    velocities = [b.velocity for b in bodies if b.velocity]
     radii = [b.radius for b in bodies]
     if not (
         all(type(p) is tuple and len(p) == dim for p in positions)
@@ -273,6 +284,15 @@ def _bodies_pass(scenario: Scenario) -> bool:
         and _plain(radii)
     ):
         return False
+    try:
+        return _body_arrays_pass(scenario, positions, velocities, radii)
+    except OverflowError:  # an int beyond float range: the slow path names it
+        return False
+
+
+def _body_arrays_pass(scenario: Scenario, positions: list, velocities: list, radii: list) -> bool:
+    """The array part of :func:`_bodies_pass`, on values already known to be plain numbers."""
+    dim, bodies = scenario.dim, scenario.bodies
     if not np.isfinite(np.array(positions, dtype=float)).all():
         return False
     if velocities and (scenario.motion != "frozen" or np.any(np.array(velocities) != 0.0)):
@@ -314,7 +334,10 @@ def _check_body(body: Any, dim: int, key: str, min_radius: float, motion: str) -
     if not isinstance(body, Body):
         raise ValueError(f"{key} must be a Body, got {type(body).__name__}")
     vector(body.position, dim, f"{key}.position")
-    if len(body.velocity) not in (0, dim):
+    if not isinstance(body.velocity, (list, tuple, np.ndarray)) or len(body.velocity) not in (
+        0,
+        dim,
+    ):
         raise ValueError(f"{key}.velocity must have {dim} components (m/s), got {body.velocity!r}")
     velocity = vector(body.velocity, len(body.velocity), f"{key}.velocity", "m/s")
     if motion == "frozen" and any(v != 0.0 for v in velocity):
@@ -489,14 +512,30 @@ def _point_polygon_distance(point: np.ndarray, poly: np.ndarray) -> float:
     return float(np.hypot(*(point - nearest).T).min())
 
 
-def _check_dock_clear(scenario, dock, centres, radii, names) -> None:
+def check_dock_clear(scenario: Scenario, chaser_radius: float = 0.0) -> None:
+    """The dock is more than ``chaser_radius`` (m) from every body at t = 0, else ``ValueError``.
+
+    :func:`check_layout` asks for a dock outside every body (``chaser_radius`` 0): a scenario
+    knows no chaser. An env that starts its chaser at the dock can ask for its own radius, so
+    that a chaser of that size does not start (or end its mission) touching debris.
+    """
+    dock = np.asarray(scenario.dock, dtype=float)
+    centres = np.asarray(scenario.body_positions(0.0), dtype=float)
+    radii = np.array([b.radius for b in scenario.bodies])
+    _check_dock_clear(scenario, dock, centres, radii, body_names(scenario), chaser_radius)
+
+
+def _check_dock_clear(scenario, dock, centres, radii, names, chaser_radius=0.0) -> None:
     dist = np.sqrt(((centres - dock) ** 2).sum(axis=1))
-    for b in np.flatnonzero(dist <= radii).tolist():
+    for b in np.flatnonzero(dist <= radii + chaser_radius).tolist():
         outline = _outline(scenario, b, centres[b])
-        if outline is not None and _point_polygon_distance(dock, outline) > 0.0:
+        if outline is not None and _point_polygon_distance(dock, outline) > chaser_radius:
             continue
+        within = (
+            f"within the chaser radius {chaser_radius!r} m of" if chaser_radius else "inside or on"
+        )
         raise ValueError(
-            f"dock={list(scenario.dock)!r} m is inside or on {names[b]} (position "
+            f"dock={list(scenario.dock)!r} m is {within} {names[b]} (position "
             f"{centres[b].tolist()!r} m, radius {radii[b].item()!r} m); the dock must be clear of "
             "every body at t = 0 (the episode would start in collision)"
         )

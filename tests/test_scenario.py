@@ -30,6 +30,7 @@ from debris_gym.generators import (
     route_by_construction,
 )
 from debris_gym.scenario import Body, Scenario, as_scenario
+from debris_gym.scenario_checks import check_dock_clear
 from debris_gym.solvability import grid_route_exists, is_solvable
 from tests.geometry_oracle import OracleField
 from tests.helpers import simple_scenario
@@ -669,3 +670,13 @@ def test_a_replaced_scenario_does_not_share_derived_data():
     np.testing.assert_array_equal(moved.body_positions()[1], [0.0, 0.0])
     with pytest.raises(ValueError, match="dock="):
         moved.check_layout()
+
+
+def test_an_env_can_ask_for_the_dock_to_clear_its_chaser():
+    """A dock 0.5 m from an obstacle passes the scenario's own rule (no chaser in a scenario) but
+    not the check an env with a 1 m chaser can make (it would start the episode in contact)."""
+    scen = simple_scenario(obstacles=(Body(position=(20.5, 0.0), radius=20.0),))
+    assert scen.check_layout() is scen
+    check_dock_clear(scen, chaser_radius=0.4)
+    with pytest.raises(ValueError, match=r"dock=\[0.0, 0.0\] m is within the chaser radius 1.0 m"):
+        check_dock_clear(scen, chaser_radius=1.0)
