@@ -13,6 +13,13 @@ debris field comes from that seed. Outputs in --out DIR:
   summary.md                the Markdown table also printed to stdout
   trajectories_epNNN.png    all agents' trajectories over the field, first --plots episodes
   paper_table.md/.json      with --paper: [APF-MPC] Table I beside our measurements
+  manifest.json             the files of the set and the run's options
+
+The files land together or not at all: they are written aside and moved into place at the end,
+and files of an earlier evaluation that this one does not write (trajectory plots of episodes no
+longer plotted, say) are removed. One run at a time may use a directory (a second is refused).
+While it runs, DIR/unfinished/ holds the run's options and every finished episode; Ctrl-C keeps
+them and prints the command that finishes the run, `python evaluate.py --resume DIR`.
 
 Agents (--agents, comma-separated):
   apf, astar, ...           a baseline by name
@@ -48,9 +55,8 @@ examples:
   python evaluate.py --agents apf,ppo=runs/ppo/model.zip
   python evaluate.py --agents apf,mine=my_pkg.my_mod:make_policy   # your own policy
   python evaluate.py --paper --out runs/paper          # [APF-MPC] Table I, ours beside theirs
+  python evaluate.py --resume runs/cmp                 # finish a run stopped by Ctrl-C
 """
-
-DEFAULT_OUT = "runs/eval"
 
 
 def _positive_int(text: str) -> int:
@@ -74,6 +80,25 @@ def _int(text: str) -> int:
         raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
 
 
+def _out_dir(text: str) -> Path:
+    """``--out DIR`` checked before anything runs: not empty, not a file, not under a file,
+    writable."""
+    from agents.experiments.run_directory import OutputDirError, check_output_dir
+
+    try:
+        return check_output_dir(text)
+    except OutputDirError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _run_dir(text: str) -> Path:
+    """``--resume DIR``: an existing directory (whether it holds a journal is checked later)."""
+    path = _out_dir(text)
+    if not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{path} is not a directory")
+    return path
+
+
 def _json_object(text: str) -> dict[str, Any]:
     try:
         value = json.loads(text)
@@ -88,7 +113,7 @@ def _json_object(text: str) -> dict[str, Any]:
 
 def build_parser() -> argparse.ArgumentParser:
     from agents import BASELINES
-    from agents.experiments.evaluation.command import DEFAULT_ENV, DEFAULT_EPISODES
+    from agents.experiments.evaluation.command import DEFAULT_ENV, DEFAULT_EPISODES, DEFAULT_OUT
 
     parser = cli.script_parser("evaluate.py", __doc__, EXAMPLES)
     parser.add_argument(
@@ -115,19 +140,32 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"episodes per agent, >= 1 (default: {DEFAULT_EPISODES})",
     )
     parser.add_argument(
-        "--seed", type=_int, default=0, help="reset seed of episode 0; episode i uses SEED + i"
+        "--seed",
+        type=_non_negative_int,
+        default=None,
+        help="reset seed of episode 0, >= 0; episode i uses SEED + i (default: 0)",
     )
     parser.add_argument(
         "--out",
-        type=Path,
-        default=Path(DEFAULT_OUT),
+        type=_out_dir,
+        default=None,
         metavar="DIR",
-        help=f"output directory, created if needed (default: {DEFAULT_OUT})",
+        help=f"output directory, created if needed; checked before anything runs (default: "
+        f"{DEFAULT_OUT})",
+    )
+    parser.add_argument(
+        "--resume",
+        type=_run_dir,
+        default=None,
+        metavar="DIR",
+        help="finish the evaluation that Ctrl-C stopped in DIR: its options are read from "
+        "DIR/unfinished/, its finished episodes kept, the rest run, and the outputs written "
+        "as usual. No other option but --no-progress",
     )
     parser.add_argument(
         "--plots",
         type=_non_negative_int,
-        default=3,
+        default=None,
         metavar="N",
         help="trajectory plots of the first N episodes (default: 3; 0 = none)",
     )
@@ -175,14 +213,27 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if os.getcwd() not in sys.path:  # MODULE:ATTR agents import from where the user stands
         sys.path.insert(0, os.getcwd())
+    cli.interrupt_on_signals()  # also when started in the background, where SIGINT is ignored
 
-    from agents.experiments.evaluation.command import EvaluateOptions, UsageError, run_evaluation
+    from agents.experiments.evaluation.command import (
+        EvaluateOptions,
+        EvaluationInterrupted,
+        UsageError,
+        run_evaluation,
+    )
 
     options = EvaluateOptions(**vars(args))  # the parser's destinations are the option names
     try:
         text = run_evaluation(options)
     except UsageError as exc:
         parser.error(f"argument {exc.flag}: {exc}")
+    except EvaluationInterrupted as exc:
+        print(f"\n{exc.message()}", file=sys.stderr)
+        return 130
+    except KeyboardInterrupt:  # while the arguments were checked: nothing ran
+        kept = f"{args.resume}/unfinished/ is unchanged" if args.resume else "nothing saved"
+        print(f"\ninterrupted before any episode ran; {kept}", file=sys.stderr)
+        return 130
     print(text, end="")
     return 0
 

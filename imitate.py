@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 from agents.experiments import cli
+from agents.experiments.run_directory import OutputDirError, check_output_dir
 
 EXAMPLES = """\
 examples:
@@ -29,7 +29,13 @@ examples:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = cli.script_parser("imitate.py", __doc__, EXAMPLES)
-    parser.add_argument("--out", type=Path, metavar="DIR", required=True, help="run directory")
+    # kept as text: Path("") would turn an empty argument into the current directory
+    parser.add_argument(
+        "--out",
+        metavar="DIR",
+        required=True,
+        help="run directory (created; one run at a time; refused if it holds a model)",
+    )
     parser.add_argument(
         "--env", metavar="ID", default="DebrisGym/Rendezvous2D-v0", help="environment ID"
     )
@@ -47,17 +53,19 @@ def main(argv: list[str] | None = None) -> int:
     from agents.experiments.imitation.run import imitate
 
     try:
+        out = check_output_dir(args.out)
         config = load_imitation_config(args.env, args.config, args.overrides, args.seed)
         command = " ".join(["python", *cli.command_words(argv)])
-        result = imitate(config, args.out, progress=not args.no_progress, command=command)
+        result = imitate(config, out, progress=not args.no_progress, command=command)
     except (FileNotFoundError, FileExistsError, ValueError) as exc:
-        parser.error(str(exc))
+        usage = f"argument {exc.flag}: {exc}" if isinstance(exc, OutputDirError) else str(exc)
+        parser.error(usage)
     except KeyboardInterrupt:
         print("\ninterrupted; nothing saved (a run writes its files at the end)", file=sys.stderr)
         return 130
     print(
-        f"done in {result['wall_s']:.0f} s\n  {result['model']}\n  {args.out / 'config.yaml'}\n"
-        f"  {args.out / 'imitation_log.json'}\n  {args.out / 'imitation_curve.png'}\n"
+        f"done in {result['wall_s']:.0f} s\n  {result['model']}\n  {out / 'config.yaml'}\n"
+        f"  {out / 'imitation_log.json'}\n  {out / 'imitation_curve.png'}\n"
         f"evaluate with: python evaluate.py --agents apf-mpc,ppo={result['model']}"
     )
     return 0

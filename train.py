@@ -15,6 +15,7 @@ import sys
 from pathlib import Path
 
 from agents.experiments import cli
+from agents.experiments.run_directory import OutputDirError
 
 EXAMPLES = """\
 examples:
@@ -66,7 +67,12 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="S",
         help="base seed; training sub-env i is seeded with S + i (default: 0)",
     )
-    parser.add_argument("--out", type=Path, metavar="DIR", help="run directory (created)")
+    # kept as text: Path("") would turn an empty argument into the current directory
+    parser.add_argument(
+        "--out",
+        metavar="DIR",
+        help="run directory (created; one run at a time; refused if it holds a model)",
+    )
     cli.add_config_options(
         parser,
         "agents/configs/<env>_<algo>.yaml",
@@ -74,7 +80,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--resume",
-        type=Path,
         metavar="DIR",
         help="continue the run in DIR from its latest checkpoint, with its own config",
     )
@@ -89,7 +94,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="torch CPU threads (default: 1; more threads compete with the envs for the cores, "
         "see docs/training.md)",
     )
-    parser.add_argument("--device", default="cpu", help="torch device (default: cpu)")
+    parser.add_argument(
+        "--device",
+        default="cpu",
+        help="torch device: cpu, auto, cuda, cuda:<N> or mps, if this machine has it "
+        "(default: cpu)",
+    )
     return parser
 
 
@@ -107,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         result = train(options)
     except (FileNotFoundError, FileExistsError, ValueError) as exc:
-        parser.error(str(exc))
+        parser.error(cli_error(exc))
     except KeyboardInterrupt:  # before learning started: nothing to save
         print("\ninterrupted before training started; nothing saved", file=sys.stderr)
         return 130
@@ -127,6 +137,11 @@ def main(argv: list[str] | None = None) -> int:
         f"evaluate with: python evaluate.py --agents apf,{_algo(out)}={result.model_path}"
     )
     return 0
+
+
+def cli_error(exc: Exception) -> str:
+    """The usage-error text of a rejected option (output-directory errors name their flag)."""
+    return f"argument {exc.flag}: {exc}" if isinstance(exc, OutputDirError) else str(exc)
 
 
 def _algo(out: Path) -> str:

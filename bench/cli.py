@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from pathlib import Path
 
 from bench.machine import machine_description
 from bench.memory import memory_child
@@ -18,6 +19,26 @@ from bench.suite import SECTIONS, choose_sections, run
 from debris_gym.files import write_atomic
 
 DESCRIPTION = "Step and reset throughput of the DebrisGym environments, relative to CartPole-v1."
+
+
+def check_report_path(path: str) -> Path:
+    """The report file ``--out`` names, checked before anything runs: a file name (existing or
+    not) in a directory that exists, or can be created, and is writable
+    (:func:`agents.experiments.run_directory.check_output_dir` on the parent).
+
+    Raises:
+        ValueError: an empty name, a directory, or a parent that is a file, lies under one, or
+            cannot be written.
+    """
+    from agents.experiments.run_directory import check_output_dir
+
+    if not path.strip():
+        raise ValueError("must name a report file, got an empty string")
+    out = Path(path)
+    if out.is_dir():
+        raise ValueError(f"{out} is a directory; name a file in it, e.g. {out / 'bench.md'}")
+    check_output_dir(out.parent if str(out.parent) else ".")
+    return out
 
 
 def main(
@@ -48,10 +69,15 @@ def main(
     if args.memory_child is not None:  # internal: one fresh-process memory measurement
         print(json.dumps(memory_child(args.memory_child)))
         return 0
-    try:
-        sections = choose_sections(args.only.split(",")) if args.only else SECTIONS
+    try:  # an empty --only is a mistake, not "everything"
+        sections = choose_sections(args.only.split(",")) if args.only is not None else SECTIONS
     except ValueError as exc:
-        parser.error(str(exc))
+        parser.error(f"argument --only: {exc}")
+    if args.out is not None:
+        try:  # before any section runs: a report that cannot be written is a wasted run
+            check_report_path(args.out)
+        except ValueError as exc:
+            parser.error(f"argument --out: {exc}")
     command += " --quick" if args.quick else ""
     if args.only:
         command += f" --only {','.join(sections)}"

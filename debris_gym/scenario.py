@@ -12,6 +12,11 @@ Debris motion: wave-1 fields are *frozen* in the LVLH frame (``motion="frozen"``
 its initial position. Under CWH that is exact only for n = 0 (or a body on the V-bar, x = 0); it is
 the simplifying assumption of the source papers. :meth:`Scenario.body_positions` is the one place a
 body's position at time t comes from, so natural CWH motion can be added without touching callers.
+
+Checks (:mod:`debris_gym.scenario_checks`, listed in ``docs/validation.md``): every value is
+checked when a :class:`Scenario` is built; the layout of the world (size, bodies inside the bounds
+and apart, the dock clear) when a scenario comes from outside the library — :meth:`from_dict`,
+:meth:`load` and :func:`as_scenario`, through which every pinned field enters an env.
 """
 
 from __future__ import annotations
@@ -19,25 +24,45 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from debris_gym.files import write_atomic
+from debris_gym.scenario_checks import (
+    MOTION_MODELS,
+    check_layout,
+    check_polygon,
+    check_values,
+    number,
+    vector,
+)
 
-MOTION_MODELS = ("frozen",)
-"""Debris motion models a scenario may declare."""
+__all__ = ["MOTION_MODELS", "Body", "Scenario", "as_scenario"]
+
+REQUIRED_KEYS = ("dim", "bounds", "dock", "targets", "mean_motion", "dt", "max_accel")
+"""Keys a scenario dict / JSON file must have: the physical parameters too, since a saved field is
+flown with its own physics (an absent ``dt`` must not silently mean 1 s)."""
+
+OPTIONAL_KEYS = {"obstacles": (), "motion": "frozen", "name": ""}
+"""Keys a scenario dict may leave out, with the value they then take."""
+
+BODY_KEYS = ("position", "radius", "velocity", "vertices")
+"""Keys of one body's dict; ``position`` always, ``radius`` unless ``vertices`` give it."""
 
 
-def _vec(values: Sequence[float], dim: int, name: str) -> tuple[float, ...]:
-    out = tuple(float(v) for v in values)
-    if len(out) != dim:
-        raise ValueError(f"{name} must have {dim} components, got {len(out)}")
-    if not all(math.isfinite(v) for v in out):
-        raise ValueError(f"{name} must be finite, got {out}")
-    return out
+def _sequence(value: Any, key: str, what: str) -> list[Any] | tuple[Any, ...]:
+    if not isinstance(value, (list, tuple)):
+        raise ValueError(f"{key} must be a list of {what}, got {value!r}")
+    return value
+
+
+def _mapping(value: Any, key: str) -> Mapping[str, Any]:
+    if not isinstance(value, Mapping):
+        raise ValueError(f"{key} must be a dict (a JSON object), got {type(value).__name__}")
+    return value
 
 
 @dataclass(frozen=True)
@@ -74,38 +99,33 @@ class Body:
         return out
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any], dim: int) -> Body:
-        """Inverse of :meth:`to_dict`; validates shapes and values."""
-        unknown = set(data) - {"position", "radius", "velocity", "vertices"}
+    def from_dict(cls, data: Mapping[str, Any], dim: int, key: str = "body") -> Body:
+        """Inverse of :meth:`to_dict`; ``key`` (e.g. ``"targets[2]"``) prefixes error messages.
+
+        ``radius`` may be left out of a polygon's dict: it is then the vertices' circumradius.
+
+        Raises:
+            ValueError: a missing, unknown or wrong-typed key, named as ``key.name``.
+        """
+        data = _mapping(data, key)
+        unknown = sorted(set(data) - set(BODY_KEYS))
         if unknown:
-            raise ValueError(f"unknown body keys {sorted(unknown)}")
-        position = _vec(data["position"], dim, "body position")
-        velocity = _vec(data.get("velocity", [0.0] * dim), dim, "body velocity")
+            raise ValueError(f"{key} has unknown keys {unknown}; allowed: {list(BODY_KEYS)}")
+        if "position" not in data:
+            raise ValueError(f"{key}.position is missing (the body's centre, {dim} numbers in m)")
+        position = vector(data["position"], dim, f"{key}.position")
+        velocity = vector(data.get("velocity", [0.0] * dim), dim, f"{key}.velocity", "m/s")
+        radius = number(data["radius"], f"{key}.radius", unit="m") if "radius" in data else None
         vertices = data.get("vertices")
         if vertices is not None:
             if dim != 2:
-                raise ValueError("polygon vertices are only allowed in 2D scenarios")
-            vertices = tuple(_vec(v, 2, "polygon vertex") for v in vertices)
-        radius = float(data["radius"]) if "radius" in data else _circumradius(vertices)
+                raise ValueError(f"{key}.vertices: polygons are only allowed in 2D scenarios")
+            vertices = check_polygon(vertices, radius, f"{key}.vertices")
+            if radius is None:
+                radius = float(max(math.hypot(x, y) for x, y in vertices))
+        if radius is None:
+            raise ValueError(f"{key}.radius is missing (a circle or sphere needs its radius in m)")
         return cls(position=position, radius=radius, velocity=velocity, vertices=vertices)
-
-
-def _circumradius(vertices: Sequence[Sequence[float]] | None) -> float:
-    if not vertices:
-        raise ValueError("a body needs a radius or polygon vertices")
-    return float(max(math.hypot(v[0], v[1]) for v in vertices))
-
-
-def _validate_convex_ccw(vertices: tuple[tuple[float, float], ...]) -> None:
-    pts = np.asarray(vertices)
-    if len(pts) < 3:
-        raise ValueError(f"a polygon needs at least 3 vertices, got {len(pts)}")
-    edges = np.roll(pts, -1, axis=0) - pts
-    cross = (
-        edges[:, 0] * np.roll(edges, -1, axis=0)[:, 1] - edges[:, 1] * np.roll(edges, -1, 0)[:, 0]
-    )
-    if not np.all(cross > 0):
-        raise ValueError("polygon vertices must form a strictly convex, counter-clockwise polygon")
 
 
 @dataclass(frozen=True)
@@ -135,40 +155,28 @@ class Scenario:
     max_accel: float = 1.0
     motion: str = "frozen"
     name: str = ""
-    _cache: dict[str, Any] = field(default_factory=dict, compare=False, repr=False, hash=False)
+    # derived data, fresh for every object (init=False: dataclasses.replace must not share it)
+    _cache: dict[str, Any] = field(
+        default_factory=dict, init=False, compare=False, repr=False, hash=False
+    )
 
     def __post_init__(self) -> None:
-        if self.dim not in (2, 3):
-            raise ValueError(f"dim must be 2 or 3, got {self.dim!r}")
-        if len(self.bounds) != self.dim or any(lo >= hi for lo, hi in self.bounds):
-            raise ValueError(f"bounds must be {self.dim} (low, high) pairs with low < high")
-        _vec(self.dock, self.dim, "dock")
-        if not self.targets:
-            raise ValueError("a scenario needs at least one target")
-        for kind, bodies in (("target", self.targets), ("obstacle", self.obstacles)):
-            for i, body in enumerate(bodies):
-                _vec(body.position, self.dim, f"{kind} {i} position")
-                if len(body.velocity) not in (0, self.dim):
-                    raise ValueError(f"{kind} {i} velocity must have {self.dim} components")
-                if not (math.isfinite(body.radius) and body.radius > 0):
-                    raise ValueError(f"{kind} {i} radius must be > 0 m, got {body.radius}")
-                if body.vertices is not None:
-                    if self.dim != 2:
-                        raise ValueError(f"{kind} {i}: polygons are only allowed in 2D")
-                    _validate_convex_ccw(body.vertices)
-                if self.motion == "frozen" and any(v != 0.0 for v in body.velocity):
-                    raise ValueError(f"{kind} {i}: a frozen field needs zero body velocities")
-        for i, t in enumerate(self.targets):
-            if t.vertices is not None:
-                raise ValueError(f"target {i}: targets must be circles or spheres")
-        if not (math.isfinite(self.mean_motion) and self.mean_motion >= 0):
-            raise ValueError(f"mean_motion must be >= 0 rad/s, got {self.mean_motion!r}")
-        if not (math.isfinite(self.dt) and self.dt > 0):
-            raise ValueError(f"dt must be > 0 s, got {self.dt!r}")
-        if not (math.isfinite(self.max_accel) and self.max_accel > 0):
-            raise ValueError(f"max_accel must be > 0 m/s², got {self.max_accel!r}")
-        if self.motion not in MOTION_MODELS:
-            raise ValueError(f"motion must be one of {MOTION_MODELS}, got {self.motion!r}")
+        check_values(self)
+
+    def check_layout(self) -> Scenario:
+        """Check the world's geometry (bounds, bodies inside and apart, dock clear); return self.
+
+        Every scenario from outside the library passes here (:meth:`from_dict`, :meth:`load`,
+        :func:`as_scenario`); the rules are in :mod:`debris_gym.scenario_checks`. The result is
+        remembered per object, so pinning the same scenario on every reset checks it once.
+
+        Raises:
+            ValueError: naming the offending key, its value and what is allowed.
+        """
+        if not self._cache.get("layout_checked"):
+            check_layout(self)
+            self._cache["layout_checked"] = True
+        return self
 
     # --- derived data -------------------------------------------------------------------------
 
@@ -223,38 +231,55 @@ class Scenario:
         }
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> Scenario:
-        """Build and validate a scenario from :meth:`to_dict` output (or hand-written JSON)."""
-        known = {
-            "dim",
-            "bounds",
-            "dock",
-            "targets",
-            "obstacles",
-            "mean_motion",
-            "dt",
-            "max_accel",
-            "motion",
-            "name",
-        }
-        unknown = set(data) - known
+    def from_dict(cls, data: Mapping[str, Any]) -> Scenario:
+        """Build and check a scenario from :meth:`to_dict` output (or hand-written JSON).
+
+        Required keys: :data:`REQUIRED_KEYS`; optional: :data:`OPTIONAL_KEYS`. Runs every rule of
+        :mod:`debris_gym.scenario_checks`, values and layout.
+
+        Raises:
+            ValueError: naming the missing, unknown or invalid key (e.g. ``targets[2].radius``).
+        """
+        data = _mapping(data, "scenario")
+        unknown = sorted(set(data) - set(REQUIRED_KEYS) - set(OPTIONAL_KEYS))
         if unknown:
-            raise ValueError(f"unknown scenario keys {sorted(unknown)}; allowed: {sorted(known)}")
+            allowed = sorted([*REQUIRED_KEYS, *OPTIONAL_KEYS])
+            raise ValueError(f"unknown scenario keys {unknown}; allowed: {allowed}")
+        missing = [k for k in REQUIRED_KEYS if k not in data]
+        if missing:
+            raise ValueError(
+                f"scenario is missing key(s) {missing}; required: {list(REQUIRED_KEYS)} (a "
+                "scenario is flown with its own mean_motion, dt and max_accel, so they must be "
+                "given)"
+            )
         dim = data["dim"]
-        if dim not in (2, 3):
-            raise ValueError(f"dim must be 2 or 3, got {dim!r}")
-        return cls(
+        if isinstance(dim, bool) or not isinstance(dim, int) or dim not in (2, 3):
+            raise ValueError(f"dim must be the integer 2 or 3, got {dim!r}")
+        bounds = _sequence(data["bounds"], "bounds", f"{dim} [low, high] pairs (m)")
+        if len(bounds) != dim:
+            raise ValueError(f"bounds must be dim={dim} [low, high] pairs (m), got {len(bounds)}")
+        bodies = {}
+        for kind in ("targets", "obstacles"):
+            items = _sequence(data.get(kind, ()), kind, "body dicts")
+            bodies[kind] = tuple(
+                Body.from_dict(b, dim, f"{kind}[{i}]") for i, b in enumerate(items)
+            )
+        for key in ("motion", "name"):
+            if not isinstance(data.get(key, ""), str):
+                raise ValueError(f"{key} must be a string, got {data[key]!r}")
+        scenario = cls(
             dim=dim,
-            bounds=tuple((float(lo), float(hi)) for lo, hi in data["bounds"]),
-            dock=_vec(data["dock"], dim, "dock"),
-            targets=tuple(Body.from_dict(b, dim) for b in data["targets"]),
-            obstacles=tuple(Body.from_dict(b, dim) for b in data.get("obstacles", [])),
-            mean_motion=float(data.get("mean_motion", 0.0)),
-            dt=float(data.get("dt", 1.0)),
-            max_accel=float(data.get("max_accel", 1.0)),
-            motion=str(data.get("motion", "frozen")),
-            name=str(data.get("name", "")),
+            bounds=tuple(vector(pair, 2, f"bounds[{a}]") for a, pair in enumerate(bounds)),
+            dock=vector(data["dock"], dim, "dock"),
+            targets=bodies["targets"],
+            obstacles=bodies["obstacles"],
+            mean_motion=number(data["mean_motion"], "mean_motion", unit="rad/s"),
+            dt=number(data["dt"], "dt", unit="s"),
+            max_accel=number(data["max_accel"], "max_accel", unit="m/s²"),
+            motion=data.get("motion", OPTIONAL_KEYS["motion"]),
+            name=data.get("name", OPTIONAL_KEYS["name"]),
         )
+        return scenario.check_layout()
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the scenario as JSON, atomically (a crash never leaves a half-written file)."""
@@ -262,17 +287,50 @@ class Scenario:
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Scenario:
-        """Read a scenario written by :meth:`save`."""
-        with open(path) as fh:
-            return cls.from_dict(json.load(fh))
+        """Read and check a scenario written by :meth:`save` (or by hand).
+
+        Raises:
+            ValueError: the file is not UTF-8 JSON (naming the file, line and column) or its
+                scenario breaks a rule (naming the file and the key).
+            OSError: the file cannot be read.
+        """
+        name = os.fspath(path)
+        with open(path, encoding="utf-8") as fh:
+            try:
+                text = fh.read()
+            except UnicodeDecodeError as exc:
+                raise ValueError(f"scenario file {name!r} is not UTF-8 text: {exc}") from exc
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise ValueError(
+                f"scenario file {name!r} is not valid JSON: {exc.msg} at line "
+                f"{exc.lineno}, column {exc.colno}"
+            ) from exc
+        except RecursionError as exc:
+            raise ValueError(f"scenario file {name!r} nests too deeply") from exc
+        try:
+            return cls.from_dict(data)
+        except ValueError as exc:
+            raise ValueError(f"scenario file {name!r}: {exc}") from exc
 
 
-def as_scenario(value: Scenario | dict[str, Any] | str | os.PathLike[str]) -> Scenario:
-    """Accept a Scenario, its dict form, or a path to its JSON file."""
+def as_scenario(value: Scenario | Mapping[str, Any] | str | os.PathLike[str]) -> Scenario:
+    """Accept a Scenario, its dict form, or a path to its JSON file; every rule is checked.
+
+    This is how a pinned field enters an env (``reset(options={"scenario": ...})``), so a
+    hand-built :class:`Scenario` gets its layout checked here too.
+
+    Raises:
+        ValueError: ``value`` is none of those, or breaks a rule (naming the key).
+    """
     if isinstance(value, Scenario):
-        return value
-    if isinstance(value, dict):
+        return value.check_layout()
+    if isinstance(value, Mapping):
         return Scenario.from_dict(value)
     if isinstance(value, (str, os.PathLike)):
         return Scenario.load(value)
-    raise TypeError(f"scenario must be a Scenario, dict or path, got {type(value).__name__}")
+    raise ValueError(
+        f"scenario must be a Scenario, its dict form or a path to its JSON file, got "
+        f"{type(value).__name__}"
+    )

@@ -55,13 +55,14 @@ def _circle(x, y, r, dim=2) -> Body:
     return Body(position=(x, y) + (0.0,) * (dim - 2), radius=r)
 
 
-def _cup(dim=2, target_x=15.0, target_y=260.0, half=60.0, r=10.0) -> Scenario:
+def _cup(dim=2, target_x=15.0, target_y=260.0, half=60.0, r=9.0) -> Scenario:
     """A U of touching circles opening toward the dock, the target right behind its bottom: the
-    straight descent from the dock runs into the cup and stops there."""
+    straight descent from the dock runs into the cup and stops there. (Touching, not
+    overlapping: a pinned scenario's bodies must not overlap.)"""
     wall_y, arm = 200.0, 60.0
-    xs = np.arange(-half, half + 1e-9, 1.8 * r)
+    xs = np.arange(-half, half + 1e-9, 2.0 * r)
     bodies = [_circle(float(x), wall_y, r, dim) for x in xs]
-    for y in np.arange(wall_y - 1.8 * r, wall_y - arm - 1e-9, -1.8 * r):
+    for y in np.arange(wall_y - 2.0 * r, wall_y - arm - 1e-9, -2.0 * r):
         for x in (xs[0], xs[-1]):
             bodies.append(_circle(float(x), float(y), r, dim))
     return _field(bodies, dim=dim, target=(target_x, target_y))

@@ -362,3 +362,52 @@ def test_both_entry_points_take_the_options(entry, tmp_path, monkeypatch):
     )
     assert done.returncode == 2
     assert "unknown section" in done.stderr and "--quick" in done.stderr
+
+
+# --- issue 18: --out and --only are checked before any section runs ---------------------------
+
+
+@pytest.fixture
+def no_sections(monkeypatch):
+    """Replace the measurements by a recorder: a refused command line must not reach them."""
+    calls = []
+    monkeypatch.setattr(cli, "run", lambda **kwargs: calls.append(kwargs) or [])
+    return calls
+
+
+@pytest.mark.parametrize(
+    "out, message",
+    [
+        ("{tmp}/afile/x.md", "argument --out: {tmp}/afile is a file, not a directory"),
+        ("{tmp}/afile/sub/x.md", "lies under {tmp}/afile, which is a file"),
+        ("", "argument --out: must name a report file, got an empty string"),
+        ("{tmp}", "argument --out: {tmp} is a directory"),
+    ],
+)
+def test_a_report_path_that_cannot_be_written_is_refused_before_any_section(
+    out, message, tmp_path, capsys, no_sections
+):
+    """Regression: ``bench/run.py --out afile/x.md`` ran every section, then failed writing."""
+    (tmp_path / "afile").write_text("")
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["--out", out.replace("{tmp}", str(tmp_path)), "--only", "single"])
+    assert exc.value.code == 2
+    assert message.replace("{tmp}", str(tmp_path)) in capsys.readouterr().err
+    assert no_sections == []
+
+
+def test_a_report_in_a_new_directory_is_accepted(tmp_path, no_sections):
+    """The parent may be created (the report is written atomically into it)."""
+    assert cli.main(["--out", str(tmp_path / "new" / "x.md"), "--only", "single"]) == 0
+    assert len(no_sections) == 1 and (tmp_path / "new" / "x.md").is_file()
+
+
+@pytest.mark.parametrize("only", ["", ",", " , "])
+def test_an_empty_only_is_refused_listing_the_sections(only, capsys, no_sections):
+    """Regression: ``--only ''`` ran every section."""
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["--only", only])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and "argument --only: names no section" in err
+    assert ", ".join(suite.SECTIONS) in err
+    assert no_sections == []

@@ -141,14 +141,23 @@ def test_script_rejects_an_unknown_agent_by_name(tmp_path):
         (["--paper", "--agents", "zero"], "--agents", "--paper"),
         (["--plots", "-1"], "--plots", ">= 0"),
         (["--agents", "zero,random", "--reference", "apf"], "--reference", "agents: zero, random"),
+        # issue 18: each of these ended in a traceback (some after running every episode)
+        (["--agents", "zero", "--seed", "-1"], "--seed", ">= 0"),
+        (["--agents", "zero", "--env", "CartPole-v1"], "--env", "DebrisGym/Rendezvous2D-v0"),
+        (["--agents", "zero", "--env", ""], "--env", "DebrisGym/Rendezvous3D-v0"),
+        (["--agents", "zero", "--env", "nosuchmodule:Foo-v0"], "--env", "nosuchmodule"),
+        (["--agents", "apf", "--env-kwargs", '{"action": "discrete"}'], "--agents", "dqn=PATH"),
+        (["--agents", ""], "--agents", "empty list"),
+        (["--agents", "mine=os:getcwd"], "--agents", "factory 'getcwd' failed"),
     ],
 )
 def test_cli_errors_name_the_flag(cli, capsys, tmp_path, argv, flag, text):
     with pytest.raises(SystemExit) as exc:
-        cli.main([*argv, "--out", str(tmp_path / "out")])
+        cli.main([*argv, "--max-steps", "20", "--no-progress", "--out", str(tmp_path / "out")])
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert f"argument {flag}" in err and text in err, err
+    assert not (tmp_path / "out").exists()  # refused before the directory changed
 
 
 def test_help_explains_outputs_and_agents(cli):

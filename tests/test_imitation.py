@@ -4,6 +4,7 @@ the config checks, a tiny run in-process and (slow) one through imitate.py and e
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -25,7 +26,8 @@ from agents.experiments.imitation.fitting import (
     make_model,
     set_observation_stats,
 )
-from agents.experiments.imitation.run import imitate, run_config_yaml
+from agents.experiments.imitation.run import RUN_FILES, imitate, run_config_yaml
+from agents.experiments.run_directory import RunDirectoryLock
 from agents.experiments.training.config import available_configs
 from agents.planners.mission import MissionPlan
 from debris_gym.envs import DebrisFieldEnv
@@ -211,6 +213,8 @@ def test_tiny_run_in_process_writes_a_policy_that_loads(tmp_path):
     for name in ("model.zip", "vecnormalize.pkl", "config.yaml", "imitation_log.json",
                  "imitation_curve.png"):  # fmt: skip
         assert (tmp_path / "run" / name).is_file(), name
+    manifest = json.loads((tmp_path / "run" / "manifest.json").read_text())
+    assert sorted(manifest["files"]) == sorted(RUN_FILES)  # committed as one set
     env = gym.make(ENV_ID, **config.env_kwargs)
     policy = agents.load_agent(f"ppo:{tmp_path / 'run' / 'model.zip'}", env)
     obs, _ = env.reset(seed=0)
@@ -286,3 +290,92 @@ def test_ctrl_c_stops_the_run_and_its_workers(tmp_path):
     assert "interrupted; nothing saved" in err
     assert "Traceback" not in err
     assert not (out / "model.zip").exists()
+
+
+# --- issue 18: bad options are usage errors before any work; one run per directory ----------
+
+
+def load_imitate_cli():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("debris_imitate_cli_h18", ROOT / "imitate.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def imitate_refused(argv: list[str], capsys) -> str:
+    """The usage error of ``imitate.py argv`` (exit status 2, no traceback)."""
+    with pytest.raises(SystemExit) as exc:
+        load_imitate_cli().main(argv)
+    err = capsys.readouterr().err
+    assert exc.value.code == 2, err
+    assert "Traceback" not in err
+    return err
+
+
+@pytest.mark.parametrize("kind", ["under a file", "empty"])
+def test_bad_out_directories_are_usage_errors(kind, tmp_path, capsys, monkeypatch):
+    """Regression: ``imitate.py --out afile/x`` ended in a NotADirectoryError traceback and
+    ``--out ""`` ran the whole recipe into the current directory."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "afile").write_text("")
+    out = str(tmp_path / "afile" / "x") if kind == "under a file" else ""
+    err = imitate_refused(["--out", out], capsys)
+    assert "argument --out" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
+
+
+def test_a_busy_directory_is_refused_and_left_alone(tmp_path, capsys):
+    """Regression: two runs on one --out could both run; the lock refuses the second at once."""
+    out = tmp_path / "run"
+    out.mkdir()
+    with RunDirectoryLock(out):  # stands in for a run in progress
+        err = imitate_refused(["--out", str(out), *tiny_sets()], capsys)
+    assert f"in use by another run (process {os.getpid()})" in err
+    assert sorted(p.name for p in out.iterdir()) == [".lock"]
+
+
+def tiny_sets() -> list[str]:
+    sets = []
+    for key, value in TINY.items():
+        text = json.dumps(list(value)) if isinstance(value, tuple) else str(value)
+        sets += ["--set", f"{key}={text}"]
+    return sets
+
+
+@pytest.mark.parametrize(
+    "setting, message",
+    [
+        ("net_arch=5", "net_arch=5 is out of range; allowed: a non-empty list of integer widths"),
+        ("net_arch=[1e9]", "net_arch"),
+        ("net_arch=[abc]", "net_arch"),
+        ("max_episode_steps=2.5", "max_episode_steps must be an integer >= 1, got 2.5"),
+        ("learning_rate=abc", "learning_rate must be a number in (0, inf), got 'abc'"),
+        ("dagger_beta=nan", "dagger_beta"),
+        ("weight_decay=abc", "weight_decay"),
+        ("bc_episodes=2.0", "bc_episodes must be an integer >= 1, got 2.0"),
+        ("workers=100", "workers=100 is out of range; allowed: [1, 64]"),
+        ("seed=100000000000000000000", "is out of range; allowed: [0, 2147483647]"),
+    ],
+)
+def test_bad_settings_are_usage_errors_naming_the_key(setting, message, tmp_path, capsys):
+    """Regression: ``--set net_arch=5`` and ``--set max_episode_steps=2.5`` ended in TypeError
+    tracebacks; others in numpy's messages naming no key."""
+    out = tmp_path / "run"
+    assert message in imitate_refused(["--out", str(out), "--set", setting], capsys)
+    assert not out.exists()
+
+
+def test_a_failed_run_leaves_no_partial_set(tmp_path, monkeypatch):
+    """The run's files are staged and committed together: a failure while writing them leaves
+    none of them (and the directory can be used again)."""
+    import agents.experiments.imitation.run as run_module
+
+    def fail(run_log, path):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(run_module, "plot_rounds", fail)
+    with pytest.raises(OSError, match="disk full"):
+        imitate(ImitationConfig(**TINY), tmp_path / "run", log=lambda line: None, progress=False)
+    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == [".lock"]

@@ -4,6 +4,7 @@ the training code (nor does ``import agents`` import torch)."""
 
 from __future__ import annotations
 
+import json
 import os
 import pickle
 import shutil
@@ -119,6 +120,73 @@ def test_damaged_statistics_give_an_error_naming_the_file(saved_run, tmp_path, d
         agents.load_agent(f"ppo:{model}", env)
     assert str(stats) in str(err.value)
     env.close()
+
+
+def test_statistics_with_corrupt_numbers_give_an_error_naming_the_file(saved_run, tmp_path):
+    model = _copy_model(saved_run, tmp_path / "nan", "normalize:\n  enabled: true\n")
+    stats = model.with_name("vecnormalize.pkl")
+    with open(saved_run / "vecnormalize.pkl", "rb") as fh:
+        normalizer = pickle.load(fh)
+    # what VecNormalize.__getstate__ drops (and unpickling does not restore)
+    normalizer.venv, normalizer.class_attributes, normalizer.returns = None, {}, None
+    normalizer.obs_rms.mean[0] = np.nan
+    stats.write_bytes(pickle.dumps(normalizer))
+    env = gym.make(ENV_ID)
+    with pytest.raises(ValueError, match="corrupt VecNormalize statistics") as err:
+        agents.load_agent(f"ppo:{model}", env)
+    assert str(stats) in str(err.value)
+    del normalizer.obs_rms  # a VecNormalize object without its statistics
+    stats.write_bytes(pickle.dumps(normalizer))
+    with pytest.raises(ValueError, match="incomplete VecNormalize statistics"):
+        agents.load_agent(f"ppo:{model}", env)
+    env.close()
+
+
+@pytest.mark.parametrize("damage", ["empty", "truncated"])
+def test_a_damaged_model_file_gives_an_error_naming_it(saved_run, tmp_path, damage):
+    dest = tmp_path / damage
+    dest.mkdir()
+    good = (saved_run / "model.zip").read_bytes()
+    model = dest / "model.zip"
+    model.write_bytes(b"" if damage == "empty" else good[: len(good) // 2])
+    env = gym.make(ENV_ID)
+    with pytest.raises(ValueError, match="not a model file") as err:
+        agents.load_agent(f"ppo:{model}", env)
+    assert str(model) in str(err.value)
+    env.close()
+
+
+@pytest.mark.parametrize(
+    "config", ["normalize: [unclosed\n", "- just\n- a list\n", "normalize: true\n"]
+)
+def test_a_damaged_run_config_gives_an_error_naming_it(saved_run, tmp_path, config):
+    model = _copy_model(saved_run, tmp_path / "cfg", config)
+    env = gym.make(ENV_ID)
+    with pytest.raises(ValueError) as err:
+        agents.load_agent(f"ppo:{model}", env)
+    assert str(tmp_path / "cfg" / "config.yaml") in str(err.value)
+    env.close()
+
+
+def test_evaluate_py_shows_and_keeps_the_raw_observation_warning(saved_run, tmp_path, capsys):
+    import importlib.util
+
+    model = _copy_model(saved_run, tmp_path / "bare", None)
+    spec = importlib.util.spec_from_file_location("debris_evaluate_learned", ROOT / "evaluate.py")
+    cli = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(cli)
+    out = tmp_path / "eval"
+    argv = [
+        "--agents", f"zero,ppo={model}", "--episodes", "1", "--max-steps", "5", "--plots", "0",
+        "--no-progress", "--out", str(out),
+    ]  # fmt: skip
+    assert cli.main(argv) == 0
+    captured = capsys.readouterr()
+    assert "note: agent 'ppo'" in captured.err and "raw observations" in captured.err
+    assert captured.err.count("raw observations") == 1  # noted once, not again per episode
+    summary = json.loads((out / "summary.json").read_text())
+    assert "raw observations" in summary["warnings"]["ppo"]
+    assert "Warning — ppo" in (out / "summary.md").read_text()
 
 
 def _run(code: str) -> str:

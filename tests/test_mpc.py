@@ -240,7 +240,9 @@ def test_dejitter_removes_back_and_forth_but_keeps_the_course():
 
 
 def test_apf_mpc_completes_a_stalled_apf_path_with_astar():
-    wall = [((0.0, y), 25.0) for y in (-80.0, -40.0, 0.0, 40.0, 80.0)]  # local minimum in front
+    # touching circles, clear of the dock at the origin (a pinned field's bodies must not
+    # overlap or cover the dock): a local minimum in front
+    wall = [((40.0, y), 20.0) for y in (-80.0, -40.0, 0.0, 40.0, 80.0)]
     scen = _field(wall)
     env = DebrisFieldEnv()
     env.reset(options={"scenario": scen, "chaser_state": [-150.0, 0.0, 0.0, 0.0]})

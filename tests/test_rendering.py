@@ -14,6 +14,7 @@ from matplotlib import colors
 
 import debris_gym  # noqa: F401 - registers the IDs
 from debris_gym.envs import rendering
+from debris_gym.scenario import Body, Scenario
 
 ENV_IDS = ["DebrisGym/Rendezvous2D-v0", "DebrisGym/Rendezvous3D-v0", "DebrisGym/PaperField2D-v0"]
 
@@ -321,3 +322,97 @@ def test_record_video_writes_the_episode(tmp_path) -> None:
         assert sum(1 for _ in clip.iter_frames()) in (steps, steps + 1)
     finally:
         clip.close()
+
+
+# --- huge bodies (issue 18: render() hung at an obstacle radius >= 1e20 m) -----------------------
+
+
+def _frame(scenario: Scenario) -> np.ndarray:
+    d = scenario.dim
+    return rendering.Renderer("rgb_array").draw(
+        scenario=scenario, chaser_state=np.zeros(2 * d), captured=np.zeros(1, bool),
+        trail=np.zeros((1, d)), accel=np.zeros(d), time=0.0, delta_v=0.0,
+    )  # fmt: skip
+
+
+def _one_obstacle(obstacle: Body, dim: int = 2) -> Scenario:
+    zero = (0.0,) * dim
+    return Scenario(
+        dim=dim,
+        bounds=((-500.0, 500.0),) * dim,
+        dock=(-300.0, *zero[1:]),
+        targets=(Body(position=(-300.0, 300.0, *zero[2:]), radius=5.0),),
+        obstacles=(obstacle,),
+    )
+
+
+HUGE_RENDERS = """
+import numpy as np, gymnasium as gym, warnings
+import debris_gym
+from debris_gym.envs import rendering
+from debris_gym.scenario import Body, Scenario
+
+for dim in (2, 3):  # unchecked scenarios, straight to the renderer (an env refuses them)
+    zero = (0.0,) * dim
+    for radius in (1e15, 1e20, 1e300):
+        scen = Scenario(dim=dim, bounds=((-500.0, 500.0),) * dim, dock=zero,
+                        targets=(Body(position=(0.0, 100.0) + zero[2:], radius=5.0),),
+                        obstacles=(Body(position=(radius + 300.0,) + zero[1:], radius=radius),))
+        rendering.Renderer("rgb_array").draw(
+            scenario=scen, chaser_state=np.zeros(2 * dim), captured=np.zeros(1, bool),
+            trail=np.zeros((1, dim)), accel=np.zeros(dim), time=0.0, delta_v=0.0)
+square = ((-1e20, -1e20), (1e20, -1e20), (1e20, 1e20), (-1e20, 1e20))
+scen = Scenario(dim=2, bounds=((-500.0, 500.0),) * 2, dock=(0.0, 0.0),
+                targets=(Body(position=(0.0, 100.0), radius=5.0),),
+                obstacles=(Body(position=(1e20, 0.0), radius=2**0.5 * 1e20, vertices=square),))
+rendering.Renderer("rgb_array").draw(
+    scenario=scen, chaser_state=np.zeros(4), captured=np.zeros(1, bool),
+    trail=np.zeros((1, 2)), accel=np.zeros(2), time=0.0, delta_v=0.0)
+# the largest world a scenario may have, with bodies as large as fit, through the env
+env = gym.make("DebrisGym/Rendezvous2D-v0", render_mode="rgb_array")
+env.reset(seed=0)
+huge = {"dim": 2, "bounds": [[-5e5, 5e5], [-5e5, 5e5]], "dock": [0.0, 0.0],
+        "targets": [{"position": [0.0, 4e5], "radius": 9e4}],
+        "obstacles": [{"position": [-2.5e5, -2.5e5], "radius": 2.4e5}],
+        "mean_motion": 0.0, "dt": 10.0, "max_accel": 0.05}
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")
+    env.reset(seed=0, options={"scenario": huge})
+assert env.render().shape[2] == 3
+print("rendered")
+"""
+
+
+def test_huge_bodies_render_without_hanging() -> None:
+    """Agg flattens a circle into pieces of about a pixel, so a 1e20 m disc never finished; the
+    renderer now draws such a body as its part near the view. Run apart, with a generous limit
+    (the hang lasted many minutes), and require that it finished: not a timing assertion."""
+    out = subprocess.run(
+        [sys.executable, "-c", HUGE_RENDERS], capture_output=True, text=True, timeout=600
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split()[-1] == "rendered"
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_a_huge_disc_is_drawn_where_it_is(dim: int) -> None:
+    """A disc of radius 1e20 m whose edge runs along x = 0 looks like the same half-plane drawn
+    as an ordinary polygon (covering x >= 0 of the view, small enough to be drawn whole)."""
+    zero = (0.0,) * dim
+    disc = Body(position=(1e20, *zero[1:]), radius=1e20)
+    if dim == 2:
+        half = ((0.0, -600.0), (1200.0, -600.0), (1200.0, 600.0), (0.0, 600.0))
+        centre = (-300.0, 0.0)  # polygon coordinates are relative to the body's position
+        plane = Body(
+            position=(300.0, 0.0), radius=float(np.hypot(900.0, 600.0)),
+            vertices=tuple((x + centre[0], y) for x, y in half),
+        )  # fmt: skip
+    else:  # no polygons in 3D: compare the in-plane panel with a large sphere's
+        plane = Body(position=(1e4, 0.0, 0.0), radius=1e4)
+    huge, reference = _frame(_one_obstacle(disc, dim)), _frame(_one_obstacle(plane, dim))
+    debris = _mask(huge, rendering.DEBRIS_FACE, tol=40)
+    assert debris.sum() > 0.25 * debris.shape[1] * 480  # about half a panel is debris
+    differ = np.any(np.abs(huge.astype(int) - reference.astype(int)) > 40, axis=-1)
+    if dim == 3:  # the out-of-plane panel differs: there the disc covers everything
+        differ = differ[:, : differ.shape[1] // 2]
+    assert differ.sum() < 0.01 * differ.size

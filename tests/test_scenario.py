@@ -2,16 +2,24 @@
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import json
 import math
+import re
+import warnings
 
+import gymnasium as gym
 import numpy as np
 import pymunk
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
+import debris_gym  # noqa: F401 - registers the IDs
 from debris_gym import generators, solvability
+from debris_gym.config import OPTIONS
+from debris_gym.envs.common import PHYSICS_DIFFER
 from debris_gym.generators import (
     MAX_POLYGON_VERTICES,
     FieldSpec,
@@ -22,8 +30,10 @@ from debris_gym.generators import (
     route_by_construction,
 )
 from debris_gym.scenario import Body, Scenario, as_scenario
+from debris_gym.scenario_checks import check_dock_clear
 from debris_gym.solvability import grid_route_exists, is_solvable
 from tests.geometry_oracle import OracleField
+from tests.helpers import simple_scenario
 
 
 def make(spec: FieldSpec, seed: int, capture_radius: float = 5.0) -> Scenario:
@@ -94,6 +104,7 @@ def check_field(spec: FieldSpec, seed: int, capture_radius: float) -> None:
     assert np.all(centres - radii[:, None] > scen.low) and np.all(
         centres + radii[:, None] < scen.high
     )
+    assert scen.check_layout() is scen  # every rule a pinned field must pass (min_gap 0 too)
     # solvable by the generator's own proof AND by an independent grid search, whose cell is
     # small enough (diagonal below the capture depth) that it cannot step over a capture zone
     assert is_solvable(scen, spec.chaser_radius, capture_radius)
@@ -211,6 +222,7 @@ def test_batch_equals_single_draws_and_every_field_is_valid(spec, seeds):
         single = random_field(np.random.default_rng(seed), spec, capture_radius=5.0, **kwargs)
         scen = batch.scenario(k, **kwargs)
         assert scen == single
+        assert Scenario.from_dict(scen.to_dict()) == scen  # passes every rule of a loaded field
         assert is_solvable(scen, spec.chaser_radius, 5.0)
         for body in scen.obstacles:
             if body.is_polygon:
@@ -401,3 +413,279 @@ def test_paper_field_matches_seed_000_world():
     assert all(not b.is_polygon for b in scen.obstacles)
     assert is_solvable(scen, 0.1, 0.2)
     assert grid_route_exists(scen, 0.1, 0.2, cell=0.05)
+
+
+# --- every scenario is checked before it is flown (issue 18, item 2) ------------------------------
+
+
+def _flown(data) -> tuple[float, np.ndarray]:
+    """Reward and observation of the first step of the default env with ``data`` pinned."""
+    env = gym.make("DebrisGym/Rendezvous2D-v0")
+    env.reset(seed=0)
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=PHYSICS_DIFFER)
+        env.reset(seed=0, options={"scenario": data})
+    obs, reward, *_ = env.step(np.array([0.0, 1.0], np.float32))
+    return reward, obs
+
+
+def _default_field() -> dict:
+    """The default env's first field (seed 0) as a dict, with the env's physics."""
+    env = gym.make("DebrisGym/Rendezvous2D-v0")
+    env.reset(seed=0)
+    return copy.deepcopy(env.unwrapped.scenario.to_dict())
+
+
+def _first_polygon(data: dict) -> int:
+    return next(i for i, b in enumerate(data["obstacles"]) if "vertices" in b)
+
+
+def _star(data: dict) -> None:
+    """A pentagram: every turn is to the left, but the boundary winds twice."""
+    i = _first_polygon(data)
+    r = data["obstacles"][i]["radius"]
+    data["obstacles"][i]["vertices"] = [
+        [r * math.cos(0.8 * math.pi * k), r * math.sin(0.8 * math.pi * k)] for k in range(5)
+    ]
+
+
+def _move(kind: str, i: int, where):
+    def mutate(data: dict) -> None:
+        data[kind][i]["position"] = list(where(data))
+
+    return mutate
+
+
+REPRODUCERS = {
+    # name: (mutation of the default field, what the error must name)
+    "nan bounds": (lambda d: d["bounds"][0].__setitem__(0, math.nan), "bounds[0][0]"),
+    "dock inside an obstacle": (
+        lambda d: d.update(dock=d["obstacles"][0]["position"]),
+        "dock=",
+    ),
+    "dock outside the bounds": (lambda d: d.update(dock=[600.0, 0.0]), "dock="),
+    "target inside an obstacle": (
+        _move("targets", 0, lambda d: d["obstacles"][0]["position"]),
+        "targets[0] and obstacles[0] overlap",
+    ),
+    "target outside the bounds": (
+        _move("targets", 1, lambda d: [0.0, 700.0]),
+        "targets[1]",
+    ),
+    "overlapping obstacles": (
+        _move("obstacles", 4, lambda d: np.add(d["obstacles"][3]["position"], 1.0)),
+        "obstacles[3] and obstacles[4] overlap",
+    ),
+    "tiny bounds": (lambda d: d.update(bounds=[[-1.0, 1.0], [-1.0, 1.0]]), "bounds[0] spans"),
+    "huge bounds": (lambda d: d.update(bounds=[[-1e7, 1e7], [-1e7, 1e7]]), "bounds[0] spans"),
+    "world far from the LVLH origin": (
+        lambda d: d.update(bounds=[[-500.0, 500.0], [-500.0, 2e6]]),
+        "bounds[1]",
+    ),
+    "dt missing": (lambda d: d.pop("dt"), "['dt']"),
+    "mean_motion missing": (lambda d: d.pop("mean_motion"), "['mean_motion']"),
+    "max_accel missing": (lambda d: d.pop("max_accel"), "['max_accel']"),
+    "dt out of range": (lambda d: d.update(dt=1e6), "dt=1000000.0 s is out of range"),
+    "mean_motion out of range": (lambda d: d.update(mean_motion=1.0), "mean_motion=1.0"),
+    "max_accel out of range": (lambda d: d.update(max_accel=1e3), "max_accel=1000.0"),
+    "self-intersecting polygon": (_star, "winds 2 times"),
+    "polygon radius disagrees": (
+        lambda d: d["obstacles"][_first_polygon(d)].update(radius=100.0),
+        "radius=100.0 m disagrees",
+    ),
+    "target radius missing": (lambda d: d["targets"][2].pop("radius"), "targets[2].radius"),
+    "dock missing": (lambda d: d.pop("dock"), "['dock']"),
+    "position missing": (lambda d: d["obstacles"][1].pop("position"), "obstacles[1].position"),
+    "radius as a string": (lambda d: d["targets"][0].update(radius="5"), "targets[0].radius"),
+    "bounds not pairs": (lambda d: d.update(bounds=[1.0, 2.0]), "bounds[0]"),
+    "targets not a list": (lambda d: d.update(targets=3), "targets"),
+    "body not a dict": (lambda d: d["obstacles"].__setitem__(2, [1.0, 2.0]), "obstacles[2]"),
+    "dim as a float": (lambda d: d.update(dim=2.0), "dim"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(REPRODUCERS))
+def test_bad_scenarios_are_refused_naming_the_key(name):
+    """Each was accepted (NaN or absurd rewards, a start in collision) or failed with a bare
+    KeyError / TypeError before; now a ValueError names the key, also when pinned in an env."""
+    mutate, fragment = REPRODUCERS[name]
+    data = _default_field()
+    mutate(data)
+    with pytest.raises(ValueError) as refused:
+        Scenario.from_dict(data)
+    assert fragment in str(refused.value)
+    env = gym.make("DebrisGym/Rendezvous2D-v0")
+    with pytest.raises(ValueError, match=re.escape(fragment)):
+        env.reset(seed=0, options={"scenario": data})
+
+
+def test_the_default_field_flies_unmutated():
+    """The reproducers' base passes, so each refusal above is due to its mutation alone."""
+    reward, obs = _flown(_default_field())
+    assert math.isfinite(reward) and abs(reward) < 5.0 and np.all(np.isfinite(obs))
+
+
+def test_a_hand_built_scenario_is_checked_when_pinned():
+    """A Scenario object skips from_dict: its layout is checked on the way into the env."""
+    scen = simple_scenario(dock=(200.0, 0.0))  # the obstacle's centre
+    env = gym.make("DebrisGym/Rendezvous2D-v0")
+    with pytest.raises(ValueError, match=r"dock=\[200.0, 0.0\] m is inside or on obstacles\[0\]"):
+        env.reset(seed=0, options={"scenario": scen})
+    with pytest.raises(ValueError, match=r"targets\[0\] and obstacles\[0\] overlap"):
+        as_scenario(simple_scenario(targets=(Body(position=(190.0, 0.0), radius=5.0),)))
+
+
+def test_scenario_physics_ranges_are_the_env_options():
+    """The limits come from debris_gym.config.OPTIONS, not from a copy."""
+    base = simple_scenario()
+    for key in ("dt", "mean_motion", "max_accel"):
+        opt = OPTIONS[key]
+        assert dataclasses.replace(base, **{key: opt.high}).dt > 0  # the edges are allowed
+        allowed = re.escape(f"allowed: [{opt.low:g}, {opt.high:g}] {opt.unit}")
+        with pytest.raises(ValueError, match=f"{key}=.*{allowed}"):
+            dataclasses.replace(base, **{key: opt.high * 1.5})
+    with pytest.raises(ValueError, match="dt"):
+        dataclasses.replace(base, dt=OPTIONS["dt"].low / 2)
+
+
+def test_the_world_size_limits_are_the_field_size_range():
+    lo, hi = OPTIONS["field_size"].low, OPTIONS["field_size"].high
+    target = (Body(position=(0.0, 5.0), radius=1.0),)
+    for half, ok in (
+        (lo / 2, True),
+        (lo / 2 * 0.999, False),
+        (hi / 2, True),
+        (hi / 2 * 1.001, False),
+    ):
+        scen = simple_scenario(bounds=((-half, half), (-half, half)), targets=target, obstacles=())
+        if ok:
+            assert scen.check_layout() is scen
+        else:
+            with pytest.raises(ValueError, match=r"bounds\[0\] spans"):
+                scen.check_layout()
+
+
+def test_a_malformed_json_file_names_the_file_and_line(tmp_path):
+    path = tmp_path / "broken.json"
+    path.write_text('{"dim": 2,\n "bounds": [[-500, 500],\n oops]}')
+    with pytest.raises(ValueError, match=r"broken\.json.* is not valid JSON: .* line 3, column 2"):
+        Scenario.load(path)
+    with pytest.raises(ValueError, match=r"broken\.json"):
+        as_scenario(str(path))
+
+
+def test_a_file_with_a_bad_value_names_the_file_and_the_key(tmp_path):
+    data = _default_field()
+    data["targets"][1]["radius"] = -2.0
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(ValueError, match=r"bad\.json.*targets\[1\]\.radius=-2.0 m"):
+        Scenario.load(path)
+
+
+def test_a_polygon_radius_may_be_left_out_and_is_then_derived():
+    data = _default_field()
+    i = _first_polygon(data)
+    radius = data["obstacles"][i].pop("radius")
+    assert Scenario.from_dict(data).obstacles[i].radius == radius
+
+
+@pytest.mark.parametrize(
+    "vertices, fragment",
+    [
+        ([[1, 0], [0, 1]], "at least 3 vertices"),
+        ([[1, 0], [-1, 0], [0, 1], [0, -1]], "turn at vertex 1"),  # a bow tie
+        ([[0, -1], [-1, 0], [0, 1]], "not to the left"),  # clockwise
+        ([[1, 0], [0, 1], [-1, 0], [-1, 0], [0, -1]], "not to the left"),  # a repeated vertex
+        ([[1, 0], [0, 1], [-1, 0], [-0.5, -0.5], [0, -1]], "not to the left"),  # collinear
+        ([[1, 0], [0, 1], [-1, 0], [0, -1], [1e300, 0]], "not to the left"),  # no overflow
+    ],
+)
+def test_polygons_must_be_simple_convex_and_counter_clockwise(vertices, fragment):
+    with pytest.raises(ValueError, match=rf"obstacles\[0\]\.vertices.*{fragment}"):
+        Body.from_dict({"position": [0, 0], "vertices": vertices}, 2, "obstacles[0]")
+
+
+def test_every_scenario_the_repo_ships_passes():
+    """The paper world and the tests' shared field pass every rule; random fields are covered by
+    the generator properties above."""
+    for scen in (paper_field(), paper_field(dt=0.1, max_accel=1.0), simple_scenario()):
+        assert Scenario.from_dict(scen.to_dict()) == scen
+        assert scen.check_layout() is scen
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    bodies=st.lists(
+        st.tuples(
+            st.floats(-80.0, 80.0), st.floats(-80.0, 80.0), st.floats(1.0, 20.0),
+            st.integers(0, 6), st.floats(0.0, 2.0 * math.pi),
+        ),
+        min_size=2,
+        max_size=8,
+    )
+)  # fmt: skip
+def test_the_overlap_check_agrees_with_pymunk(bodies):
+    """Circles and convex polygons at random: refused exactly when pymunk finds an overlap.
+
+    Touching is allowed here and counts as contact in the probe, so the probe runs on every body
+    shrunk and grown by 1e-6 of its size: shrunk ones that still meet overlap, grown ones that
+    stay apart do not, and a layout between the two (touching to rounding) is left out."""
+
+    def field(scale: float) -> Scenario:
+        obstacles = []
+        for x, y, r, n, turn in bodies:
+            vertices = None
+            if n >= 3:
+                angles = turn + 2.0 * math.pi * np.arange(n) / n
+                vertices = tuple((scale * r * math.cos(a), scale * r * math.sin(a)) for a in angles)
+            obstacles.append(Body(position=(x, y), radius=scale * r, vertices=vertices))
+        return Scenario(
+            dim=2,
+            bounds=((-200.0, 200.0), (-200.0, 200.0)),
+            dock=(150.0, 150.0),
+            targets=(Body(position=(150.0, -150.0), radius=2.0),),
+            obstacles=tuple(obstacles),
+        )
+
+    overlap = bool(pymunk_overlaps(field(1.0 - 1e-6)))
+    assume(overlap or not pymunk_overlaps(field(1.0 + 1e-6)))
+    scen = field(1.0)
+    if overlap:
+        with pytest.raises(ValueError, match="overlap"):
+            scen.check_layout()
+    else:
+        assert scen.check_layout() is scen
+
+
+def test_the_overlap_check_scales_to_the_largest_field():
+    """2 000 obstacles: sweep and prune finds the one overlapping pair among ~2 million."""
+    spec = FieldSpec(n_obstacles=2000, field_size=40_000.0)
+    scen = make(spec, 0)
+    assert scen.check_layout() is scen
+    moved = list(scen.obstacles)
+    moved[1500] = dataclasses.replace(moved[1500], position=moved[7].position)
+    with pytest.raises(ValueError, match=r"obstacles\[7\] and obstacles\[1500\] overlap"):
+        dataclasses.replace(scen, obstacles=tuple(moved)).check_layout()
+
+
+def test_a_replaced_scenario_does_not_share_derived_data():
+    """Regression: dataclasses.replace copied the cache of body positions (and of the layout
+    check) into the new scenario, which then reported the old positions."""
+    scen = simple_scenario()
+    scen.body_positions()
+    scen.check_layout()
+    moved = dataclasses.replace(scen, obstacles=(Body(position=(0.0, 0.0), radius=20.0),))
+    np.testing.assert_array_equal(moved.body_positions()[1], [0.0, 0.0])
+    with pytest.raises(ValueError, match="dock="):
+        moved.check_layout()
+
+
+def test_an_env_can_ask_for_the_dock_to_clear_its_chaser():
+    """A dock 0.5 m from an obstacle passes the scenario's own rule (no chaser in a scenario) but
+    not the check an env with a 1 m chaser can make (it would start the episode in contact)."""
+    scen = simple_scenario(obstacles=(Body(position=(20.5, 0.0), radius=20.0),))
+    assert scen.check_layout() is scen
+    check_dock_clear(scen, chaser_radius=0.4)
+    with pytest.raises(ValueError, match=r"dock=\[0.0, 0.0\] m is within the chaser radius 1.0 m"):
+        check_dock_clear(scen, chaser_radius=1.0)

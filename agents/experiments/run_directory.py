@@ -103,9 +103,20 @@ class RunDirectoryLock:
         self._fd: int | None = None
 
     def acquire(self) -> None:
-        """Take the lock, or raise :class:`RunDirectoryBusy` at once (never waits)."""
-        self.out.mkdir(parents=True, exist_ok=True)
-        fd = os.open(self.out / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o644)
+        """Take the lock, or raise :class:`RunDirectoryBusy` at once (never waits).
+
+        Raises:
+            RunDirectoryBusy: another process holds the lock.
+            OutputDirError: the directory or its lock file cannot be created (a place
+                :func:`check_output_dir` cannot foresee, e.g. a read-only or virtual file system).
+        """
+        try:
+            self.out.mkdir(parents=True, exist_ok=True)
+            fd = os.open(self.out / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:
+            raise OutputDirError(
+                self.flag, f"cannot create {self.out / LOCK_FILE} ({exc.strerror})"
+            ) from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import pickle
 import warnings
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -177,7 +178,10 @@ def _same_box(a: spaces.Box, b: spaces.Box) -> bool:
 
 def _observation_hint(path: Path) -> str:
     """How to make an env that fits the model at ``path`` (for an observation-space mismatch)."""
-    options = _run_observation_options(path)
+    try:
+        options = _run_observation_options(path)
+    except ValueError:
+        options = {}  # the damaged config is reported when the statistics are looked up
     if options:
         return (
             f"the run was trained with env options {options}: make the env with them, e.g. "
@@ -224,16 +228,41 @@ def _check_spaces(model: Any, env: Any, path: Path) -> np.ndarray | None:
     )
 
 
-def _trained_with_normalization(path: Path) -> bool | None:
-    """Whether the run that wrote ``path`` used VecNormalize observations (None: unknown)."""
+def _run_config(path: Path) -> dict[str, Any] | None:
+    """The config of the run that wrote model ``path`` (None: no config file found).
+
+    Raises:
+        ValueError: the config file is there but unreadable, not YAML or not a mapping (the
+            message names it).
+    """
     config = run_config_path(path)
     if config is None:
         return None
     try:
         data, _ = load_config_file(config)
-    except (OSError, ValueError):
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise ValueError(
+            f"{config}: the run config of {path} is damaged ({exc}); restore it from the "
+            "training run, or delete it (then the model's VecNormalize statistics decide)"
+        ) from None
+    return data
+
+
+def _trained_with_normalization(path: Path) -> bool | None:
+    """Whether the run that wrote ``path`` used VecNormalize observations (None: unknown).
+
+    Raises:
+        ValueError: a damaged run config, or a ``normalize`` entry that is not a mapping.
+    """
+    data = _run_config(path)
+    if data is None:
         return None
     norm = data.get("normalize") or {}
+    if not isinstance(norm, dict):
+        raise ValueError(
+            f"{run_config_path(path)}: 'normalize' must be a mapping (enabled, norm_obs, …), "
+            f"got {norm!r}"
+        )
     return bool(norm.get("enabled")) and bool(norm.get("norm_obs", True))
 
 
@@ -302,6 +331,33 @@ def read_vecnormalize(stats: Path) -> Any:
         raise ValueError(
             f"{stats}: holds a {type(normalizer).__name__}, not VecNormalize statistics; {fix}"
         )
+    # A VecNormalize object whose statistics are missing or corrupt would fail only later, on
+    # the first observation; its own attributes are read from vars() because VecNormalize
+    # forwards unknown attributes to its (absent) venv.
+    state = vars(normalizer)
+    try:
+        norm_obs = bool(state["norm_obs"])
+        if norm_obs:
+            mean = np.asarray(state["obs_rms"].mean, dtype=float)
+            var = np.asarray(state["obs_rms"].var, dtype=float)
+            clip, eps = float(state["clip_obs"]), float(state["epsilon"])
+    except (AttributeError, KeyError, TypeError, ValueError) as exc:
+        raise ValueError(
+            f"{stats}: incomplete VecNormalize statistics ({type(exc).__name__}: {exc}); {fix}"
+        ) from None
+    if norm_obs:
+        bad = (
+            mean.shape != var.shape
+            or not (np.all(np.isfinite(mean)) and np.all(np.isfinite(var)))
+            or np.any(var < 0)
+            or not (clip > 0 and eps > 0)
+        )
+        if bad:
+            raise ValueError(
+                f"{stats}: corrupt VecNormalize statistics (observation means and variances must "
+                "be finite and of one shape, variances >= 0, clip_obs and epsilon > 0); "
+                f"{fix}"
+            )
     return normalizer
 
 
@@ -355,15 +411,19 @@ def observation_options(spec: str, env_id: str) -> dict[str, Any]:
 
 
 def _run_observation_options(path: Path) -> dict[str, Any]:
-    """The :data:`OBSERVATION_KEYS` set in the config of the run that wrote model ``path``."""
-    config = run_config_path(path)
-    if config is None:
-        return {}
-    try:
-        data, _ = load_config_file(config)
-    except (OSError, ValueError):
+    """The :data:`OBSERVATION_KEYS` set in the config of the run that wrote model ``path``.
+
+    Raises:
+        ValueError: a damaged run config (the message names it).
+    """
+    data = _run_config(path)
+    if data is None:
         return {}
     env_kwargs = data.get("env_kwargs") or {}
+    if not isinstance(env_kwargs, dict):
+        raise ValueError(
+            f"{run_config_path(path)}: 'env_kwargs' must be a mapping, got {env_kwargs!r}"
+        )
     return {k: env_kwargs[k] for k in OBSERVATION_KEYS if k in env_kwargs}
 
 
@@ -414,6 +474,12 @@ def load_agent(spec: str, env: Any, device: str = "cpu") -> LearnedAgent:
         path = path / FINAL_MODEL
     if not path.is_file():
         raise FileNotFoundError(f"{algo} model {str(path)!r} not found")
+    if not zipfile.is_zipfile(path):
+        raise ValueError(
+            f"{path}: not a model file (an SB3 model is a zip archive; this one is empty, "
+            "truncated or something else); copy it again from the training run"
+        )
+    _run_config(path)  # a damaged run config is named before the model loads
     cls = algo_class(algo)
     # schedules are only needed to train; constants avoid unpickling closures at inference
     custom = {"learning_rate": 0.0, "lr_schedule": lambda _: 0.0, "clip_range": lambda _: 0.0}

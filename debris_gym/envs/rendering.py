@@ -57,6 +57,19 @@ STATUS_FIELDS = (
 )
 STATUS_FONTSIZE = 9.5
 
+CLIP_SPAN = 4.0
+"""A body wider than this many view spans is drawn as its part near the view (:func:`outline`).
+
+Agg flattens a circle's Bézier curves by subdividing them until each piece is under a pixel's
+tolerance: the work grows with the radius in pixels, and at ~1e12 px (an obstacle of 1e15 m in a
+1 km view) a single draw runs for minutes. Bodies up to this size are drawn whole (every body of
+a checked scenario lies inside the bounds, so well below it); larger ones are replaced by a
+polygon of bounded size that matches them to far below a pixel inside the view."""
+
+ARC_POINTS = 256
+"""Points along the arc of a clipped disc (the arc inside the view is at most ~6 view spans
+long, so at most ~12 px apart on a 480 px panel, where the chord error stays below 0.01 px)."""
+
 
 def style_field_axes(ax: Any, scenario: Any, h: int, v: int, title: bool) -> None:
     """Limits, equal aspect, axis labels and grid of one field panel (axis h right, v up)."""
@@ -71,6 +84,86 @@ def style_field_axes(ax: Any, scenario: Any, h: int, v: int, title: bool) -> Non
     ax.set_facecolor("#fbfbfd")
     if title:
         ax.set_title(PANEL_TITLES[(h, v)], fontsize=9, pad=4)
+
+
+def outline(
+    centre: np.ndarray, radius: float, vertices: np.ndarray | None, lo: np.ndarray, hi: np.ndarray
+) -> np.ndarray | None:
+    """What to draw of one body in the view box ``[lo, hi]`` (2-vectors, m).
+
+    Returns ``None`` to draw the body whole (a circle of ``radius`` at ``centre``, or its polygon
+    ``vertices`` in world coordinates), otherwise the polygon (k, 2) to draw instead: the body's
+    part inside the view box grown by one view span on every side, so the cut edges stay off
+    screen. An empty (0, 2) array means nothing of the body is near the view. Only bodies wider
+    than :data:`CLIP_SPAN` view spans are cut (see there why).
+    """
+    span = float(np.max(hi - lo))
+    box_lo, box_hi = lo - span, hi + span
+    if vertices is None:
+        if not radius > CLIP_SPAN * span:
+            return None
+        return _clipped_disc(centre, radius, box_lo, box_hi)
+    extent = float(np.max(vertices.max(axis=0) - vertices.min(axis=0)))
+    if not extent > CLIP_SPAN * span:
+        return None
+    return _clip_polygon(vertices, box_lo, box_hi)
+
+
+def _clipped_disc(centre: np.ndarray, radius: float, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """A disc far larger than the box ``[lo, hi]``, cut to the box (polygon vertices, m).
+
+    Worked in a frame at the box centre with axis u pointing away from the disc's centre and w
+    across it, where the disc's edge is a = sqrt(r² − b²) − D, written as
+    (r − D) − b² / (r + sqrt(r² − b²)) so that no two huge numbers are subtracted but r − D
+    (which is as precise as the inputs allow).
+    """
+    mid = (lo + hi) / 2.0
+    half = float(np.hypot(*((hi - lo) / 2.0)))  # the box lies within this distance of mid
+    offset = mid - centre
+    dist = float(np.hypot(*offset))
+    gap = dist - radius  # first: dist ± half would round back to dist beside a huge radius
+    if gap + half <= 0.0:  # the disc covers the box
+        return np.array([lo, [hi[0], lo[1]], hi, [lo[0], hi[1]]], dtype=float)
+    if gap - half >= 0.0:  # the disc misses the box
+        return np.zeros((0, 2))
+    u = offset / dist  # dist > radius - half > 0: the centre is far outside the box
+    w = np.array([-u[1], u[0]])
+    b = np.linspace(-half, half, ARC_POINTS)
+    a = -gap - b * b / (radius + np.sqrt(radius * radius - b * b))
+    far = min(float(a.min()), -half) - half  # behind the box, on the disc's side
+    a = np.concatenate([a, [far, far]])
+    b = np.concatenate([b, [half, -half]])
+    return mid + a[:, None] * u + b[:, None] * w
+
+
+def _clip_polygon(points: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """A convex polygon cut to the box ``[lo, hi]`` (Sutherland–Hodgman), (k, 2) vertices."""
+    out = np.asarray(points, dtype=float)
+    for axis in (0, 1):
+        for limit, sign in ((lo[axis], 1.0), (hi[axis], -1.0)):
+            if len(out) == 0:
+                return np.zeros((0, 2))
+            inside = sign * (out[:, axis] - limit) >= 0.0
+            kept = []
+            for k in range(len(out)):
+                p, q = out[k], out[(k + 1) % len(out)]
+                if inside[k]:
+                    kept.append(p)
+                if inside[k] != inside[(k + 1) % len(out)]:
+                    kept.append(_cut(p, q, axis, limit))
+            out = np.array(kept).reshape(-1, 2)
+    return out
+
+
+def _cut(p: np.ndarray, q: np.ndarray, axis: int, limit: float) -> np.ndarray:
+    """Where segment pq crosses the line ``coordinate[axis] = limit``, interpolated from the end
+    nearer to that line: the ends of a huge body's edge may lie 1e20 m apart, and interpolating
+    from the far end would lose the crossing in rounding."""
+    if abs(p[axis] - limit) > abs(q[axis] - limit):
+        p, q = q, p
+    point = p + (limit - p[axis]) / (q[axis] - p[axis]) * (q - p)
+    point[axis] = limit
+    return point
 
 
 def _import_matplotlib() -> Any:
@@ -136,6 +229,27 @@ class _Panel:
     def xy(self, points: Any) -> tuple[Any, Any]:
         points = np.asarray(points, dtype=float)
         return points[..., self.h], points[..., self.v]
+
+    def view(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower-left and upper-right corner of the panel's view (m): the world's bounds."""
+        limits = np.array([self.ax.get_xlim(), self.ax.get_ylim()], dtype=float)
+        return limits[:, 0], limits[:, 1]
+
+    def patch(self, body: Any, lo: np.ndarray, hi: np.ndarray, circle: Any, polygon: Any) -> Any:
+        """The matplotlib patch of one body in this projection (``circle`` / ``polygon`` are
+        matplotlib's classes, imported by the caller); a huge body is cut to the view
+        (:func:`outline`), and one that is nowhere near it becomes an empty polygon."""
+        centre = np.array(self.xy(body.position))
+        vertices = None
+        if body.vertices is not None:
+            world = np.asarray(body.position) + np.asarray(body.vertices)
+            vertices = np.column_stack(self.xy(world))
+        shape = outline(centre, float(body.radius), vertices, lo, hi)
+        if shape is None:
+            return circle(centre, body.radius) if vertices is None else polygon(vertices)
+        if len(shape) == 0:  # keep one patch per body: the targets' colours are per patch
+            shape = np.repeat(lo[None] - (hi - lo), 3, axis=0)
+        return polygon(shape, closed=True)
 
     def dynamic(self) -> tuple[Any, ...]:
         return (self.targets, self.rings, self.trail, self.arrow, self.chaser)
@@ -340,19 +454,13 @@ class Renderer:
         canvas, fig = self._canvas, self._fig
         canvas.restore_region(self._frame_background)
         centres = np.array([t.position for t in scenario.targets], dtype=float)
-        radii = np.array([t.radius for t in scenario.targets], dtype=float)
         for panel in self._panels:
             for artist in (*panel.field, panel.targets, panel.rings):
                 if artist is not None:
                     artist.remove()
             ax = panel.ax
-            patches = []
-            for body in scenario.obstacles:
-                if body.vertices is not None:
-                    pts = np.asarray(body.position) + np.asarray(body.vertices)
-                    patches.append(Polygon(np.column_stack(panel.xy(pts)), closed=True))
-                else:
-                    patches.append(Circle(panel.xy(body.position), body.radius))
+            lo, hi = panel.view()
+            patches = [panel.patch(body, lo, hi, Circle, Polygon) for body in scenario.obstacles]
             debris = PatchCollection(
                 patches, facecolor=DEBRIS_FACE, edgecolor=DEBRIS_EDGE, linewidth=0.7, zorder=1,
                 alpha=0.85 if scenario.dim == 3 else 1.0, animated=True,
@@ -375,7 +483,7 @@ class Renderer:
                 fig.draw_artist(artist)
             panel.targets = ax.add_collection(
                 PatchCollection(
-                    [Circle((x, y), r) for x, y, r in zip(tx, ty, radii, strict=True)],
+                    [panel.patch(t, lo, hi, Circle, Polygon) for t in scenario.targets],
                     edgecolor=TARGET_EDGE, linewidth=0.6, zorder=3, animated=True,
                 ),
                 autolim=False,

@@ -9,7 +9,8 @@ runner        flying every agent on the same seeded episodes (:func:`evaluate_ag
 records       what a run produced (episode records, trajectories, the whole run)
 metrics       [APF-MPC] Table I metrics of a trajectory
 statistics    Wilson and t intervals, per-agent summaries, Δv paired by seed
-report        the Markdown table, strict JSON, episodes.csv, writing the files
+report        the Markdown table, strict JSON, episodes.csv, writing the files as one set
+journal       an unfinished run's options and finished episodes (Ctrl-C, ``--resume``)
 plots         trajectory plots
 paper         [APF-MPC] Table I beside ours (``--paper``)
 command       ``evaluate.py`` once its arguments are parsed
@@ -33,6 +34,7 @@ deterministic=True) -> (action, state)``.
 
 from agents.experiments.evaluation.records import (
     CSV_COLUMNS,
+    TIMING_COLUMNS,
     EpisodeRecord,
     EvaluationResults,
     Trajectory,
@@ -68,6 +70,7 @@ __all__ = [
     "CSV_COLUMNS",
     "LEARNED_ALGOS",
     "PRETRAINED",
+    "TIMING_COLUMNS",
     "AgentSpec",
     "EpisodeRecord",
     "EvaluationResults",

@@ -2,19 +2,34 @@
 write the outputs and compose the text it prints.
 
 Problems with the arguments raise :class:`UsageError` naming the flag, which the script turns
-into an argparse error (exit status 2) before any episode runs.
+into an argparse error (exit status 2) before any episode runs and before the output directory
+changes. A run then
+
+1. takes the output directory's lock (a second run on it is refused, naming the first);
+2. journals its resolved options and every finished episode in ``DIR/unfinished/``
+   (:mod:`agents.experiments.evaluation.journal`);
+3. writes its outputs as one set (:func:`~agents.experiments.evaluation.report.write_outputs`)
+   and removes the journal.
+
+Ctrl-C at any point after 1 raises :class:`EvaluationInterrupted` (what finished, how to
+resume); ``evaluate.py --resume DIR`` (:attr:`EvaluateOptions.resume`) continues the journal.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import re
+import shlex
 import sys
+import warnings
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
 
+from agents.experiments.evaluation.journal import EvaluationJournal, JournalError
 from agents.experiments.evaluation.paper import (
     PAPER_AGENTS,
     PAPER_ENV_ID,
@@ -22,25 +37,39 @@ from agents.experiments.evaluation.paper import (
     paper_table_markdown,
 )
 from agents.experiments.evaluation.report import summary_markdown, to_json, write_outputs
-from agents.experiments.evaluation.runner import evaluate_agents, make_env
+from agents.experiments.evaluation.runner import evaluate_agents, index_finished, make_env
 from agents.experiments.evaluation.specs import (
     PRETRAINED,
     AgentSpec,
     agent_env_options,
     build_agent,
     check_agent_available,
+    known_specs_text,
+    parse_agent_spec,
     parse_agent_specs,
 )
 from agents.experiments.evaluation.statistics import summarize
-from debris_gym.files import write_atomic
+from agents.experiments.run_directory import OutputDirError, RunDirectoryLock
 
-__all__ = ["DEFAULT_ENV", "DEFAULT_EPISODES", "EvaluateOptions", "UsageError", "run_evaluation"]
+__all__ = [
+    "DEFAULT_ENV",
+    "DEFAULT_EPISODES",
+    "DEFAULT_OUT",
+    "EvaluateOptions",
+    "EvaluationInterrupted",
+    "EvaluationPlan",
+    "UsageError",
+    "run_evaluation",
+]
 
 DEFAULT_ENV = "DebrisGym/Rendezvous2D-v0"
 """Env of a plain ``python evaluate.py``."""
 
 DEFAULT_EPISODES = 20
 """Episodes per agent of a plain ``python evaluate.py``."""
+
+DEFAULT_OUT = Path("runs/eval")
+"""Output directory of a plain ``python evaluate.py``."""
 
 AGENT_ERRORS = (ImportError, FileNotFoundError, NotImplementedError, TypeError, ValueError)
 """What building an agent raises when the agent, not the code, is at fault."""
@@ -56,19 +85,111 @@ class UsageError(ValueError):
 
 @dataclass(frozen=True)
 class EvaluateOptions:
-    """The arguments of ``evaluate.py`` (see its ``--help``); None means the default."""
+    """The arguments of ``evaluate.py`` (see its ``--help``); None means the default.
 
-    out: Path
+    With ``resume`` (a directory holding an unfinished evaluation) every other option but
+    ``progress`` must keep its default: the run's own options are read from the directory.
+    """
+
+    out: Path | None = None
     env: str | None = None
     agents: str | None = None
     episodes: int | None = None
-    seed: int = 0
-    plots: int = 3
+    seed: int | None = None
+    plots: int | None = None
     env_kwargs: dict[str, Any] | None = None
     max_steps: int | None = None
     reference: str | None = None
     progress: bool = True
     paper: bool = False
+    resume: Path | None = None
+
+
+@dataclass(frozen=True)
+class EvaluationPlan:
+    """The resolved options of one evaluation: what ``DIR/unfinished/options.json`` holds and
+    ``--resume`` runs again.
+
+    Attributes:
+        out: output directory.
+        env_id: the env every agent flies; ``env_kwargs`` its ``gym.make`` options.
+        agents: ``(spec text, label)`` of every agent to run, in order.
+        episodes: episodes per agent; episode i is reset with seed ``seed + i``.
+        max_steps: time-limit override (steps), or None for the registered one.
+        plots: trajectory plots of the first ``plots`` episodes.
+        reference: the agent others' Δv is paired with, or None for the default.
+        paper: write ``paper_table.*`` ([APF-MPC] Table I beside ours).
+        skipped: agents left out of a default list, {label: reason}.
+        warnings: what building an agent warned about, {label: message} (shown in the
+            summary).
+    """
+
+    out: Path
+    env_id: str
+    env_kwargs: dict[str, Any]
+    agents: tuple[tuple[str, str], ...]
+    episodes: int
+    seed: int
+    max_steps: int | None = None
+    plots: int = 3
+    reference: str | None = None
+    paper: bool = False
+    skipped: dict[str, str] = field(default_factory=dict)
+    warnings: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def specs(self) -> list[AgentSpec]:
+        """The agents, parsed, with their labels."""
+        return [dataclasses.replace(parse_agent_spec(t), label=label) for t, label in self.agents]
+
+    def to_json(self) -> dict[str, Any]:
+        """Plain-JSON form (``out`` left out: the journal lives in it)."""
+        data = dataclasses.asdict(self)
+        del data["out"]
+        data["agents"] = [list(pair) for pair in self.agents]
+        return data
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any], out: Path) -> EvaluationPlan:
+        """The plan :meth:`to_json` wrote, for output directory ``out``.
+
+        Raises:
+            KeyError, TypeError, ValueError: ``data`` is not such a plan.
+        """
+        agents = tuple((str(text), str(label)) for text, label in data.pop("agents"))
+        return cls(out=out, agents=agents, **data)
+
+
+class EvaluationInterrupted(Exception):
+    """Ctrl-C (or SIGTERM) stopped a run; what finished is journaled in ``out``.
+
+    Attributes:
+        out: the output directory.
+        finished: episodes (agent × episode) finished, this run and earlier ones.
+        total: episodes the evaluation has in all.
+    """
+
+    def __init__(self, out: Path, finished: int, total: int) -> None:
+        self.out = out
+        self.finished = finished
+        self.total = total
+        super().__init__(self.message())
+
+    @property
+    def resume_command(self) -> str:
+        """The command line that finishes the run."""
+        return f"python evaluate.py --resume {shlex.quote(str(self.out))}"
+
+    def message(self) -> str:
+        """What to tell the user (several lines)."""
+        if self.finished == self.total:
+            done = f"all {self.total} episodes finished but the outputs were not written"
+        else:
+            done = f"{self.finished} of {self.total} episodes finished"
+        return (
+            f"interrupted: {done}; they are kept in {self.out / 'unfinished'}/\n"
+            f"resume with: {self.resume_command}"
+        )
 
 
 def _note(text: str) -> None:
@@ -100,36 +221,74 @@ def _default_agents(
 
 def _usable(
     specs: list[AgentSpec], explicit: bool, flag: str, env_for: Callable[[AgentSpec], gym.Env]
-) -> tuple[list[AgentSpec], dict[str, str]]:
+) -> tuple[list[AgentSpec], dict[str, str], dict[str, str]]:
     """Check each agent can be built: a :class:`UsageError` if listed explicitly, else a note.
 
-    Agents other than baselines are built once here (``env_for(spec)`` gives the env), so a wrong
-    file, a space mismatch, a missing pretrained policy or an object without ``predict`` fails
-    before any episode runs.
+    Every agent is built once here (``env_for(spec)`` gives the env), so a wrong file, a space
+    mismatch (a baseline in a discrete-action env), a missing pretrained policy or an object
+    without ``predict`` fails before any episode runs. A ``UserWarning`` while an agent is built
+    (a learned model without its VecNormalize statistics and run config, say) becomes a note
+    and is kept for the summary.
+
+    Returns:
+        The agents to run, {skipped agent: reason} and {agent: warning}.
     """
-    keep, skipped = [], {}
+    keep, skipped, warned = [], {}, {}
     for spec in specs:
         try:
             check_agent_available(spec)
-            if spec.kind != "baseline":
-                env = env_for(spec)
-                try:
-                    build_agent(spec, env)
-                finally:
-                    env.close()
+            env = env_for(spec)
+            try:
+                with warnings.catch_warnings(record=True) as caught:
+                    warnings.simplefilter("always", UserWarning)
+                    try:
+                        build_agent(spec, env)
+                    except ValueError as exc:
+                        if spec.kind != "baseline":
+                            raise
+                        raise ValueError(f"{exc}; {_who_can_act(env)}") from exc
+            finally:
+                env.close()
         except AGENT_ERRORS as exc:
             if explicit:
                 raise UsageError(flag, str(exc)) from exc
             _note(f"skipped — {exc}")
             skipped[spec.label] = str(exc)
             continue
+        messages = [str(w.message) for w in caught if issubclass(w.category, UserWarning)]
+        if messages:
+            warned[spec.label] = "\n".join(dict.fromkeys(messages))
+            _note(f"agent {spec.label!r}: {warned[spec.label]}")
         keep.append(spec)
-    return keep, skipped
+    return keep, skipped, warned
+
+
+def _who_can_act(env: gym.Env) -> str:
+    """Which agents can act in ``env`` (for a baseline that cannot)."""
+    import agents
+
+    able = []
+    for name in agents.BASELINES:
+        try:
+            agents.make_agent(name, env)
+        except (ImportError, TypeError, ValueError):
+            continue
+        able.append(name)
+    others = (
+        "a learned model trained in this action space (e.g. dqn=PATH for action='discrete') or "
+        "your own policy (LABEL=MODULE:ATTR)"
+    )
+    if able:
+        return f"agents that can act in this env: {', '.join(able)}, or {others}"
+    return f"no baseline can act in this env; {others} can"
 
 
 def _resolve_env(options: EvaluateOptions) -> tuple[str, int]:
     if not options.paper:
-        return options.env or DEFAULT_ENV, options.episodes or DEFAULT_EPISODES
+        episodes = DEFAULT_EPISODES if options.episodes is None else options.episodes
+        if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
+            raise UsageError("--episodes", f"must be an integer >= 1, got {episodes!r}")
+        return (DEFAULT_ENV if options.env is None else options.env), episodes
     for flag, value in (("--env", options.env), ("--agents", options.agents)):
         if value is not None:
             raise UsageError(flag, "not allowed with --paper (it fixes the env/agents)")
@@ -140,8 +299,8 @@ def _resolve_env(options: EvaluateOptions) -> tuple[str, int]:
 
 def _choose_agents(
     options: EvaluateOptions, env_id: str, env_kwargs: dict[str, Any]
-) -> tuple[list[AgentSpec], dict[str, str]]:
-    """The agents to run (checked) and {skipped agent: reason}."""
+) -> tuple[list[AgentSpec], dict[str, str], dict[str, str]]:
+    """The agents to run (checked), {skipped agent: reason} and {agent: warning}."""
     from agents import BASELINES
 
     explicit = options.agents is not None
@@ -153,6 +312,8 @@ def _choose_agents(
             _note(f"skipped — {unregistered[name]}")
     elif explicit:
         agent_text = options.agents or ""
+        if not agent_text.strip():
+            raise UsageError("--agents", f"empty list of agents; {known_specs_text()}")
     else:
         agent_text, unregistered = _default_agents(env_id, env_kwargs, options.max_steps)
     try:
@@ -164,7 +325,7 @@ def _choose_agents(
         kwargs = {**env_kwargs, **agent_env_options(spec, env_id)}
         return make_env(env_id, kwargs, options.max_steps)
 
-    specs, skipped = _usable(specs, explicit, "--agents", env_for)
+    specs, skipped, warned = _usable(specs, explicit, "--agents", env_for)
     if not specs:
         flag = "--paper" if options.paper else "--agents"
         raise UsageError(flag, "none of its agents can be built (see the notes above)")
@@ -174,50 +335,193 @@ def _choose_agents(
             "--reference",
             f"{options.reference!r} is not an evaluated agent; agents: {', '.join(labels)}",
         )
-    return specs, {**unregistered, **skipped}
+    return specs, {**unregistered, **skipped}, warned
+
+
+def _debris_env_ids() -> list[str]:
+    return sorted(k for k in gym.registry if k.startswith("DebrisGym/"))
+
+
+def _check_env(env_id: str, env_kwargs: dict[str, Any], max_steps: int | None, seed: int) -> None:
+    """Make the env and reset it once with the first episode's seed: a bad ID or option fails
+    here, before any agent is built."""
+    from debris_gym.envs import DebrisFieldEnv
+
+    ids = ", ".join(_debris_env_ids())
+    if not env_id.strip():
+        raise UsageError("--env", f"must name an env, got an empty string; DebrisGym IDs: {ids}")
+    try:
+        env = make_env(env_id, env_kwargs, max_steps)
+    except (gym.error.Error, ImportError) as exc:  # ImportError: a "module:ID" that fails
+        raise UsageError("--env", f"{exc}; DebrisGym IDs: {ids}") from exc
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise UsageError("--env-kwargs", str(exc)) from exc
+    try:
+        if not isinstance(env.unwrapped, DebrisFieldEnv):
+            raise UsageError("--env", f"{env_id!r} is not a DebrisGym env; DebrisGym IDs: {ids}")
+        try:
+            env.reset(seed=seed)
+        except (TypeError, ValueError, OverflowError) as exc:
+            if not env_kwargs:
+                raise  # the registered env itself fails: a bug, not a usage error
+            raise UsageError("--env-kwargs", str(exc)) from exc
+    finally:
+        env.close()
+
+
+def _fresh_plan(options: EvaluateOptions) -> EvaluationPlan:
+    """Check every argument and choose the agents (nothing runs, nothing is written)."""
+    env_id, episodes = _resolve_env(options)
+    seed = 0 if options.seed is None else options.seed
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise UsageError("--seed", f"must be an integer >= 0 (a reset seed), got {seed!r}")
+    plots = 3 if options.plots is None else options.plots
+    if isinstance(plots, bool) or not isinstance(plots, int) or plots < 0:
+        raise UsageError("--plots", f"must be an integer >= 0, got {plots!r}")
+    env_kwargs = dict(options.env_kwargs or {})
+    _check_env(env_id, env_kwargs, options.max_steps, seed)
+    specs, skipped, warned = _choose_agents(options, env_id, env_kwargs)
+    return EvaluationPlan(
+        out=Path(options.out if options.out is not None else DEFAULT_OUT),
+        env_id=env_id,
+        env_kwargs=env_kwargs,
+        agents=tuple((spec.text, spec.label) for spec in specs),
+        episodes=episodes,
+        seed=seed,
+        max_steps=options.max_steps,
+        plots=plots,
+        reference=options.reference,
+        paper=options.paper,
+        skipped=skipped,
+        warnings=warned,
+    )
+
+
+def _resume_plan(options: EvaluateOptions) -> EvaluationPlan:
+    """The plan journaled in ``options.resume``, its env and agents checked again (a model file
+    may have moved since)."""
+    assert options.resume is not None
+    defaults = EvaluateOptions(progress=options.progress, resume=options.resume)
+    for name in ("out", "env", "agents", "episodes", "seed", "plots", "env_kwargs", "max_steps",
+                 "reference", "paper"):  # fmt: skip
+        if getattr(options, name) != getattr(defaults, name):
+            flag = "--" + name.replace("_", "-")
+            raise UsageError(
+                flag, "not allowed with --resume (the run's options are read from its directory)"
+            )
+    out = Path(options.resume)
+    journal = EvaluationJournal(out)
+    try:
+        plan = EvaluationPlan.from_json(journal.read_options(), out)
+    except JournalError as exc:
+        raise UsageError("--resume", str(exc)) from exc
+    except (KeyError, TypeError, ValueError) as exc:
+        raise UsageError(
+            "--resume", f"{journal.options_path}: not an evaluation's options ({exc!r})"
+        ) from exc
+    _check_env(plan.env_id, plan.env_kwargs, plan.max_steps, plan.seed)
+
+    def env_for(spec: AgentSpec) -> gym.Env:
+        kwargs = {**plan.env_kwargs, **agent_env_options(spec, plan.env_id)}
+        return make_env(plan.env_id, kwargs, plan.max_steps)
+
+    _, _, warned = _usable(plan.specs, True, "--resume", env_for)
+    return dataclasses.replace(plan, warnings=warned)
+
+
+def _lock(plan: EvaluationPlan, flag: str) -> RunDirectoryLock:
+    lock = RunDirectoryLock(plan.out, flag)
+    try:
+        lock.acquire()
+    except OutputDirError as exc:
+        raise UsageError(exc.flag, str(exc)) from exc
+    except OSError as exc:
+        raise UsageError(flag, f"cannot use {plan.out} ({exc})") from exc
+    return lock
 
 
 def run_evaluation(options: EvaluateOptions) -> str:
-    """Evaluate, write every output file into ``options.out``, and return the text to print
-    (the summary table, with ``paper`` Table I beside ours, and the files written).
+    """Evaluate, write every output file into the output directory as one set, and return the
+    text to print (the summary table, with ``paper`` Table I beside ours, and the files written).
 
     Notes about skipped agents go to stderr as they happen.
 
     Raises:
-        UsageError: a bad argument (before any episode runs).
+        UsageError: a bad argument, or the output directory is in use by another run (before
+            any episode runs and before the directory changes).
+        EvaluationInterrupted: Ctrl-C or SIGTERM after the run started; the finished episodes
+            are journaled in the output directory for ``--resume``.
     """
-    env_id, episodes = _resolve_env(options)
-    env_kwargs = dict(options.env_kwargs or {})
-    try:  # validate the env ID and its keyword arguments before any agent runs
-        make_env(env_id, env_kwargs, options.max_steps).close()
-    except gym.error.Error as exc:
-        raise UsageError("--env", str(exc)) from exc
-    except (TypeError, ValueError) as exc:
-        raise UsageError("--env-kwargs", str(exc)) from exc
-    specs, skipped = _choose_agents(options, env_id, env_kwargs)
+    resuming = options.resume is not None
+    plan = _resume_plan(options) if resuming else _fresh_plan(options)
+    flag = "--resume" if resuming else "--out"
+    lock = _lock(plan, flag)
+    try:
+        return _run_locked(plan, resuming, options.progress)
+    finally:
+        lock.release()
 
-    results = evaluate_agents(
-        env_id,
-        specs,
-        episodes=episodes,
-        seed=options.seed,
-        env_kwargs=env_kwargs,
-        progress=options.progress,
-        max_episode_steps=options.max_steps,
-    )
-    summary = summarize(results, reference=options.reference)
-    if skipped:
-        summary["skipped"] = skipped
-    out = Path(options.out)
-    written = write_outputs(results, out, plots=options.plots, summary=summary)
-    text = summary_markdown(summary)
-    if options.paper:
-        table = paper_table(results, skipped)
-        table_text = paper_table_markdown(table)
-        for name, content in (("paper_table.md", table_text), ("paper_table.json", to_json(table))):
-            write_atomic(out / name, content)
-            written.append(out / name)
-        text += "\n[APF-MPC] Table I, paper vs ours:\n\n" + table_text
-    text += f"\nwrote {len(written)} files to {out}/ ({results.elapsed:.1f} s):\n"
+
+def _run_locked(plan: EvaluationPlan, resuming: bool, progress: bool) -> str:
+    """Run ``plan`` in its directory (whose lock the caller holds)."""
+    journal = EvaluationJournal(plan.out)
+    total = len(plan.agents) * plan.episodes
+    if resuming:
+        try:
+            finished = journal.read_records()
+        except JournalError as exc:
+            raise UsageError("--resume", str(exc)) from exc
+        try:
+            index_finished(finished, plan.specs, plan.episodes, plan.seed)
+        except ValueError as exc:
+            raise UsageError("--resume", f"{journal.episodes_path}: {exc}") from exc
+        journal.drop_partial_line()
+    else:
+        if journal.exists():
+            _note(
+                f"replacing the unfinished evaluation in {journal.dir} (--resume would finish it)"
+            )
+        journal.start(plan.to_json())
+        finished = []
+    try:
+        with warnings.catch_warnings():
+            for text in plan.warnings.values():  # already noted when the agents were checked
+                for message in text.split("\n"):
+                    warnings.filterwarnings("ignore", re.escape(message), UserWarning)
+            results = evaluate_agents(
+                plan.env_id,
+                plan.specs,
+                episodes=plan.episodes,
+                seed=plan.seed,
+                env_kwargs=plan.env_kwargs,
+                progress=progress,
+                max_episode_steps=plan.max_steps,
+                finished=finished,
+                on_episode=journal.append,
+            )
+        summary = summarize(results, reference=plan.reference)
+        if plan.skipped:
+            summary["skipped"] = plan.skipped
+        if plan.warnings:
+            summary["warnings"] = plan.warnings
+        text = summary_markdown(summary)
+        extra: dict[str, str] = {}
+        if plan.paper:
+            table = paper_table(results, plan.skipped)
+            table_text = paper_table_markdown(table)
+            extra = {"paper_table.md": table_text, "paper_table.json": to_json(table)}
+            text += "\n[APF-MPC] Table I, paper vs ours:\n\n" + table_text
+        written = write_outputs(
+            results,
+            plan.out,
+            plots=plan.plots,
+            summary=summary,
+            extra=extra,
+            manifest={"evaluation": plan.to_json()},
+        )
+    except KeyboardInterrupt:
+        raise EvaluationInterrupted(plan.out, journal.count, total) from None
+    journal.remove()
+    text += f"\nwrote {len(written)} files to {plan.out}/ ({results.elapsed:.1f} s):\n"
     text += "".join(f"  {path}\n" for path in written)
     return text

@@ -19,6 +19,8 @@ from debris_gym.scenario import Scenario
 
 __all__ = [
     "CSV_COLUMNS",
+    "RECORD_FIELDS",
+    "TIMING_COLUMNS",
     "EpisodeRecord",
     "EvaluationResults",
     "Trajectory",
@@ -105,6 +107,15 @@ CSV_COLUMNS: tuple[str, ...] = tuple(
     if f.metadata.get("csv")
 )
 """Columns of ``episodes.csv`` (``episode_return`` is written as ``return``)."""
+
+RECORD_FIELDS: tuple[str, ...] = tuple(
+    f.name for f in dataclasses.fields(EpisodeRecord) if f.metadata.get("csv")
+)
+"""The :class:`EpisodeRecord` fields behind :data:`CSV_COLUMNS`, in the same order."""
+
+TIMING_COLUMNS: tuple[str, ...] = ("decision_ms_p50", "decision_ms_p95", "decision_ms_max")
+"""The columns that measure wall-clock time (ms) and so differ between two runs of the same
+evaluation; every other column is a function of the seeds, the agents and the env."""
 
 
 @dataclass

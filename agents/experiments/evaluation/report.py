@@ -1,8 +1,8 @@
 """Reports of an evaluation: the Markdown table, strict JSON, the episodes CSV, and the files.
 
-Outputs are written atomically (:func:`debris_gym.files.write_atomic`: a temporary file in the
-same directory, then :func:`os.replace`): ``episodes.csv``, ``summary.json``, ``summary.md`` and
-``trajectories_epNNN.png``.
+The outputs (``episodes.csv``, ``summary.json``, ``summary.md``, ``trajectories_epNNN.png``, and
+``paper_table.*`` with ``--paper``) are written as one set (:func:`write_outputs`): staged, then
+moved into place together, so a directory never holds one run's tables beside another's plots.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import io
 import json
 import math
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -22,9 +22,17 @@ import numpy as np
 from agents.experiments.evaluation.plots import plot_episode
 from agents.experiments.evaluation.records import CSV_COLUMNS, EpisodeRecord, EvaluationResults
 from agents.experiments.evaluation.statistics import summarize
+from agents.experiments.run_directory import OutputSet
 from debris_gym.files import write_atomic
 
-__all__ = ["episodes_csv", "format_number", "summary_markdown", "to_json", "write_outputs"]
+__all__ = [
+    "OWNED_OUTPUTS",
+    "episodes_csv",
+    "format_number",
+    "summary_markdown",
+    "to_json",
+    "write_outputs",
+]
 
 
 def format_number(value: Any, digits: int = 3) -> str:
@@ -98,6 +106,8 @@ def summary_markdown(summary: dict[str, Any]) -> str:
                 f"| {format_number(e['reference_delta_v_mean'])} "
                 f"| {_with_ci(e, 'difference_mean')} |"
             )
+    for label, message in (summary.get("warnings") or {}).items():
+        lines += ["", f"Warning — {label}: {message}"]
     return "\n".join(lines) + "\n"
 
 
@@ -134,29 +144,55 @@ def episodes_csv(records: Iterable[EpisodeRecord]) -> str:
     return buf.getvalue()
 
 
+OWNED_OUTPUTS: tuple[str, ...] = (
+    "episodes.csv",
+    "summary.json",
+    "summary.md",
+    "trajectories_ep*.png",
+    "paper_table.md",
+    "paper_table.json",
+)
+"""Name patterns of the files an evaluation writes: an earlier set's files of these names that a
+new set does not contain (a plot of an episode no longer plotted) are removed at commit."""
+
+
 def write_outputs(
     results: EvaluationResults,
     out_dir: str | os.PathLike[str],
     plots: int = 3,
     summary: dict[str, Any] | None = None,
+    extra: Mapping[str, str | bytes] | None = None,
+    manifest: Mapping[str, Any] | None = None,
 ) -> list[Path]:
-    """Write episodes.csv, summary.json, summary.md and ``plots`` trajectory PNGs into out_dir.
+    """Write episodes.csv, summary.json, summary.md, ``plots`` trajectory PNGs and the
+    ``extra`` files ({name: content}, e.g. ``paper_table.md``) into ``out_dir`` as one set.
 
-    Returns the paths written, in that order. ``out_dir`` is created if needed.
+    The files are staged in a scratch directory and moved into place together
+    (:class:`~agents.experiments.run_directory.OutputSet`): an error or Ctrl-C while they are
+    written leaves ``out_dir`` as it was, and the files of an earlier evaluation that this one
+    does not write (:data:`OWNED_OUTPUTS`) are removed. ``DIR/manifest.json`` names the set,
+    with the ``manifest`` items beside the file list. ``out_dir`` is created if needed.
+
+    Returns:
+        The paths written, in the order above.
     """
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     summary = summarize(results) if summary is None else summary
-    written = []
-    for name, text in (
+    contents: list[tuple[str, str | bytes]] = [
         ("episodes.csv", episodes_csv(results.records)),
         ("summary.json", to_json(summary)),
         ("summary.md", summary_markdown(summary)),
-    ):
-        write_atomic(out / name, text)
-        written.append(out / name)
-    for i in range(min(max(plots, 0), results.episodes)):
-        path = out / f"trajectories_ep{i:03d}.png"
-        write_atomic(path, plot_episode(results, i))
-        written.append(path)
-    return written
+    ]
+    with OutputSet(out, owned=OWNED_OUTPUTS) as files:
+        for name, content in contents:
+            write_atomic(files.path(name), content)
+        names = [name for name, _ in contents]
+        for i in range(min(max(plots, 0), results.episodes)):
+            name = f"trajectories_ep{i:03d}.png"
+            write_atomic(files.path(name), plot_episode(results, i))
+            names.append(name)
+        for name, content in (extra or {}).items():
+            write_atomic(files.path(name), content)
+            names.append(name)
+        files.commit(**dict(manifest or {}))
+    return [out / name for name in names]

@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import sys
 import time
-from collections.abc import Iterable, Mapping
+import warnings
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
 import gymnasium as gym
@@ -23,6 +24,8 @@ import numpy as np
 import debris_gym  # noqa: F401  (registers the DebrisGym IDs)
 from agents.experiments.evaluation.metrics import trajectory_metrics
 from agents.experiments.evaluation.records import (
+    RECORD_FIELDS,
+    TIMING_COLUMNS,
     EpisodeRecord,
     EvaluationResults,
     Trajectory,
@@ -36,7 +39,7 @@ from agents.experiments.evaluation.specs import (
 )
 from debris_gym.scenario import Scenario
 
-__all__ = ["evaluate_agents", "make_env", "run_episode"]
+__all__ = ["evaluate_agents", "index_finished", "make_env", "run_episode"]
 
 
 def _outcome(info: dict[str, Any], truncated: bool) -> str:
@@ -144,6 +147,8 @@ def evaluate_agents(
     env_kwargs: dict[str, Any] | None = None,
     progress: bool = True,
     max_episode_steps: int | None = None,
+    finished: Sequence[EpisodeRecord] = (),
+    on_episode: Callable[[EpisodeRecord], None] | None = None,
 ) -> EvaluationResults:
     """Fly every agent on the same ``episodes`` seeded scenarios.
 
@@ -163,6 +168,13 @@ def evaluate_agents(
         env_kwargs: keyword arguments for ``gym.make``.
         progress: show a tqdm bar over agent × episode on stderr.
         max_episode_steps: override the registration's time limit (steps).
+        finished: records of (agent label, episode) pairs already flown by an interrupted run
+            of the same evaluation; they are taken as they are. An agent may keep state from one
+            episode to the next (the ``random`` baseline's generator does), so an agent with
+            episodes still to fly first re-flies, unrecorded, its finished episodes before the
+            last unfinished one: the resumed run then equals an uninterrupted one.
+        on_episode: called with each newly flown episode's record as soon as it finishes (to
+            journal it; see :mod:`agents.experiments.evaluation.journal`).
 
     Raises:
         ValueError: bad arguments.
@@ -174,11 +186,13 @@ def evaluate_agents(
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
     specs = parse_agent_specs(agent_specs)
     env_kwargs = dict(env_kwargs or {})
+    done = index_finished(finished, specs, episodes, seed)
     records: list[EpisodeRecord] = []
     time_limit = max_episode_steps
     start = time.perf_counter()
     bar = tqdm(
         total=len(specs) * episodes,
+        initial=len(done),
         desc="evaluate",
         unit="ep",
         file=sys.stderr,
@@ -191,11 +205,22 @@ def evaluate_agents(
             env = make_env(env_id, kwargs, max_episode_steps)
             if env.spec is not None:
                 time_limit = env.spec.max_episode_steps
+            todo = [i for i in range(episodes) if (spec.label, i) not in done]
             try:
-                agent = build_agent(spec, env)
+                agent = build_agent(spec, env) if todo else None
                 for i in range(episodes):
+                    saved = done.get((spec.label, i))
+                    if saved is not None:
+                        if todo and i < todo[-1]:  # bring the agent to the state it had
+                            bar.set_postfix_str(f"{spec.label} ep {i} (replay)", refresh=False)
+                            _check_replay(saved, run_episode(env, agent, spec.label, i, seed + i))
+                        records.append(saved)
+                        continue
                     bar.set_postfix_str(f"{spec.label} ep {i}", refresh=False)
-                    records.append(run_episode(env, agent, spec.label, i, seed + i))
+                    record = run_episode(env, agent, spec.label, i, seed + i)
+                    records.append(record)
+                    if on_episode is not None:
+                        on_episode(record)
                     bar.update()
             finally:
                 env.close()
@@ -213,6 +238,47 @@ def evaluate_agents(
         scenarios=scenarios,
         elapsed=time.perf_counter() - start,
     )
+
+
+def index_finished(
+    finished: Sequence[EpisodeRecord], specs: list[AgentSpec], episodes: int, seed: int
+) -> dict[tuple[str, int], EpisodeRecord]:
+    """``finished`` by (agent label, episode), checked to belong to the evaluation of ``specs``
+    over ``episodes`` episodes from reset seed ``seed``.
+
+    Raises:
+        ValueError: a record of another agent, episode or seed, or one pair twice.
+    """
+    labels = {spec.label for spec in specs}
+    done: dict[tuple[str, int], EpisodeRecord] = {}
+    for record in finished:
+        key = (record.agent, record.episode)
+        if (
+            record.agent not in labels
+            or not 0 <= record.episode < episodes
+            or record.seed != seed + record.episode
+        ):
+            raise ValueError(
+                f"finished record of agent {record.agent!r}, episode {record.episode} (reset "
+                f"seed {record.seed}) is not part of this evaluation (agents {sorted(labels)}, "
+                f"episodes 0..{episodes - 1} with reset seeds {seed}…{seed + episodes - 1})"
+            )
+        if key in done:
+            raise ValueError(f"agent {record.agent!r}, episode {record.episode} finished twice")
+        done[key] = record
+    return done
+
+
+def _check_replay(saved: EpisodeRecord, replayed: EpisodeRecord) -> None:
+    """Warn if a re-flown episode differs from its saved record beyond timing."""
+    fields = [f for f in RECORD_FIELDS if f not in TIMING_COLUMNS]
+    if any(getattr(saved, f) != getattr(replayed, f) for f in fields):
+        warnings.warn(
+            f"agent {saved.agent!r} flew episode {saved.episode} differently when resumed; it "
+            "is not deterministic, so the resumed results may differ from an uninterrupted run",
+            RuntimeWarning,
+            stacklevel=3,
+        )
 
 
 def _check_same_scenarios(records: list[EpisodeRecord], episodes: int) -> list[Scenario]:

@@ -42,6 +42,7 @@ __all__ = [
     "agent_env_options",
     "build_agent",
     "check_agent_available",
+    "known_specs_text",
     "parse_agent_spec",
     "parse_agent_specs",
     "resolve_python_agent",
@@ -86,7 +87,8 @@ class AgentSpec:
         return f"{self.name}:{self.path}" if self.kind == "learned" else self.name
 
 
-def _known_specs_text() -> str:
+def known_specs_text() -> str:
+    """Every kind of agent spec, with examples (for error messages)."""
     from agents import BASELINES
 
     return (
@@ -118,7 +120,7 @@ def parse_agent_spec(text: str) -> AgentSpec:
 
     spec = str(text).strip()
     if not spec:
-        raise ValueError(f"empty agent name; {_known_specs_text()}")
+        raise ValueError(f"empty agent name; {known_specs_text()}")
     sep = min((i for i in (spec.find("="), spec.find(":")) if i >= 0), default=-1)
     if sep >= 0:
         head, rest = spec[:sep].strip(), spec[sep + 1 :].strip()
@@ -142,7 +144,7 @@ def parse_agent_spec(text: str) -> AgentSpec:
         return AgentSpec(text=spec, kind="pretrained", name=PRETRAINED, label=PRETRAINED)
     if spec.lower() in LEARNED_ALGOS:
         raise ValueError(f"agent {spec!r} needs a model path: {spec.lower()}=path/to/model.zip")
-    raise ValueError(f"unknown agent {spec!r}; {_known_specs_text()}")
+    raise ValueError(f"unknown agent {spec!r}; {known_specs_text()}")
 
 
 def _spec_of(label: str, value: Any) -> AgentSpec:
@@ -175,7 +177,7 @@ def parse_agent_specs(
     """
     if isinstance(specs, Mapping):
         if not specs:
-            raise ValueError(f"no agents given; {_known_specs_text()}")
+            raise ValueError(f"no agents given; {known_specs_text()}")
         for label in specs:
             if not isinstance(label, str) or not label.strip():
                 raise ValueError(f"agent labels must be non-empty strings, got {label!r}")
@@ -183,7 +185,7 @@ def parse_agent_specs(
     items = specs.split(",") if isinstance(specs, str) else list(specs)
     parsed = [s if isinstance(s, AgentSpec) else parse_agent_spec(s) for s in items]
     if not parsed:
-        raise ValueError(f"no agents given; {_known_specs_text()}")
+        raise ValueError(f"no agents given; {known_specs_text()}")
     texts = [p.text for p in parsed if p.kind != "object"]
     repeated = sorted({t for t in texts if texts.count(t) > 1})
     if repeated:
@@ -223,7 +225,16 @@ def resolve_python_agent(target: str) -> Any:
 def _as_policy(label: str, obj: Any, env: gym.Env) -> Any:
     """``obj`` itself if it is a policy instance, else ``obj(env)``; checked for ``predict``."""
     is_instance_policy = callable(getattr(obj, "predict", None)) and not isinstance(obj, type)
-    policy = obj if is_instance_policy else obj(env) if callable(obj) else obj
+    policy = obj
+    if not is_instance_policy and callable(obj):
+        try:
+            policy = obj(env)
+        except (TypeError, ValueError) as exc:
+            kind = TypeError if isinstance(exc, TypeError) else ValueError
+            raise kind(
+                f"agent {label!r}: its factory {getattr(obj, '__name__', obj)!r} failed on the "
+                f"env ({exc}); give a policy or a factory callable(env) -> policy"
+            ) from exc
     if not callable(getattr(policy, "predict", None)):
         raise TypeError(
             f"agent {label!r}: {type(policy).__name__} has no predict(obs, state, episode_start, "

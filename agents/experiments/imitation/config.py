@@ -28,6 +28,12 @@ __all__ = [
 ACTIVATION_NAMES = ("tanh", "relu")
 """Hidden activations of the policy network."""
 
+MAX_WIDTH = 4096
+"""Widest hidden layer of the policy network (a wider one is a typo, and costs gigabytes)."""
+
+MAX_SEED = 2**31 - 1
+"""Largest base seed (torch's manual_seed and the field seeds derived from it stay in range)."""
+
 TRAIN_SEED = 5_000_000
 """Fields of imitation runs are reset with seeds ``seed + TRAIN_SEED + k``: apart from the
 held-out evaluation seeds of train.py (1 000 000 + i) and of the docs (10 000 000, 20 000 000)."""
@@ -90,31 +96,47 @@ class ImitationConfig:
             "refit_epochs": (1, None),
             "batch_size": (1, None),
             "workers": (1, 64),
-            "seed": (0, None),
+            "seed": (0, MAX_SEED),
         }
         for key, (low, high) in ints.items():
+            _check_int(key, getattr(self, key), low, high)
+        if self.max_episode_steps is not None:
+            _check_int("max_episode_steps", self.max_episode_steps, 1, None)
+        floats = {  # key: (low, high, low excluded)
+            "dagger_beta": (0.0, 1.0, False),
+            "learning_rate": (0.0, None, True),
+            "weight_decay": (0.0, None, False),
+        }
+        for key, (low, high, low_open) in floats.items():
             value = getattr(self, key)
-            if isinstance(value, bool) or not isinstance(value, int):
-                raise TypeError(f"{key} must be an integer, got {value!r}")
-            if value < low or (high is not None and value > high):
-                allowed = f"[{low}, {high}]" if high is not None else f">= {low}"
-                raise ValueError(f"{key}={value} is out of range; allowed: {allowed}")
-        if not 0.0 <= self.dagger_beta <= 1.0:
-            raise ValueError(f"dagger_beta={self.dagger_beta} is out of range; allowed: [0, 1]")
-        for key in ("learning_rate",):
-            value = getattr(self, key)
-            if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"{key}={value} must be a positive finite number")
-        if not (np.isfinite(self.weight_decay) and self.weight_decay >= 0):
-            raise ValueError(f"weight_decay={self.weight_decay} must be >= 0")
-        if not self.net_arch or any(int(w) < 1 for w in self.net_arch):
-            raise ValueError(f"net_arch={self.net_arch!r} must be a non-empty list of widths >= 1")
+            upper = f"{high:g}]" if high is not None else "inf)"
+            allowed = f"{'(' if low_open else '['}{low:g}, {upper}"
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ValueError(f"{key} must be a number in {allowed}, got {value!r}")
+            inside = (value > low if low_open else value >= low) and (high is None or value <= high)
+            if not (np.isfinite(value) and inside):
+                raise ValueError(f"{key}={value!r} is out of range; allowed: {allowed}")
+        arch = self.net_arch
+        if (
+            not isinstance(arch, tuple)
+            or not arch
+            or any(isinstance(w, bool) or not isinstance(w, int) for w in arch)
+            or any(not 1 <= w <= MAX_WIDTH for w in arch)
+        ):
+            raise ValueError(
+                f"net_arch={list(arch) if isinstance(arch, tuple) else arch!r} is out of range; "
+                f"allowed: a non-empty list of integer widths in [1, {MAX_WIDTH}]"
+            )
         if self.activation_fn not in ACTIVATION_NAMES:
             raise ValueError(
                 f"activation_fn={self.activation_fn!r}; allowed: {', '.join(ACTIVATION_NAMES)}"
             )
-        if self.max_episode_steps is not None and self.max_episode_steps < 1:
-            raise ValueError(f"max_episode_steps={self.max_episode_steps} must be >= 1")
+        for key in ("env_id", "expert"):
+            if not isinstance(getattr(self, key), str):
+                raise ValueError(f"{key}={getattr(self, key)!r} must be a string")
+        for key in ("env_kwargs", "expert_kwargs"):
+            if not isinstance(getattr(self, key), dict):
+                raise ValueError(f"{key} must be a mapping, got {getattr(self, key)!r}")
 
     def to_dict(self) -> dict[str, Any]:
         out = dataclasses.asdict(self)
@@ -138,7 +160,7 @@ class ImitationConfig:
                 hint = f" (did you mean {close[0]!r}?)" if close else ""
                 raise ValueError(f"{source}: unknown key {key!r}{hint}; known: {', '.join(known)}")
             kwargs[key] = value
-        if "net_arch" in kwargs:
+        if isinstance(kwargs.get("net_arch"), list):
             kwargs["net_arch"] = tuple(kwargs["net_arch"])
         for key in ("env_kwargs", "expert_kwargs"):
             if key in kwargs and not isinstance(kwargs[key], dict):
@@ -177,6 +199,16 @@ class ImitationConfig:
             raise ValueError(f"expert_kwargs: {exc}") from None
         finally:
             env.close()
+
+
+def _check_int(key: str, value: Any, low: int, high: int | None) -> None:
+    """``value`` is an integer in ``[low, high]`` (``high`` None: no upper bound)."""
+    allowed = f"[{low}, {high}]" if high is not None else f">= {low}"
+    if isinstance(value, bool) or not isinstance(value, int):
+        words = f"in {allowed}" if high is not None else allowed
+        raise ValueError(f"{key} must be an integer {words}, got {value!r}")
+    if value < low or (high is not None and value > high):
+        raise ValueError(f"{key}={value} is out of range; allowed: {allowed}")
 
 
 def expert_params(kwargs: dict[str, Any]) -> dict[str, Any]:

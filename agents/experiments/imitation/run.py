@@ -24,9 +24,19 @@ from agents.experiments.imitation.fitting import (
     set_observation_stats,
 )
 from agents.experiments.provenance import iso_time, library_versions
+from agents.experiments.run_directory import OutputSet, RunDirectoryLock, check_output_dir
 from debris_gym.files import save_atomic, write_atomic
 
-__all__ = ["imitate", "plot_rounds", "run_config_yaml"]
+__all__ = ["RUN_FILES", "imitate", "plot_rounds", "run_config_yaml"]
+
+RUN_FILES = (
+    "model.zip",
+    "vecnormalize.pkl",
+    "imitation_log.json",
+    "config.yaml",
+    "imitation_curve.png",
+)
+"""The files of an imitation run, committed together at its end."""
 
 
 def imitate(
@@ -40,7 +50,9 @@ def imitate(
 
     Args:
         config: the run's settings.
-        out: run directory (created; refused if it already holds a model).
+        out: run directory (checked by
+            :func:`~agents.experiments.run_directory.check_output_dir`, created, locked for the
+            whole run; refused if it already holds a model).
         log: where the per-round lines go.
         progress: tqdm bars over the rollouts.
         command: the command line, recorded in ``config.yaml``.
@@ -51,11 +63,24 @@ def imitate(
     """
     import torch
 
-    torch.set_num_threads(1)
-    out = Path(out)
-    if (out / "model.zip").exists():
-        raise FileExistsError(f"{out} already holds a run (model.zip); choose another --out")
-    out.mkdir(parents=True, exist_ok=True)
+    out = check_output_dir(out)
+    with RunDirectoryLock(out):
+        if (out / "model.zip").exists():
+            raise FileExistsError(f"{out} already holds a run (model.zip); choose another --out")
+        torch.set_num_threads(1)
+        return _imitate(config, out, log, progress, command)
+
+
+def _imitate(
+    config: ImitationConfig,
+    out: Path,
+    log: Callable[[str], None],
+    progress: bool,
+    command: str | None,
+) -> dict[str, Any]:
+    """The rounds of :func:`imitate`, then the run's files committed as one set."""
+    import torch
+
     rng = np.random.default_rng(config.seed)
     torch.manual_seed(config.seed)
     next_seed = TRAIN_SEED + config.seed * 100_000
@@ -112,15 +137,13 @@ def imitate(
         )
         log(_round_line(history[-1]))
 
-    model_path = save_atomic(out / "model.zip", model.save)
-    save_atomic(out / "vecnormalize.pkl", venv.save)
+    model_path = out / "model.zip"
     run_log = {
         "config": config.to_dict(),
         "rounds": history,
         "wall_s": time.time() - started,
         "model": str(model_path),
     }
-    write_atomic(out / "imitation_log.json", json.dumps(run_log, indent=2) + "\n")
     run = {
         "command": command,
         "started_at": iso_time(started),
@@ -128,8 +151,13 @@ def imitate(
         "wall_s": round(run_log["wall_s"], 1),
         "versions": library_versions(),
     }
-    write_atomic(out / "config.yaml", run_config_yaml(config, run))
-    plot_rounds(run_log, out / "imitation_curve.png")
+    with OutputSet(out, owned=RUN_FILES) as files:  # all of the run's files, or none
+        save_atomic(files.path("model.zip"), model.save)
+        save_atomic(files.path("vecnormalize.pkl"), venv.save)
+        write_atomic(files.path("imitation_log.json"), json.dumps(run_log, indent=2) + "\n")
+        write_atomic(files.path("config.yaml"), run_config_yaml(config, run))
+        plot_rounds(run_log, files.path("imitation_curve.png"))
+        files.commit(run={"command": command, "finished_at": run["finished_at"]})
     return run_log
 
 

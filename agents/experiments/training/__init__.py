@@ -28,6 +28,7 @@ A run directory holds::
     DIR/checkpoints/              rl_model_<N>_steps.zip (+ _vecnormalize_, _replay_buffer_ .pkl),
                                   interrupted.zip (+ interrupted_vecnormalize.pkl …) after Ctrl-C
     DIR/tb/                       TensorBoard logs (if the ``tensorboard`` package is installed)
+    DIR/.lock                     held by the run in progress (one run per directory at a time)
 
 Training envs are :class:`~debris_gym.integrations.sb3.NativeVecEnv` (the native vector env) in
 SB3's ``VecMonitor`` and, optionally, ``VecNormalize``. Sub-env ``i`` of a fresh run is seeded with

@@ -10,10 +10,12 @@ from __future__ import annotations
 
 import contextlib
 import json
+import pickle
 import signal
 import threading
 import zipfile
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -46,29 +48,90 @@ def model_timesteps(model_path: str | Path) -> int:
     return int(data["num_timesteps"])
 
 
-def find_latest_checkpoint(run_dir: str | Path) -> Path:
-    """The model with the most timesteps among ``DIR/checkpoints/*.zip`` and ``DIR/model.zip``.
+@dataclass(frozen=True)
+class CheckpointScan:
+    """The models of a run directory that a resume could start from.
 
-    Raises:
-        FileNotFoundError: no readable model in the run directory.
+    Attributes:
+        latest: the complete model with the most timesteps (None: there is none).
+        damaged: models (or their statistics) that cannot be read, each with the reason — a file
+            cut short by a hard kill or a full disk.
+    """
+
+    latest: Path | None
+    damaged: list[tuple[Path, str]]
+
+
+def _stats_problem(model: Path) -> str | None:
+    """Why ``model``'s VecNormalize statistics cannot be used, or None if they can."""
+    stats = sidecar_path(model, "vecnormalize")
+    if not stats.is_file():
+        return f"has no VecNormalize statistics ({stats.name})"
+    try:
+        with open(stats, "rb") as fh:
+            pickle.load(fh)
+    except Exception as exc:  # any unpickling failure means a damaged file
+        return f"has damaged VecNormalize statistics {stats.name} ({type(exc).__name__})"
+    return None
+
+
+def scan_checkpoints(run_dir: str | Path, needs_stats: bool = False) -> CheckpointScan:
+    """Every model in ``DIR/checkpoints/*.zip`` and ``DIR/model.zip``, sorted into the latest
+    complete one and the damaged ones.
+
+    Args:
+        run_dir: the run directory.
+        needs_stats: a model counts as complete only with readable VecNormalize statistics (runs
+            with normalisation on).
     """
     run_dir = Path(run_dir)
     candidates = sorted((run_dir / "checkpoints").glob("*.zip"))
     if (run_dir / FINAL_MODEL).is_file():
         candidates.append(run_dir / FINAL_MODEL)
     best: tuple[int, float, Path] | None = None
+    damaged: list[tuple[Path, str]] = []
     for path in candidates:
         try:
             key = (model_timesteps(path), path.stat().st_mtime, path)
-        except (OSError, KeyError, ValueError, zipfile.BadZipFile):
-            continue  # a half-written file from a hard kill
+        except (OSError, KeyError, ValueError, zipfile.BadZipFile) as exc:
+            damaged.append((path, f"is not a complete SB3 model ({type(exc).__name__}: {exc})"))
+            continue
+        problem = _stats_problem(path) if needs_stats else None
+        if problem is not None:
+            damaged.append((path, problem))
+            continue
         if best is None or key[:2] > best[:2]:
             best = key
-    if best is None:
+    return CheckpointScan(latest=best[2] if best else None, damaged=damaged)
+
+
+def describe_damaged(damaged: list[tuple[Path, str]]) -> str:
+    """``"checkpoints/a.zip is …; model.zip is …"`` (paths relative to their run directory)."""
+    return "; ".join(f"{path.parent.name}/{path.name} {why}" for path, why in damaged)
+
+
+def find_latest_checkpoint(run_dir: str | Path, needs_stats: bool = False) -> Path:
+    """The complete model with the most timesteps among ``DIR/checkpoints/*.zip`` and
+    ``DIR/model.zip`` (damaged files are skipped; :func:`scan_checkpoints` lists them).
+
+    Raises:
+        FileNotFoundError: no complete model in the run directory; the message names every
+            damaged file and what to do.
+    """
+    run_dir = Path(run_dir)
+    scan = scan_checkpoints(run_dir, needs_stats)
+    if scan.latest is not None:
+        return scan.latest
+    if scan.damaged:
         raise FileNotFoundError(
-            f"no checkpoint in {run_dir} (looked for checkpoints/*.zip and {FINAL_MODEL})"
+            f"no complete checkpoint in {run_dir} to resume from: "
+            f"{describe_damaged(scan.damaged)}. The run cannot be resumed; start it again with "
+            f"--out {run_dir} after deleting the damaged files, or with another --out"
         )
-    return best[2]
+    raise FileNotFoundError(
+        f"no checkpoint in {run_dir} (looked for checkpoints/*.zip and {FINAL_MODEL}): the run "
+        f"never saved a model; start it again with --out {run_dir}"
+    )
 
 
 @contextlib.contextmanager

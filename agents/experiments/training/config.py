@@ -242,6 +242,17 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
         data.get("policy_kwargs"), cls.policy_aliases[policy], source
     )
     algo_kwargs = validate_algo_kwargs(data.get("algo_kwargs"), cls, algo, source)
+    if algo == "ppo":  # SB3 asserts a rollout of at least 2 samples
+        n_steps = algo_kwargs.get(
+            "n_steps", inspect.signature(cls.__init__).parameters["n_steps"].default
+        )
+        if n_steps * n_envs < 2:
+            raise config_error(
+                source,
+                "algo_kwargs.n_steps",
+                f"must give a rollout of at least 2 samples (n_steps x n_envs >= 2), got "
+                f"n_steps={n_steps}, n_envs={n_envs}",
+            )
 
     normalize = section(NormalizeConfig, data.get("normalize"), "normalize.", source)
     for key in ("clip_obs", "clip_reward", "epsilon"):

@@ -15,8 +15,21 @@ from typing import Any
 import numpy as np
 
 from agents.experiments.training.config import EVAL_SEED, TrainConfig
+from agents.policies.model_files import ConfigError, algo_class
 
-__all__ = ["algo_kwargs", "make_eval_env", "make_train_env", "policy_kwargs", "tensorboard_dir"]
+__all__ = [
+    "DEVICES",
+    "algo_kwargs",
+    "build_model",
+    "make_eval_env",
+    "make_train_env",
+    "policy_kwargs",
+    "resolve_device",
+    "tensorboard_dir",
+]
+
+DEVICES = ("cpu", "auto", "cuda", "cuda:<N>", "mps")
+"""The ``--device`` values train.py knows; GPU ones only where that GPU is present."""
 
 
 def _vec_env(config: TrainConfig, n_envs: int) -> Any:
@@ -116,3 +129,73 @@ def tensorboard_dir(out: Path) -> str | None:
         )
         return None
     return str(out / "tb")
+
+
+def _available_devices() -> list[str]:
+    import torch
+
+    found = ["cpu", "auto"]
+    if torch.cuda.is_available():
+        found += ["cuda", *(f"cuda:{i}" for i in range(torch.cuda.device_count()))]
+    if torch.backends.mps.is_available():
+        found.append("mps")
+    return found
+
+
+def resolve_device(text: str, flag: str = "--device") -> str:
+    """The torch device a run uses for ``--device text``: ``auto`` becomes ``cuda`` when a CUDA
+    GPU is present and ``cpu`` otherwise (SB3's rule), so the run records where it really ran.
+
+    Raises:
+        ValueError: an unknown device name, or a GPU this machine does not have (SB3 would run
+            on the CPU instead and the run would record the GPU).
+    """
+    import torch
+
+    name = str(text).strip().lower()
+    here = _available_devices()
+    allowed = f"allowed: {', '.join(DEVICES)}; available on this machine: {', '.join(here)}"
+    kind, _, index = name.partition(":")
+    known = name in ("cpu", "auto", "mps", "cuda") or (kind == "cuda" and index.isdigit())
+    if not known:
+        raise ValueError(f"{flag} {text!r} is not a device; {allowed}")
+    if name not in here:
+        raise ValueError(f"{flag} {text!r}: no such GPU on this machine; {allowed}")
+    if name == "auto":
+        return "cuda" if torch.cuda.is_available() else "cpu"
+    return name
+
+
+def build_model(
+    config: TrainConfig,
+    train_env: Any,
+    *,
+    seed: int,
+    device: str,
+    tensorboard_log: str | None,
+    source: str = "config",
+) -> Any:
+    """A fresh SB3 model of the recipe on ``train_env`` (nothing is written: SB3 makes its
+    TensorBoard folder only when learning starts).
+
+    Raises:
+        ConfigError: SB3 rejects the recipe's keyword arguments (its own asserts and checks, which
+            the ranges of :mod:`~agents.experiments.training.validation` do not cover).
+    """
+    cls = algo_class(config.algo)
+    try:
+        return cls(
+            config.policy,
+            train_env,
+            policy_kwargs=policy_kwargs(config),
+            seed=seed,
+            device=device,
+            tensorboard_log=tensorboard_log,
+            verbose=0,
+            **algo_kwargs(config, int(np.prod(train_env.action_space.shape or (1,)))),
+        )
+    except (AssertionError, ValueError, TypeError, KeyError) as exc:
+        raise ConfigError(
+            f"{source}: SB3 {cls.__name__} rejects config keys 'algo_kwargs' / 'policy_kwargs' "
+            f"({config.algo_kwargs} / {config.policy_kwargs}): {exc}"
+        ) from None

@@ -1,32 +1,39 @@
 """One training run, fresh or resumed: ``train(TrainOptions(...))`` — the library call of
 ``train.py``.
 
-A ``KeyboardInterrupt`` during learning saves ``DIR/checkpoints/interrupted.zip`` and returns;
-``train(TrainOptions(resume=DIR))`` continues from the latest checkpoint.
+Everything is checked, and the envs and model built, before the run directory is written; the
+run holds the directory's lock throughout (docs/validation.md lists the rules). A
+``KeyboardInterrupt`` during learning saves ``DIR/checkpoints/interrupted.zip`` and returns;
+``train(TrainOptions(resume=DIR))`` continues from the latest complete checkpoint.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import os
 import shlex
 import signal
 import sys
 import threading
 import time
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
-import numpy as np
 from stable_baselines3.common.callbacks import ProgressBarCallback
 
 from agents.experiments.config_files import CONFIG_DIR, apply_overrides
 from agents.experiments.provenance import library_versions, utc_now
+from agents.experiments.run_directory import LOCK_FILE, RunDirectoryLock, check_output_dir
 from agents.experiments.training.callbacks import close_progress_bar, make_callbacks
 from agents.experiments.training.checkpoints import (
     INTERRUPTED,
+    describe_damaged,
     find_latest_checkpoint,
     model_timesteps,
     save_model_files,
+    scan_checkpoints,
 )
 from agents.experiments.training.config import (
     DEFAULT_ENV,
@@ -38,13 +45,14 @@ from agents.experiments.training.config import (
 )
 from agents.experiments.training.curve import plot_learning_curve
 from agents.experiments.training.models import (
-    algo_kwargs,
+    build_model,
     make_eval_env,
     make_train_env,
-    policy_kwargs,
+    resolve_device,
     tensorboard_dir,
 )
 from agents.experiments.training.run_files import (
+    clear_unstarted_run,
     read_train_log,
     truncate_episode_log,
     write_run_config,
@@ -67,7 +75,9 @@ class TrainOptions:
     """What ``train.py`` was asked for (see its ``--help``).
 
     Attributes:
-        out: run directory (created; must not already hold a run unless resuming).
+        out: run directory (created; checked by
+            :func:`~agents.experiments.run_directory.check_output_dir`; must not already hold a
+            model: a directory whose run never saved one is taken over).
         env_id, algo: pick the checked-in config when ``config`` is None (defaults:
             Rendezvous2D, ppo); must agree with ``config`` when both are given.
         config: a config YAML file.
@@ -79,11 +89,11 @@ class TrainOptions:
         resume: a run directory to continue from its latest checkpoint.
         progress: show SB3's progress bar.
         threads: torch CPU threads.
-        device: torch device.
+        device: torch device (see :func:`~agents.experiments.training.models.resolve_device`).
         argv: the command line (recorded in config.yaml).
     """
 
-    out: Path | None = None
+    out: str | Path | None = None
     env_id: str | None = None
     algo: str | None = None
     config: Path | None = None
@@ -91,7 +101,7 @@ class TrainOptions:
     timesteps: int | None = None
     n_envs: int | None = None
     seed: int | None = None
-    resume: Path | None = None
+    resume: str | Path | None = None
     progress: bool = True
     threads: int = 1
     device: str = "cpu"
@@ -172,138 +182,299 @@ def _check_seed(seed: int, n_envs: int) -> None:
         )
 
 
+@dataclass
+class _Segment:
+    """One segment of a run, validated and built, before anything is written.
+
+    Attributes:
+        out: the run directory.
+        config: the run's config (``timesteps``: the budget after this segment).
+        source: where the config came from.
+        seed: the run's base seed.
+        run: the ``run:`` section of ``config.yaml`` so far.
+        checkpoint: the model resumed from (None: a fresh run).
+        start_steps: the model's timesteps at the start.
+        add: env steps this segment trains.
+        segment_seed: seed of this segment's training envs and model.
+        log: ``train_log.json`` so far.
+        train_env, eval_env, model: the SB3 objects (closed by :func:`train`).
+    """
+
+    out: Path
+    config: TrainConfig
+    source: str
+    seed: int
+    run: dict[str, Any]
+    checkpoint: Path | None
+    start_steps: int
+    add: int
+    segment_seed: int
+    log: dict[str, Any]
+    train_env: Any = None
+    eval_env: Any = None
+    model: Any = None
+
+
 def train(options: TrainOptions) -> TrainResult:
     """Train (or resume) one run; see the module docstring for what lands in the directory.
+
+    Every option is checked, and the envs and the model are built, before the run directory is
+    touched; the directory's lock (:class:`~agents.experiments.run_directory.RunDirectoryLock`)
+    is held for the whole run, so a second run on it is refused at its start.
 
     A ``KeyboardInterrupt`` during learning saves ``DIR/checkpoints/interrupted.zip`` (with its
     VecNormalize stats and, per config, replay buffer), updates the logs and the learning curve,
     and returns with ``status="interrupted"``; ``train(TrainOptions(resume=DIR))`` continues it.
 
     Raises:
-        FileNotFoundError, ValueError: bad options or config (messages name the problem).
+        FileNotFoundError, FileExistsError, ValueError: bad options, config or run directory
+            (messages name the option or key, the value and what is allowed).
     """
     import torch
-    from stable_baselines3.common.utils import set_random_seed
 
-    torch.set_num_threads(max(int(options.threads), 1))
+    device = resolve_device(options.device)
+    threads = int(options.threads)
+    if threads < 1:
+        raise ValueError(f"--threads must be >= 1, got {threads}")
+    torch.set_num_threads(threads)
     argv = options.argv if options.argv is not None else sys.argv
     command = shlex.join(["python", *argv]) if argv else ""
-
-    if options.resume is not None:
-        out = Path(options.resume)
-        for name, value in (
-            ("--config", options.config),
-            ("--env", options.env_id),
-            ("--algo", options.algo),
-            ("--n-envs", options.n_envs),
-            ("--seed", options.seed),
-            ("--set", options.overrides or None),
-        ):
-            if value is not None:
-                raise ValueError(
-                    f"{name} cannot be combined with --resume (a resumed run keeps its own config "
-                    f"in {out / 'config.yaml'})"
-                )
-        if options.out is not None and Path(options.out).resolve() != out.resolve():
-            raise ValueError("--out and --resume name different directories; give only --resume")
-        data, run = load_config_file(out / "config.yaml")
-        config = TrainConfig.from_dict(data, source=str(out / "config.yaml"))
-        seed = int(run.get("seed", 0))
-        checkpoint = find_latest_checkpoint(out)
-        start_steps = model_timesteps(checkpoint)
-        if options.timesteps is not None:
-            add = int(options.timesteps)
-        else:
-            add = int(config.timesteps) - start_steps
-            if add <= 0:
-                raise ValueError(
-                    f"the run in {out} already reached its budget ({start_steps:,} >= "
-                    f"{config.timesteps:,} steps); pass --timesteps N to train N more"
-                )
-        if add < 1:
-            raise ValueError(f"--timesteps must be >= 1, got {add}")
-        config = dataclasses.replace(config, timesteps=max(config.timesteps, start_steps + add))
-        source = run.get("config_source", str(out / "config.yaml"))
-    else:
-        if options.out is None:
-            raise ValueError("--out DIR is required (or --resume DIR)")
-        out = Path(options.out)
-        if (out / "config.yaml").exists() or (out / FINAL_MODEL).exists():
-            raise FileExistsError(
-                f"{out} already holds a run; continue it with --resume {out} or pick another --out"
-            )
-        config, source = resolve_config(options)
-        seed = 0 if options.seed is None else int(options.seed)
-        checkpoint, start_steps, add = None, 0, config.timesteps
-        run = {}
-
-    log = read_train_log(out)
-    segments = log.setdefault("segments", [])
-    segment = len(segments)
-    segment_seed = seed + segment * config.n_envs
-    _check_seed(segment_seed, config.n_envs)
-    out.mkdir(parents=True, exist_ok=True)
-    run = {
-        **run,
-        "command": run.get("command", command),
-        "seed": seed,
-        "config_source": source,
-        "config_version": config.version,
-        "started_at": run.get("started_at", utc_now()),
-        "versions": library_versions(),
-        "device": options.device,
-        "torch_threads": torch.get_num_threads(),
-    }
-    if options.resume is not None:
-        run.setdefault("resumes", []).append(
-            {"command": command, "from": str(checkpoint), "at": utc_now(), "add_timesteps": add}
-        )
-    else:
-        run["overrides"] = list(options.overrides)
-
-    set_random_seed(segment_seed)
-    cls = algo_class(config.algo)
-    stats = sidecar_path(checkpoint, "vecnormalize") if checkpoint is not None else None
-    if stats is not None and config.normalize.enabled and not stats.is_file():
-        raise FileNotFoundError(
-            f"checkpoint {checkpoint} has no VecNormalize statistics ({stats.name}); cannot resume"
-        )
-    train_env = make_train_env(config, segment_seed, stats if config.normalize.enabled else None)
-    eval_env = make_eval_env(config) if config.eval.freq > 0 else None
-    tb = tensorboard_dir(out)
-    if checkpoint is None:
-        model = cls(
-            config.policy,
-            train_env,
-            policy_kwargs=policy_kwargs(config),
-            seed=segment_seed,
-            device=options.device,
-            tensorboard_log=tb,
-            verbose=0,
-            **algo_kwargs(config, int(np.prod(train_env.action_space.shape or (1,)))),
-        )
-    else:
-        model = cls.load(str(checkpoint), env=train_env, device=options.device)
-        model.tensorboard_log = tb
-        model.set_random_seed(segment_seed)
-        buffer = sidecar_path(checkpoint, "replay_buffer")
-        if config.algo in OFF_POLICY:
-            if buffer.is_file():
-                model.load_replay_buffer(str(buffer))
-            else:
+    segment: _Segment | None = None
+    try:
+        if options.resume is not None:
+            out = _check_resume_options(options)
+            with RunDirectoryLock(out, "--resume"):
+                segment = _prepare_resume(options, out, device, command)
+                return _run_segment(segment, options)
+        out = check_output_dir(options.out if options.out is not None else "")
+        lock = RunDirectoryLock(out, "--out")
+        # a directory with a lock file may be busy: lock it at once, so that a busy one is
+        # refused before anything else; otherwise lock (and create) it once all is checked
+        held = (out / LOCK_FILE).is_file()
+        if held:
+            lock.acquire()
+        try:
+            _refuse_used_directory(out)
+            segment = _prepare_fresh(options, out, device, command)
+            if not held:
+                lock.acquire()
+                held = True
+                _refuse_used_directory(out)  # another run may have made it meanwhile
+            removed = clear_unstarted_run(out)
+            if removed:
                 print(
-                    f"note: no replay buffer saved with {checkpoint.name}; resuming with an "
-                    "empty buffer (random actions until it refills)",
+                    f"note: {out} held a run that never saved a model ({', '.join(removed)}); "
+                    "starting afresh in its place",
                     file=sys.stderr,
                 )
-                model.learning_starts = model.num_timesteps + int(
-                    config.algo_kwargs.get("learning_starts", model.learning_starts)
-                )
-        truncate_episode_log(out / "train_episodes.csv", start_steps)
+            return _run_segment(segment, options)
+        finally:
+            lock.release()
+    finally:
+        if segment is not None:
+            _close_envs(segment)
 
+
+def _check_resume_options(options: TrainOptions) -> Path:
+    """The run directory of ``--resume``, checked to hold a run, and no options that would
+    change its config."""
+    text = os.fspath(options.resume) if options.resume is not None else ""
+    if not str(text).strip():
+        raise ValueError("--resume must name a run directory, got an empty string")
+    out = Path(text)
+    for name, value in (
+        ("--config", options.config),
+        ("--env", options.env_id),
+        ("--algo", options.algo),
+        ("--n-envs", options.n_envs),
+        ("--seed", options.seed),
+        ("--set", options.overrides or None),
+    ):
+        if value is not None:
+            raise ValueError(
+                f"{name} cannot be combined with --resume (a resumed run keeps its own config "
+                f"in {out / 'config.yaml'})"
+            )
+    if options.out is not None and Path(options.out).resolve() != out.resolve():
+        raise ValueError("--out and --resume name different directories; give only --resume")
+    if not out.is_dir():
+        raise ValueError(f"--resume {out}: no such run directory")
+    if not (out / "config.yaml").is_file():
+        raise ValueError(
+            f"--resume {out}: not a run of train.py (no config.yaml); start one with --out {out}"
+        )
+    return out
+
+
+def _refuse_used_directory(out: Path) -> None:
+    """A fresh run may not take a directory that holds a model (complete or damaged)."""
+    scan = scan_checkpoints(out)
+    if scan.latest is not None:
+        raise FileExistsError(
+            f"{out} already holds a run; continue it with --resume {out} or pick another --out"
+        )
+    if scan.damaged:
+        raise FileExistsError(
+            f"{out} holds damaged models ({describe_damaged(scan.damaged)}); delete them to "
+            "start afresh there, or pick another --out"
+        )
+
+
+def _build(segment: _Segment, stats: Path | None, device: str) -> None:
+    """The training and evaluation envs and a fresh model (``segment.checkpoint`` None) —
+    in the order that fixes the seeded results."""
+    from stable_baselines3.common.utils import set_random_seed
+
+    config = segment.config
+    set_random_seed(segment.segment_seed)
+    segment.train_env = make_train_env(config, segment.segment_seed, stats)
+    try:
+        segment.eval_env = make_eval_env(config) if config.eval.freq > 0 else None
+        if segment.checkpoint is None:
+            segment.model = build_model(
+                config,
+                segment.train_env,
+                seed=segment.segment_seed,
+                device=device,
+                tensorboard_log=tensorboard_dir(segment.out),
+                source=segment.source,
+            )
+    except BaseException:
+        _close_envs(segment)
+        raise
+
+
+def _close_envs(segment: _Segment) -> None:
+    for env in (segment.train_env, segment.eval_env):
+        if env is not None:
+            env.close()
+    segment.train_env = segment.eval_env = None
+
+
+def _prepare_fresh(options: TrainOptions, out: Path, device: str, command: str) -> _Segment:
+    config, source = resolve_config(options)
+    seed = 0 if options.seed is None else int(options.seed)
+    _check_seed(seed, config.n_envs)
+    run = {"command": command}
+    segment = _Segment(out, config, source, seed, run, None, 0, config.timesteps, seed, {})
+    _build(segment, None, device)
+    segment.run = _run_section(segment, device)
+    segment.run["overrides"] = list(options.overrides)
+    return segment
+
+
+def _prepare_resume(options: TrainOptions, out: Path, device: str, command: str) -> _Segment:
+    data, run = load_config_file(out / "config.yaml")
+    config = TrainConfig.from_dict(data, source=str(out / "config.yaml"))
+    seed = int(run.get("seed", 0))
+    needs_stats = config.normalize.enabled
+    checkpoint = find_latest_checkpoint(out, needs_stats)
+    start_steps = model_timesteps(checkpoint)
+    damaged = scan_checkpoints(out, needs_stats).damaged
+    if damaged:
+        print(
+            f"note: skipping damaged model files ({describe_damaged(damaged)}); resuming from "
+            f"the latest complete checkpoint {checkpoint.name} ({start_steps:,} steps). Delete "
+            "the damaged files to silence this note",
+            file=sys.stderr,
+        )
+    if options.timesteps is not None:
+        add = int(options.timesteps)
+    else:
+        add = int(config.timesteps) - start_steps
+        if add <= 0:
+            raise ValueError(
+                f"the run in {out} already reached its budget ({start_steps:,} >= "
+                f"{config.timesteps:,} steps); pass --timesteps N to train N more"
+            )
+    if add < 1:
+        raise ValueError(f"--timesteps must be >= 1, got {add}")
+    config = dataclasses.replace(config, timesteps=max(config.timesteps, start_steps + add))
+    source = run.get("config_source", str(out / "config.yaml"))
+    log = read_train_log(out)
+    segment_seed = seed + len(log.get("segments", [])) * config.n_envs
+    _check_seed(segment_seed, config.n_envs)
+    segment = _Segment(
+        out, config, source, seed, run, checkpoint, start_steps, add, segment_seed, log
+    )
+    stats = sidecar_path(checkpoint, "vecnormalize") if needs_stats else None
+    _build(segment, stats, device)
+    try:
+        model = algo_class(config.algo).load(str(checkpoint), env=segment.train_env, device=device)
+    except (RuntimeError, EOFError, OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:
+        _close_envs(segment)
+        raise ValueError(
+            f"--resume {out}: checkpoint {checkpoint} is damaged ({type(exc).__name__}: {exc}); "
+            "delete it to resume from the previous checkpoint"
+        ) from None
+    model.tensorboard_log = tensorboard_dir(out)
+    model.set_random_seed(segment_seed)
+    if config.algo in OFF_POLICY:
+        _restore_replay_buffer(model, config, checkpoint)
+    segment.model = model
+    segment.run = _run_section(segment, device)
+    segment.run.setdefault("resumes", []).append(
+        {"command": command, "from": str(checkpoint), "at": utc_now(), "add_timesteps": add}
+    )
+    return segment
+
+
+def _restore_replay_buffer(model: Any, config: TrainConfig, checkpoint: Path) -> None:
+    """Load the replay buffer saved with ``checkpoint``; without one (or with one cut short) the
+    run resumes with an empty buffer and random actions for ``learning_starts`` steps."""
+    buffer = sidecar_path(checkpoint, "replay_buffer")
+    problem = f"no replay buffer saved with {checkpoint.name}"
+    if buffer.is_file():
+        try:
+            model.load_replay_buffer(str(buffer))
+            return
+        except Exception as exc:  # any unpickling failure means a damaged file
+            problem = f"replay buffer {buffer.name} is damaged ({type(exc).__name__})"
+    print(
+        f"note: {problem}; resuming with an empty buffer (random actions until it refills)",
+        file=sys.stderr,
+    )
+    model.learning_starts = model.num_timesteps + int(
+        config.algo_kwargs.get("learning_starts", model.learning_starts)
+    )
+
+
+def _run_section(segment: _Segment, device: str) -> dict[str, Any]:
+    """The ``run:`` section of ``config.yaml`` for this segment."""
+    import torch
+
+    run = segment.run
+    return {
+        **run,
+        "command": run.get("command", ""),
+        "seed": segment.seed,
+        "config_source": segment.source,
+        "config_version": segment.config.version,
+        "started_at": run.get("started_at", utc_now()),
+        "versions": library_versions(),
+        "device": device,
+        "torch_threads": torch.get_num_threads(),
+    }
+
+
+def _run_segment(segment: _Segment, options: TrainOptions) -> TrainResult:
+    """Learn one segment into its (locked) directory and write its files."""
+    import torch
+
+    out, config, run, model = segment.out, segment.config, segment.run, segment.model
+    checkpoint, start_steps, add = segment.checkpoint, segment.start_steps, segment.add
+    log = segment.log
+    segments = log.setdefault("segments", [])
+    out.mkdir(parents=True, exist_ok=True)
+    if checkpoint is not None:
+        truncate_episode_log(out / "train_episodes.csv", start_steps)
     write_run_config(out, config, run)  # before learning, so an interrupted run can be resumed
     callbacks, evaluation, checkpointer, episodes = make_callbacks(
-        config, out, eval_env, start_steps if checkpoint is not None else None, segment_seed
+        config,
+        out,
+        segment.eval_env,
+        start_steps if checkpoint is not None else None,
+        segment.segment_seed,
     )
     if options.progress:
         callbacks.append(ProgressBarCallback())
@@ -311,7 +482,7 @@ def train(options: TrainOptions) -> TrainResult:
     what = f"resuming {out} at {start_steps:,} steps" if checkpoint else f"training into {out}"
     print(
         f"{what}: {config.algo} on {config.env_id}, {add:,} steps, {config.n_envs} envs, "
-        f"seed {seed}, config {Path(source).name} v{config.version}",
+        f"seed {segment.seed}, config {Path(segment.source).name} v{config.version}",
         flush=True,
     )
     status = "completed"
@@ -351,7 +522,7 @@ def train(options: TrainOptions) -> TrainResult:
                 "started_at": run["resumes"][-1]["at"] if checkpoint else run["started_at"],
                 "resumed_from": str(checkpoint) if checkpoint else None,
                 "n_envs": config.n_envs,
-                "env_seed": segment_seed,
+                "env_seed": segment.segment_seed,
                 "torch_threads": torch.get_num_threads(),
                 "start_timesteps": start_steps,
                 "end_timesteps": int(model.num_timesteps),
@@ -383,9 +554,6 @@ def train(options: TrainOptions) -> TrainResult:
     finally:
         if main_thread:
             signal.signal(signal.SIGINT, previous)
-        train_env.close()
-        if eval_env is not None:
-            eval_env.close()
     return TrainResult(
         out=out,
         status=status,

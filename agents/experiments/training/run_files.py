@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
 from pathlib import Path
 from typing import Any
 
@@ -16,12 +17,49 @@ from agents.experiments.training.config import TrainConfig
 from debris_gym.files import write_atomic
 
 __all__ = [
+    "UNSTARTED_RUN_FILES",
+    "clear_unstarted_run",
     "is_complete_row",
     "read_train_log",
     "truncate_episode_log",
     "write_run_config",
     "write_train_log",
 ]
+
+
+UNSTARTED_RUN_FILES = (
+    "config.yaml",
+    "train_log.json",
+    "train_episodes.csv",
+    "evaluations.npz",
+    "learning_curve.png",
+    "best_model.zip",
+    "best_model_vecnormalize.pkl",
+    "best_model_replay_buffer.pkl",
+    "checkpoints",
+    "tb",
+)
+"""What a run leaves before its first complete model: removed when a fresh run takes over a
+directory whose run never saved one (it cannot be resumed, and its episode log would otherwise
+be appended to)."""
+
+
+def clear_unstarted_run(out: Path) -> list[str]:
+    """Remove the :data:`UNSTARTED_RUN_FILES` in ``out`` and return the names removed.
+
+    Only for a directory without a complete model, under the directory's lock.
+    """
+    removed = []
+    for name in UNSTARTED_RUN_FILES:
+        path = out / name
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        elif path.exists() or path.is_symlink():
+            path.unlink()
+        else:
+            continue
+        removed.append(name)
+    return removed
 
 
 def write_run_config(out: Path, config: TrainConfig, run: dict[str, Any]) -> None:

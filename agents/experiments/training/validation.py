@@ -168,7 +168,8 @@ def validate_policy_kwargs(data: Any, policy_cls: type, source: str) -> dict[str
     known = [p for p in known if p != "lr_schedule"]
     kwargs = dict(check_keys({} if data is None else data, known, "policy_kwargs.", source))
     for key, value in kwargs.items():
-        kwargs[key] = number(value)
+        default = params[key].default
+        kwargs[key] = _typed_like_default(value, default, f"policy_kwargs.{key}", source)
     if "activation_fn" in kwargs:
         name = kwargs["activation_fn"]
         if name not in ACTIVATIONS:
@@ -203,7 +204,127 @@ def validate_policy_kwargs(data: Any, policy_cls: type, source: str) -> dict[str
     return kwargs
 
 
+@dataclasses.dataclass(frozen=True)
+class Range:
+    """The allowed values of one numeric keyword argument.
+
+    Attributes:
+        kind: ``int`` or ``float``.
+        low, high: bounds (None: unbounded on that side).
+        low_open: ``low`` itself is excluded (``> low`` rather than ``>= low``).
+        also: further allowed values outside the bounds (``-1`` for "as many as collected").
+    """
+
+    kind: type
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False
+    also: tuple[Any, ...] = ()
+
+    def describe(self) -> str:
+        """The allowed values in words, e.g. ``"an integer >= 1"``, ``"a number in [0, 1]"``."""
+        what = "an integer" if self.kind is int else "a number"
+        if self.low is not None and self.high is not None:
+            text = f"{what} in {'(' if self.low_open else '['}{self.low}, {self.high}]"
+        elif self.low is not None:
+            text = f"{what} {'>' if self.low_open else '>='} {self.low}"
+        else:
+            text = what
+        return text + "".join(f" or {v!r}" for v in self.also)
+
+    def contains(self, value: float) -> bool:
+        if value in self.also:
+            return True
+        if self.low is not None and (value <= self.low if self.low_open else value < self.low):
+            return False
+        return self.high is None or value <= self.high
+
+
+ALGO_KWARG_RANGES: dict[str, Range] = {
+    "learning_rate": Range(float, 0, low_open=True),
+    "n_steps": Range(int, 1),
+    "batch_size": Range(int, 1),
+    "n_epochs": Range(int, 1),
+    "gamma": Range(float, 0, 1),
+    "gae_lambda": Range(float, 0, 1),
+    "clip_range": Range(float, 0, low_open=True),
+    "clip_range_vf": Range(float, 0, low_open=True),
+    "ent_coef": Range(float, 0),
+    "vf_coef": Range(float, 0),
+    "max_grad_norm": Range(float, 0, low_open=True),
+    "target_kl": Range(float, 0, low_open=True),
+    "sde_sample_freq": Range(int, 1, also=(-1,)),
+    "stats_window_size": Range(int, 1),
+    "buffer_size": Range(int, 1),
+    "learning_starts": Range(int, 0),
+    "tau": Range(float, 0, 1, low_open=True),
+    "train_freq": Range(int, 1),
+    "gradient_steps": Range(int, 1, also=(-1,)),
+    "target_update_interval": Range(int, 1),
+    "exploration_fraction": Range(float, 0, 1),
+    "exploration_initial_eps": Range(float, 0, 1),
+    "exploration_final_eps": Range(float, 0, 1),
+    "policy_delay": Range(int, 1),
+    "target_policy_noise": Range(float, 0),
+    "target_noise_clip": Range(float, 0),
+}
+"""Allowed values of the SB3 keyword arguments a recipe may set (``algo_kwargs.<key>``); every
+algorithm takes the subset its signature has. ``learning_rate`` and ``clip_range`` may also be
+``lin_<value>`` with the value in the same range; ``clip_range_vf`` and ``target_kl`` may be
+null; SAC's ``ent_coef`` may also be ``auto`` or ``auto_<initial value > 0>``."""
+
+ALGO_RANGE_OVERRIDES: dict[str, dict[str, Range]] = {
+    "ppo": {"batch_size": Range(int, 2)},  # SB3 normalises advantages per minibatch
+}
+"""Per-algorithm ranges that differ from :data:`ALGO_KWARG_RANGES`."""
+
+CLASS_ALGO_KWARGS = ("rollout_buffer_class", "replay_buffer_class")
+"""Keyword arguments that take a Python class: not settable from a config file."""
+
+
+def algo_kwarg_range(algo: str, key: str) -> Range | None:
+    """The allowed values of ``algo_kwargs.<key>`` for ``algo`` (None: only its type is checked)."""
+    return ALGO_RANGE_OVERRIDES.get(algo, {}).get(key) or ALGO_KWARG_RANGES.get(key)
+
+
+def _in_range(value: Any, allowed: Range, key: str, source: str) -> Any:
+    """``value`` as ``allowed.kind``, or a ConfigError naming the key, value and range."""
+    problem = config_error(
+        source, f"algo_kwargs.{key}", f"must be {allowed.describe()}, got {value!r}"
+    )
+    value = number(value)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise problem
+    if not math.isfinite(value) or (allowed.kind is int and value != int(value)):
+        raise problem
+    value = int(value) if allowed.kind is int else float(value)
+    if not allowed.contains(value):
+        raise problem
+    return value
+
+
+def _typed_like_default(value: Any, default: Any, where: str, source: str) -> Any:
+    """A keyword argument without a range: the type of SB3's default (bool, int or float)."""
+    value = number(value)
+    if isinstance(default, bool):
+        if not isinstance(value, bool):
+            raise config_error(source, where, f"must be true or false, got {value!r}")
+    elif isinstance(default, (int, float)):
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise config_error(source, where, f"must be a number, got {value!r}")
+        if isinstance(default, int) and (not math.isfinite(value) or value != int(value)):
+            raise config_error(source, where, f"must be an integer, got {value!r}")
+        value = int(value) if isinstance(default, int) else value
+    return value
+
+
 def validate_algo_kwargs(data: Any, cls: type, algo: str, source: str) -> dict[str, Any]:
+    """The SB3 keyword arguments of a recipe, each checked against :data:`ALGO_KWARG_RANGES`
+    (or, for keys without a range, against the type of SB3's default).
+
+    Raises:
+        ConfigError: an unknown, reserved or class-valued key, or a value out of its range.
+    """
     params = inspect.signature(cls.__init__).parameters
     data = {} if data is None else data
     if not isinstance(data, dict):
@@ -213,39 +334,49 @@ def validate_algo_kwargs(data: Any, cls: type, algo: str, source: str) -> dict[s
             raise config_error(
                 source, f"algo_kwargs.{key}", f"is not set here; use {RESERVED_ALGO_KWARGS[key]}"
             )
+        if key in CLASS_ALGO_KWARGS:
+            raise config_error(source, f"algo_kwargs.{key}", "cannot be set from a config file")
     known = [p for p in params if p != "self" and p not in RESERVED_ALGO_KWARGS]
     kwargs = dict(check_keys(data, known, "algo_kwargs.", source))
     for key, value in list(kwargs.items()):
-        value = number(value)
-        default = params[key].default
-        if isinstance(default, int) and not isinstance(default, bool) and isinstance(value, float):
-            if value != int(value):
-                raise config_error(
-                    source, f"algo_kwargs.{key}", f"must be an integer, got {value!r}"
-                )
-            value = int(value)
-        kwargs[key] = value
-    for key in ("learning_rate", "clip_range"):
-        value = kwargs.get(key)
-        if isinstance(value, str):
-            if not (value.startswith("lin_") and _FLOAT_RE.match(value[4:])):
+        allowed = algo_kwarg_range(algo, key)
+        value = kwargs[key] = number(value)  # YAML 1.1 reads 3e-4 as a string
+        if value is None and key in ("clip_range_vf", "target_kl"):
+            continue
+        if key in ("learning_rate", "clip_range") and isinstance(value, str):
+            if not (value.startswith("lin_") and _FLOAT_RE.match(value[4:].strip())):
                 raise config_error(
                     source,
                     f"algo_kwargs.{key}",
-                    f"must be a number or 'lin_<number>' (linear decay), got {value!r}",
+                    f"must be {allowed.describe()} or 'lin_<number>' (linear decay), got {value!r}",
                 )
-        elif value is not None:
-            typed(value, float, f"algo_kwargs.{key}", source)
-    if "gamma" in kwargs:
-        gamma = typed(kwargs["gamma"], float, "algo_kwargs.gamma", source)
-        if not 0.0 <= gamma <= 1.0:
-            raise config_error(source, "algo_kwargs.gamma", f"must lie in [0, 1], got {gamma}")
-    if "train_freq" in kwargs and isinstance(kwargs["train_freq"], list):
-        freq = kwargs["train_freq"]
-        if len(freq) != 2 or freq[1] not in ("step", "episode"):
-            raise config_error(
-                source, "algo_kwargs.train_freq", f"must be n or [n, step|episode], got {freq!r}"
-            )
+            _in_range(value[4:], allowed, key, source)
+            continue
+        if key == "ent_coef" and algo == "sac" and isinstance(value, str):
+            initial = value[5:] if value.startswith("auto_") else None
+            if value != "auto" and (initial is None or not _FLOAT_RE.match(initial.strip())):
+                raise config_error(
+                    source,
+                    "algo_kwargs.ent_coef",
+                    f"must be a number >= 0, 'auto' or 'auto_<number > 0>', got {value!r}",
+                )
+            if initial is not None:
+                _in_range(initial, Range(float, 0, low_open=True), key, source)
+            continue
+        if key == "train_freq" and isinstance(value, list):
+            if len(value) != 2 or value[1] not in ("step", "episode"):
+                raise config_error(
+                    source,
+                    "algo_kwargs.train_freq",
+                    f"must be n or [n, step|episode], got {value!r}",
+                )
+            kwargs[key] = [_in_range(value[0], allowed, key, source), value[1]]
+            continue
+        if allowed is not None:
+            kwargs[key] = _in_range(value, allowed, key, source)
+        elif key != "action_noise":
+            default = params[key].default
+            kwargs[key] = _typed_like_default(value, default, f"algo_kwargs.{key}", source)
     if "action_noise" in kwargs and kwargs["action_noise"] is not None:
         noise = check_keys(
             kwargs["action_noise"], ("type", "sigma"), "algo_kwargs.action_noise.", source

@@ -1,0 +1,355 @@
+"""evaluate.py's output directory as a transaction (issue 18, items 5 and 6): --out checked before
+anything runs, one run per directory, outputs landing as one set, Ctrl-C keeping the finished
+episodes, and --resume DIR finishing the run as if it had never stopped."""
+
+from __future__ import annotations
+
+import csv
+import importlib.util
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from agents.experiments.evaluation import command, report, runner
+from agents.experiments.evaluation.journal import (
+    EvaluationJournal,
+    JournalError,
+    record_from_json,
+    record_to_json,
+)
+from agents.experiments.evaluation.records import TIMING_COLUMNS, scenario_fingerprint
+from agents.experiments.run_directory import MANIFEST, RunDirectoryLock
+
+ROOT = Path(__file__).resolve().parents[1]
+SCRIPT = ROOT / "evaluate.py"
+QUICK = ["--env-kwargs", '{"n_obstacles": 5}', "--max-steps", "30", "--no-progress"]
+
+
+@pytest.fixture(scope="module")
+def cli():
+    spec = importlib.util.spec_from_file_location("debris_evaluate_outputs_cli", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _usage_error(cli, capsys, argv: list[str]) -> str:
+    with pytest.raises(SystemExit) as exc:
+        cli.main(argv)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    return err
+
+
+def _rows(out: Path) -> list[dict[str, str]]:
+    """episodes.csv without its wall-clock columns (the rest is a function of the seeds)."""
+    with open(out / "episodes.csv", newline="") as fh:
+        return [{k: v for k, v in r.items() if k not in TIMING_COLUMNS} for r in csv.DictReader(fh)]
+
+
+def _count_episodes(monkeypatch, interrupt_at: int | None = None) -> list[int]:
+    """Count the episodes flown (in ``calls[0]``); Ctrl-C at the start of episode
+    ``interrupt_at`` (1-based) if given."""
+    calls = [0]
+    fly = runner.run_episode
+
+    def counted(*args, **kwargs):
+        calls[0] += 1
+        if calls[0] == interrupt_at:
+            raise KeyboardInterrupt
+        return fly(*args, **kwargs)
+
+    monkeypatch.setattr(runner, "run_episode", counted)
+    return calls
+
+
+# --- --out is checked before anything runs --------------------------------------------------
+
+
+def _never_evaluate(monkeypatch):
+    def fail(*args, **kwargs):
+        raise AssertionError("an episode ran before --out was checked")
+
+    monkeypatch.setattr(command, "evaluate_agents", fail)
+
+
+def test_out_naming_a_file_or_a_path_under_one_is_a_usage_error(cli, capsys, monkeypatch, tmp_path):
+    _never_evaluate(monkeypatch)
+    afile = tmp_path / "afile"
+    afile.write_text("mine")
+    err = _usage_error(cli, capsys, ["--agents", "zero", "--out", str(afile)])
+    assert "argument --out" in err and str(afile) in err and "is a file" in err
+    err = _usage_error(cli, capsys, ["--agents", "zero", "--out", str(afile / "x")])
+    assert "argument --out" in err and "lies under" in err
+    assert afile.read_text() == "mine"
+
+
+def test_an_empty_out_is_refused_instead_of_writing_into_the_current_directory(
+    cli, capsys, monkeypatch, tmp_path
+):
+    _never_evaluate(monkeypatch)
+    monkeypatch.chdir(tmp_path)
+    err = _usage_error(cli, capsys, ["--agents", "zero", "--out", ""])
+    assert "argument --out" in err and "empty" in err
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root may write anywhere")
+def test_an_unwritable_out_is_a_usage_error(cli, capsys, monkeypatch, tmp_path):
+    _never_evaluate(monkeypatch)
+    locked = tmp_path / "ro"
+    locked.mkdir(mode=0o500)
+    err = _usage_error(cli, capsys, ["--agents", "zero", "--out", str(locked / "out")])
+    assert "argument --out" in err and "permission denied" in err
+
+
+def test_a_second_run_on_a_directory_is_refused_naming_the_first(
+    cli, capsys, monkeypatch, tmp_path
+):
+    _never_evaluate(monkeypatch)
+    out = tmp_path / "eval"
+    with RunDirectoryLock(out):  # the first run, still going
+        err = _usage_error(cli, capsys, ["--agents", "zero", *QUICK, "--out", str(out)])
+    assert "argument --out" in err and f"process {os.getpid()}" in err
+    assert sorted(p.name for p in out.iterdir()) == [".lock"]
+
+
+# --- the outputs land as one set ------------------------------------------------------------
+
+
+def test_plots_of_an_earlier_run_are_removed_with_its_set(cli, tmp_path):
+    out = tmp_path / "eval"
+    base = ["--agents", "zero", "--episodes", "3", *QUICK, "--out", str(out)]
+    assert cli.main([*base, "--plots", "3"]) == 0
+    assert len(list(out.glob("trajectories_ep*.png"))) == 3
+    (out / "notes.txt").write_text("the user's own file")
+    assert cli.main([*base, "--plots", "1", "--seed", "5"]) == 0
+    assert [p.name for p in out.glob("trajectories_ep*.png")] == ["trajectories_ep000.png"]
+    manifest = json.loads((out / MANIFEST).read_text())
+    assert manifest["files"] == [
+        "episodes.csv", "summary.json", "summary.md", "trajectories_ep000.png",
+    ]  # fmt: skip
+    assert manifest["evaluation"]["seed"] == 5
+    assert (out / "notes.txt").read_text() == "the user's own file"
+    assert not (out / "unfinished").exists()  # a finished run leaves no journal
+
+
+def test_ctrl_c_while_the_outputs_are_written_leaves_the_previous_set_whole(
+    cli, capsys, monkeypatch, tmp_path
+):
+    out = tmp_path / "eval"
+    base = ["--agents", "zero,random", "--episodes", "2", "--plots", "2", *QUICK, "--out", str(out)]
+    assert cli.main(base) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    capsys.readouterr()
+
+    plot = report.plot_episode
+    plotted = []
+
+    def plot_then_ctrl_c(results, episode):
+        plotted.append(episode)
+        if len(plotted) == 2:
+            raise KeyboardInterrupt
+        return plot(results, episode)
+
+    monkeypatch.setattr(report, "plot_episode", plot_then_ctrl_c)
+    assert cli.main([*base, "--seed", "3"]) == 130
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert "all 4 episodes finished but the outputs were not written" in err
+    assert f"resume with: python evaluate.py --resume {out}" in err
+    after = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    # the first run's set, whole: no CSV of one run beside the PNGs of another
+    assert after == before
+
+    monkeypatch.setattr(report, "plot_episode", plot)
+    calls = _count_episodes(monkeypatch)
+    assert cli.main(["--resume", str(out), "--no-progress"]) == 0
+    assert calls[0] == 0  # every episode had finished: only the outputs are written
+    assert {r["seed"] for r in _rows(out)} == {"3", "4"}
+    assert len(list(out.glob("trajectories_ep*.png"))) == 2
+
+
+def test_paper_tables_are_part_of_the_set(cli, monkeypatch, tmp_path):
+    import agents
+
+    for name in ("apf", "apf-mpc", "astar"):  # stand-ins: the set is what is tested
+        monkeypatch.setitem(agents.BASELINES, name, "agents.policies.simple:ZeroAgent")
+    out = tmp_path / "paper"
+    assert cli.main(["--paper", "--max-steps", "20", "--no-progress", "--out", str(out)]) == 0
+    manifest = json.loads((out / MANIFEST).read_text())
+    assert {"paper_table.md", "paper_table.json"} <= set(manifest["files"])
+    assert cli.main(["--agents", "zero", "--episodes", "1", *QUICK, "--out", str(out)]) == 0
+    assert not (out / "paper_table.md").exists() and not (out / "paper_table.json").exists()
+
+
+# --- Ctrl-C keeps the finished episodes; --resume finishes the run --------------------------
+
+
+def test_an_interrupted_run_resumes_to_the_uninterrupted_result(cli, capsys, monkeypatch, tmp_path):
+    base = ["--agents", "zero,random,apf", "--episodes", "3", "--plots", "1", *QUICK]
+    whole = tmp_path / "whole"
+    assert cli.main([*base, "--out", str(whole)]) == 0
+
+    out = tmp_path / "stopped"
+    _count_episodes(monkeypatch, interrupt_at=5)  # Ctrl-C in random's episode 1
+    assert cli.main([*base, "--out", str(out)]) == 130
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert "4 of 9 episodes finished" in err
+    assert f"resume with: python evaluate.py --resume {out}\n" in err
+    journal = EvaluationJournal(out)
+    assert [(r.agent, r.episode) for r in journal.read_records()] == [
+        ("zero", 0), ("zero", 1), ("zero", 2), ("random", 0),
+    ]  # fmt: skip
+    assert not (out / "episodes.csv").exists()
+
+    calls = _count_episodes(monkeypatch)
+    assert cli.main(["--resume", str(out), "--no-progress"]) == 0
+    # zero is skipped; random re-flies episode 0 (its generator carries over), then 1 and 2
+    assert calls[0] == 3 + 3
+    assert _rows(out) == _rows(whole)
+    assert not journal.exists()
+    whole_summary = json.loads((whole / "summary.json").read_text())
+    summary = json.loads((out / "summary.json").read_text())
+    for label, entry in whole_summary["agents"].items():
+        for key in ("success_rate", "delta_v_mean", "path_length_mean", "min_clearance_min"):
+            assert summary["agents"][label][key] == entry[key]
+
+
+def test_ctrl_c_for_real_in_a_run_started_with_sigint_ignored(tmp_path):
+    (tmp_path / "slowpolicy.py").write_text(
+        textwrap.dedent(
+            """
+            import time
+            import numpy as np
+
+            class Slow:
+                def __init__(self, env):
+                    self.dim = env.unwrapped.dim
+
+                def predict(self, obs, state=None, episode_start=None, deterministic=True):
+                    time.sleep(0.02)
+                    return np.zeros(self.dim, dtype=np.float32), state
+            """
+        )
+    )
+    out = tmp_path / "eval"
+    argv = [
+        sys.executable, str(SCRIPT), "--agents", "zero,slow=slowpolicy:Slow", "--episodes", "6",
+        "--env-kwargs", '{"n_obstacles": 3}', "--max-steps", "25", "--plots", "0",
+        "--no-progress", "--out", str(out),
+    ]  # fmt: skip
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+
+    def ignore_sigint() -> None:  # what a shell does for a job started with '&'
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    proc = subprocess.Popen(
+        argv, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True, preexec_fn=ignore_sigint,
+    )  # fmt: skip
+    journal = EvaluationJournal(out)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and proc.poll() is None:
+        if journal.episodes_path.is_file() and journal.episodes_path.read_text().count("\n") > 6:
+            break  # zero is done and slow is on its way
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err
+    finished = len(journal.read_records())
+    assert 7 <= finished < 12
+    assert f"{finished} of 12 episodes finished" in err
+    assert f"resume with: python evaluate.py --resume {out}" in err
+
+    resumed = subprocess.run(
+        [sys.executable, str(SCRIPT), "--resume", str(out), "--no-progress"],
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert resumed.returncode == 0, resumed.stderr
+    pairs = [(r["agent"], int(r["episode"])) for r in _rows(out)]
+    assert pairs == [(a, i) for a in ("zero", "slow") for i in range(6)]
+
+
+def test_resume_takes_no_other_options_and_needs_an_unfinished_run(cli, capsys, tmp_path):
+    err = _usage_error(cli, capsys, ["--resume", str(tmp_path), "--seed", "3"])
+    assert "argument --seed" in err and "--resume" in err
+    err = _usage_error(cli, capsys, ["--resume", str(tmp_path)])
+    assert "argument --resume" in err and "nothing to resume" in err
+    err = _usage_error(cli, capsys, ["--resume", str(tmp_path / "nowhere")])
+    assert "argument --resume" in err and "not a directory" in err
+
+
+def test_a_damaged_journal_line_is_named_and_a_cut_last_line_dropped(
+    cli, capsys, monkeypatch, tmp_path
+):
+    def stop(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(command, "write_outputs", stop)  # keep the journal of a whole run
+    out = tmp_path / "eval"
+    argv = ["--agents", "zero", "--episodes", "2", "--plots", "0", *QUICK, "--out", str(out)]
+    assert cli.main(argv) == 130
+    journal = EvaluationJournal(out)
+    records = journal.read_records()
+    assert [r.episode for r in records] == [0, 1]
+
+    journal.start({"x": 1})
+    journal.append(records[0])
+    with open(journal.episodes_path, "ab") as fh:
+        fh.write(b'{"agent": "zero", "epi')  # a kill in the middle of a write
+    assert len(journal.read_records()) == 1
+    journal.drop_partial_line()
+    journal.append(records[1])
+    assert [r.episode for r in journal.read_records()] == [0, 1]
+
+    with open(journal.episodes_path, "ab") as fh:
+        fh.write(b"garbage\n")
+    journal.append(records[1])
+    with pytest.raises(JournalError, match=r"episodes\.jsonl, line 3"):
+        journal.read_records()
+
+
+def test_a_journaled_record_reads_back_bit_for_bit():
+    results = runner.evaluate_agents(
+        "DebrisGym/Rendezvous3D-v0", "random", episodes=1, seed=11,
+        env_kwargs={"n_obstacles": 4}, progress=False, max_episode_steps=25,
+    )  # fmt: skip
+    record = results.records[0]
+    back = record_from_json(json.loads(json.dumps(record_to_json(record))))
+    for name in ("delta_v", "path_length", "min_clearance", "episode_return", "scenario_id"):
+        assert getattr(back, name) == getattr(record, name)
+    for name in ("positions", "velocities", "accelerations", "decision_ms"):
+        np.testing.assert_array_equal(
+            getattr(back.trajectory, name), getattr(record.trajectory, name)
+        )
+    assert scenario_fingerprint(back.scenario) == record.scenario_id
+
+
+def test_resume_refuses_a_journal_of_another_evaluation(cli, capsys, monkeypatch, tmp_path):
+    def stop(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(command, "write_outputs", stop)
+    out = tmp_path / "eval"
+    argv = ["--agents", "zero", "--episodes", "2", "--plots", "0", *QUICK, "--out", str(out)]
+    assert cli.main(argv) == 130
+    journal = EvaluationJournal(out)
+    options = json.loads(journal.options_path.read_text())
+    journal.options_path.write_text(json.dumps({**options, "seed": 7}))  # not what was flown
+    err = _usage_error(cli, capsys, ["--resume", str(out)])
+    assert "argument --resume" in err and "episodes.jsonl" in err and "reset seed 0" in err
+    journal.options_path.write_text("{not json")
+    err = _usage_error(cli, capsys, ["--resume", str(out)])
+    assert "argument --resume" in err and "options.json" in err
