@@ -256,6 +256,17 @@ def test_a_failed_reset_leaves_the_single_env_as_it_was(case):
     assert env.scenario == twin.scenario
 
 
+def test_a_pinned_field_whose_dock_touches_the_chaser_is_refused():
+    # the dock is 2 m from an obstacle's surface, inside a 5 m chaser: the episode would start
+    # in contact (it was accepted, with a negative clearance, and collided on the first step)
+    near = Body(position=(22.0, 0.0), radius=20.0, velocity=(0.0, 0.0))
+    for env in (DebrisFieldEnv(chaser_radius=5.0), DebrisFieldVectorEnv(2, chaser_radius=5.0)):
+        scen = simple_scenario(mean_motion=env.config.n, obstacles=(near,))
+        with pytest.raises(ValueError, match=r"dock.*chaser radius 5\.0 m"):
+            env.reset(seed=0, options={"scenario": scen})
+        env.reset(seed=0, options={"scenario": scen, "chaser_state": [-10.0, 0.0, 0.0, 0.0]})
+
+
 def test_a_failed_first_reset_leaves_the_env_unreset():
     env = DebrisFieldEnv()
     with pytest.raises(ValueError, match="chaser_state"):

@@ -29,6 +29,7 @@ from debris_gym.goal import DOCK_GOAL, Goal, current_goal
 from debris_gym.mission_batch import MissionBatch
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.scenario import Scenario, as_scenario
+from debris_gym.scenario_checks import check_dock_clear
 
 TRAIL_LENGTH = 4096
 """Chaser positions the env keeps for :attr:`DebrisFieldEnv.trail` and rendering: the last
@@ -247,6 +248,8 @@ class DebrisFieldEnv(gym.Env):
             else:
                 scenario = self._new_scenario()
             state = None
+            if options.get("chaser_state") is None and options.get("scenario") is not None:
+                check_dock_clear(scenario, self.config.chaser_radius)  # the start is the dock
             if options.get("chaser_state") is not None:
                 state = checked_chaser_states(
                     options["chaser_state"], 1, scenario.low, scenario.high,

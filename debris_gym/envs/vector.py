@@ -52,6 +52,7 @@ from debris_gym.geometry import FieldGeometry
 from debris_gym.mission_batch import MissionBatch, check_threads
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.scenario import Scenario, as_scenario
+from debris_gym.scenario_checks import check_dock_clear
 
 
 class DebrisFieldVectorEnv(VectorEnv):
@@ -301,6 +302,8 @@ class DebrisFieldVectorEnv(VectorEnv):
             states = options.get("chaser_state")
             if states is not None:
                 states = self._checked_states(states, pinned, fields)
+            elif pinned is not None:
+                check_dock_clear(pinned, cfg.chaser_radius)  # every sub-env starts at the dock
         except BaseException:
             for rng, state in zip(self._rngs, saved):
                 rng.bit_generator.state = state
