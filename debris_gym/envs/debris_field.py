@@ -247,15 +247,16 @@ class DebrisFieldEnv(gym.Env):
                 warn_if_physics_differ(self.config, scenario)
             else:
                 scenario = self._new_scenario()
-            state = None
-            if options.get("chaser_state") is None and options.get("scenario") is not None:
-                check_dock_clear(scenario, self.config.chaser_radius)  # the start is the dock
             if options.get("chaser_state") is not None:
                 state = checked_chaser_states(
                     options["chaser_state"], 1, scenario.low, scenario.high,
                     scenario.size / scenario.dt, FieldGeometry(scenario).signed_distance,
                     self.config.chaser_radius,
                 )[0]  # fmt: skip
+            else:  # the chaser starts at the dock (random fields keep it clear by construction)
+                state = None
+                if options.get("scenario") is not None:
+                    check_dock_clear(scenario, self.config.chaser_radius)
         except BaseException:  # nothing of the env changed but its generator: put it back
             self._np_random, self._np_random_seed = saved
             if saved_state is not None:

@@ -270,7 +270,7 @@ class DebrisFieldVectorEnv(VectorEnv):
             first = checked_seed(seed)
             seeds = [first + i for i in range(n)]
         else:
-            if isinstance(seed, (str, bytes, bool)) or not isinstance(seed, Sequence):
+            if isinstance(seed, (str, bytes, bool)) or not isinstance(seed, (Sequence, np.ndarray)):
                 raise ValueError(f"seed must be an int, a list of num_envs={n} ints or None")
             seeds = [checked_seed(s, f"seed[{i}]") for i, s in enumerate(seed)]
             if len(seeds) != n:
