@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import importlib.util
+from pathlib import Path
+from types import ModuleType
+
 from debris_gym.scenario import Body, Scenario
 
 
@@ -23,3 +27,17 @@ def simple_scenario(**overrides) -> Scenario:
     )
     data.update(overrides)
     return Scenario(**data)
+
+
+ROOT = Path(__file__).resolve().parents[1]
+"""The repository root, where the scripts live."""
+
+
+def load_script(file_name: str, module_name: str | None = None) -> ModuleType:
+    """Import one of the repository's scripts (``"evaluate.py"``, ``"train.py"``, …) as a module
+    without running its ``main``; each call gives a fresh module."""
+    name = module_name or f"debris_script_{Path(file_name).stem}"
+    spec = importlib.util.spec_from_file_location(name, ROOT / file_name)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

@@ -246,7 +246,7 @@ def test_a_failed_reset_leaves_the_single_env_as_it_was(case):
     with pytest.raises(ValueError, match=r"chaser_state|dim|bogus"):
         env.reset(seed=123, options=options)
     assert env.scenario is scenario and env.elapsed == clock
-    np.testing.assert_array_equal(env.chaser_state, state)
+    np.testing.assert_array_equal(env.chaser_state, state)  # nothing propagated
     for _ in range(5):  # stepping goes on exactly as in the env that never saw the reset
         got, want = env.step(PUSH), twin.step(PUSH)
         np.testing.assert_array_equal(got[0], want[0])
@@ -375,6 +375,10 @@ def test_the_trail_keeps_the_last_positions_without_a_time_limit():
 
 
 BAD_CONTINUOUS = [
+    np.array([np.nan, 0.0], dtype=np.float32),
+    np.array([np.inf, 0.0], dtype=np.float32),
+    np.array([0.0, 0.0, 0.0], dtype=np.float32),
+    np.array([[0.1, 0.2]], dtype=np.float32),
     np.array([0.5 + 0.5j, 0.0]),
     np.array(["0.5", "0.0"]),
     ["0.5", 0.0],
@@ -388,7 +392,7 @@ BAD_CONTINUOUS = [
 
 
 @pytest.mark.parametrize("action", BAD_CONTINUOUS, ids=range(len(BAD_CONTINUOUS)))
-def test_a_non_real_continuous_action_is_refused(action):
+def test_a_bad_continuous_action_is_refused_and_changes_nothing(action):
     env = DebrisFieldEnv()
     env.reset(seed=0)
     state = env.chaser_state

@@ -4,7 +4,6 @@ errors, your own policies."""
 from __future__ import annotations
 
 import csv
-import importlib.util
 import json
 import re
 import subprocess
@@ -18,6 +17,7 @@ from scipy import stats
 
 import agents
 from agents.experiments import evaluation as ev
+from tests.helpers import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "evaluate.py"
@@ -46,10 +46,7 @@ CI_KEYS = (
 
 @pytest.fixture(scope="module")
 def cli():
-    spec = importlib.util.spec_from_file_location("debris_evaluate_cli", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("evaluate.py")
 
 
 @pytest.fixture(scope="module")

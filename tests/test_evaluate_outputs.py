@@ -5,7 +5,6 @@ episodes, and --resume DIR finishing the run as if it had never stopped."""
 from __future__ import annotations
 
 import csv
-import importlib.util
 import json
 import os
 import signal
@@ -27,6 +26,7 @@ from agents.experiments.evaluation.journal import (
 )
 from agents.experiments.evaluation.records import TIMING_COLUMNS, scenario_fingerprint
 from agents.experiments.run_directory import MANIFEST, RunDirectoryLock
+from tests.helpers import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "evaluate.py"
@@ -35,10 +35,7 @@ QUICK = ["--env-kwargs", '{"n_obstacles": 5}', "--max-steps", "30", "--no-progre
 
 @pytest.fixture(scope="module")
 def cli():
-    spec = importlib.util.spec_from_file_location("debris_evaluate_outputs_cli", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("evaluate.py")
 
 
 def _usage_error(cli, capsys, argv: list[str]) -> str:

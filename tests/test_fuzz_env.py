@@ -104,24 +104,20 @@ def assert_finite_steps(env, obs, actions) -> None:
             break
 
 
-@FUZZ
-@given(kwargs=env_options(), seed=st.integers(0, 2**31 - 1))
-def test_single_env_options_either_refused_by_name_or_finite(kwargs, seed):
-    try:
-        env = DebrisFieldEnv(**kwargs)
-        obs, _ = env.reset(seed=seed)
-    except ValueError as err:
-        assert_names_a_key(err, kwargs)
-        return
-    env.action_space.seed(seed)
-    assert_finite_steps(env, obs, [env.action_space.sample() for _ in range(3)])
+def single_env(kwargs: dict) -> DebrisFieldEnv:
+    return DebrisFieldEnv(**kwargs)
 
 
+def vector_env(kwargs: dict) -> DebrisFieldVectorEnv:
+    return DebrisFieldVectorEnv(num_envs=2, max_episode_steps=3, **kwargs)
+
+
+@pytest.mark.parametrize("make", [single_env, vector_env])
 @FUZZ
 @given(kwargs=env_options(), seed=st.integers(0, 2**31 - 1))
-def test_vector_env_options_either_refused_by_name_or_finite(kwargs, seed):
+def test_env_options_either_refused_by_name_or_finite(make, kwargs, seed):
     try:
-        env = DebrisFieldVectorEnv(num_envs=2, max_episode_steps=3, **kwargs)
+        env = make(kwargs)
         obs, _ = env.reset(seed=seed)
     except ValueError as err:
         assert_names_a_key(err, kwargs)

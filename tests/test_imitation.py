@@ -31,6 +31,7 @@ from agents.experiments.run_directory import RunDirectoryLock
 from agents.experiments.training.config import available_configs
 from agents.planners.mission import MissionPlan
 from debris_gym.envs import DebrisFieldEnv
+from tests.helpers import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 ENV_ID = "DebrisGym/Rendezvous2D-v0"
@@ -296,12 +297,7 @@ def test_ctrl_c_stops_the_run_and_its_workers(tmp_path):
 
 
 def load_imitate_cli():
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location("debris_imitate_cli_h18", ROOT / "imitate.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("imitate.py")
 
 
 def imitate_refused(argv: list[str], capsys) -> str:

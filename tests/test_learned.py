@@ -22,6 +22,7 @@ pytest.importorskip("stable_baselines3")
 
 import agents
 import debris_gym  # noqa: F401  (registers the IDs)
+from tests.helpers import load_script
 
 ENV_ID = "DebrisGym/Rendezvous2D-v0"
 ROOT = Path(__file__).resolve().parents[1]
@@ -169,12 +170,8 @@ def test_a_damaged_run_config_gives_an_error_naming_it(saved_run, tmp_path, conf
 
 
 def test_evaluate_py_shows_and_keeps_the_raw_observation_warning(saved_run, tmp_path, capsys):
-    import importlib.util
-
     model = _copy_model(saved_run, tmp_path / "bare", None)
-    spec = importlib.util.spec_from_file_location("debris_evaluate_learned", ROOT / "evaluate.py")
-    cli = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(cli)
+    cli = load_script("evaluate.py")
     out = tmp_path / "eval"
     argv = [
         "--agents", f"zero,ppo={model}", "--episodes", "1", "--max-steps", "5", "--plots", "0",

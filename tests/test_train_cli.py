@@ -8,7 +8,6 @@ Runs are tiny (a few hundred steps, 2 envs, small nets); the two-process race is
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import shutil
 import signal
@@ -29,6 +28,7 @@ from agents.experiments.training.config import TrainConfig, default_config_path
 from agents.experiments.training.run import TrainOptions, train
 from agents.experiments.training.validation import ALGO_KWARG_RANGES, algo_kwarg_range
 from agents.policies.model_files import load_config_file
+from tests.helpers import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 TRAIN = ROOT / "train.py"
@@ -46,10 +46,7 @@ SUBPROCESS_ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
 
 @pytest.fixture(scope="module")
 def train_cli():
-    spec = importlib.util.spec_from_file_location("debris_train_cli_h18", TRAIN)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("train.py")
 
 
 def refused(cli, argv: list[str], capsys) -> str:

@@ -8,7 +8,6 @@ The script runs of the off-policy algorithms, the Ctrl-C run and the cut-log res
 from __future__ import annotations
 
 import csv
-import importlib.util
 import json
 import os
 import pickle
@@ -44,6 +43,7 @@ from agents.experiments.training.run import TrainOptions, train
 from agents.policies.learned import LearnedAgent
 from agents.policies.model_files import load_config_file, sidecar_path
 from debris_gym.files import save_atomic
+from tests.helpers import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 TRAIN = ROOT / "train.py"
@@ -80,13 +80,6 @@ def run_train(args: list[str], timeout: float = 120) -> subprocess.CompletedProc
     )  # fmt: skip
 
 
-def load_script(name: str, path: Path):
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def run_env(run: Path, **kwargs):
     """The env a policy of ``run`` flies: the default env with the run's observation options."""
     from agents import observation_options
@@ -96,12 +89,12 @@ def run_env(run: Path, **kwargs):
 
 @pytest.fixture(scope="module")
 def train_cli():
-    return load_script("debris_train_cli", TRAIN)
+    return load_script("train.py")
 
 
 @pytest.fixture(scope="module")
 def evaluate_cli():
-    return load_script("debris_evaluate_cli_t", EVALUATE)
+    return load_script("evaluate.py")
 
 
 _SCRIPT_RUNS: dict[str, Path] = {}

@@ -28,7 +28,6 @@ import tempfile
 from collections.abc import Iterator, Sequence
 from fnmatch import fnmatch
 from pathlib import Path
-from types import TracebackType
 from typing import Any
 
 from debris_gym.files import write_atomic
@@ -142,12 +141,7 @@ class RunDirectoryLock:
         self.acquire()
         return self
 
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
+    def __exit__(self, *exc_info: object) -> None:
         self.release()
 
 
@@ -206,12 +200,7 @@ class OutputSet:
         self._staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=self.out))
         return self
 
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
+    def __exit__(self, *exc_info: object) -> None:
         self.discard()
 
     def path(self, name: str) -> Path:
