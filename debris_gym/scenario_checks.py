@@ -473,8 +473,8 @@ def _shapes_overlap(scenario, a: int, b: int, centres, radii) -> bool:
     if pa is None and pb is None:
         return True
     if pa is None or pb is None:
-        circle, poly = (a, pb) if pa is None else (b, pa)
-        gap = _point_polygon_distance(centres[circle], poly)
+        circle, poly = (a, b) if pa is None else (b, a)
+        gap = _polygon_gap(scenario, poly, centres[circle], centres[poly])
         return gap < radii[circle] * (1.0 - RELATIVE_TOLERANCE)
     return not _separated(pa, pb)
 
@@ -500,16 +500,14 @@ def _separated(pa: np.ndarray, pb: np.ndarray) -> bool:
     return False
 
 
-def _point_polygon_distance(point: np.ndarray, poly: np.ndarray) -> float:
-    """Distance (m) from ``point`` to a convex counter-clockwise polygon; 0 inside it."""
-    start, end = poly, np.roll(poly, -1, axis=0)
-    edge = end - start
-    rel = point - start
-    if np.all(edge[:, 0] * rel[:, 1] - edge[:, 1] * rel[:, 0] >= 0.0):
-        return 0.0
-    s = np.clip(np.einsum("ij,ij->i", rel, edge) / np.einsum("ij,ij->i", edge, edge), 0.0, 1.0)
-    nearest = start + s[:, None] * edge
-    return float(np.hypot(*(point - nearest).T).min())
+def _polygon_gap(scenario: Scenario, b: int, point: np.ndarray, centre: np.ndarray) -> float:
+    """Signed distance (m) from ``point`` to the polygon of body ``b`` placed at ``centre``,
+    negative inside: the library's one geometry (:class:`~debris_gym.geometry.FieldGeometry`),
+    the one the envs measure gaps with."""
+    from debris_gym.geometry import FieldGeometry  # it imports Scenario, which imports this
+
+    shift = centre - np.asarray(scenario.bodies[b].position, dtype=float)
+    return float(FieldGeometry(scenario).signed_distance(point - shift)[b])
 
 
 def check_dock_clear(scenario: Scenario, chaser_radius: float = 0.0) -> None:
@@ -529,7 +527,7 @@ def _check_dock_clear(scenario, dock, centres, radii, names, chaser_radius=0.0) 
     dist = np.sqrt(((centres - dock) ** 2).sum(axis=1))
     for b in np.flatnonzero(dist <= radii + chaser_radius).tolist():
         outline = _outline(scenario, b, centres[b])
-        if outline is not None and _point_polygon_distance(dock, outline) > chaser_radius:
+        if outline is not None and _polygon_gap(scenario, b, dock, centres[b]) > chaser_radius:
             continue
         within = (
             f"within the chaser radius {chaser_radius!r} m of" if chaser_radius else "inside or on"

@@ -26,8 +26,8 @@ def commanded_accel(action: np.ndarray, max_accel: float, model: str) -> np.ndar
     """Acceleration (m/s²) commanded by a normalised action.
 
     Args:
-        action: (..., d) values; "box" clips each axis to [-1, 1], "ball" scales vectors longer
-            than 1 back onto the unit ball (direction kept).
+        action: (..., d) finite values; "box" clips each axis to [-1, 1], "ball" scales vectors
+            longer than 1 back onto the unit ball (direction kept, however large they are).
         max_accel: thrust limit (m/s²).
         model: "box" (independent per-axis thrusters) or "ball" (one gimballed engine).
     """
@@ -64,6 +64,17 @@ def thrust_row(action, max_accel, box, out):
     s = 0.0
     for k in range(d):
         s += action[k] * action[k]
+    if s == math.inf:  # the squares overflow (components beyond ~1e154): norm the direction
+        big = 0.0
+        for k in range(d):
+            big = max(big, abs(action[k]))
+        s = 0.0
+        for k in range(d):
+            s += (action[k] / big) * (action[k] / big)
+        root = math.sqrt(s)
+        for k in range(d):
+            out[k] = max_accel * (action[k] / big) / root
+        return
     scale = max(math.sqrt(s), 1.0)
     for k in range(d):
         out[k] = max_accel * action[k] / scale

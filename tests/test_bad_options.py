@@ -437,3 +437,12 @@ def test_a_huge_action_is_full_thrust_in_its_direction():
     _, _, _, _, want = twin.step(np.array([1.0, 0.0]))
     np.testing.assert_array_equal(info["applied_accel"], want["applied_accel"])
     assert info["applied_accel"][0] == env.config.max_accel
+
+
+def test_the_thrust_model_keeps_a_huge_ball_actions_direction():
+    from debris_gym.thrust import commanded_accel
+
+    huge = np.array([[3e200, -4e200], [1e160, 0.0], [0.6, -0.8]])
+    np.testing.assert_allclose(
+        commanded_accel(huge, 0.05, "ball"), 0.05 * np.array([[0.6, -0.8], [1.0, 0.0], [0.6, -0.8]])
+    )

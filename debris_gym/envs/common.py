@@ -170,10 +170,6 @@ def warn_if_physics_differ(cfg: EnvConfig, scenario: Scenario) -> None:
 RESET_OPTIONS = ("chaser_state", "scenario")
 """Keys ``reset(options=...)`` accepts."""
 
-HUGE_ACTION = 1e100
-"""Largest action component (in magnitude) the "ball" thrust model takes as it is; larger
-ones are first divided by the largest (direction kept): the square of 1e155 overflows."""
-
 
 def checked_seed(seed: Any, name: str = "seed") -> int | None:
     """A reset seed: None or a whole number >= 0 (Python or numpy integer, not a bool)."""
@@ -223,9 +219,9 @@ def real_array(value: Any, name: str) -> np.ndarray:
     return array
 
 
-def checked_continuous_actions(value: Any, shape: tuple[int, ...], cfg: EnvConfig) -> np.ndarray:
+def checked_continuous_actions(value: Any, shape: tuple[int, ...]) -> np.ndarray:
     """Continuous actions as float64 of ``shape``: real, finite, any magnitude (the thrust
-    model saturates them; "ball" actions beyond :data:`HUGE_ACTION` are scaled down first).
+    model saturates them, :func:`debris_gym.thrust.thrust_row`).
 
     Raises:
         ValueError: naming ``action`` (wrong type, shape, NaN or inf).
@@ -239,9 +235,6 @@ def checked_continuous_actions(value: Any, shape: tuple[int, ...], cfg: EnvConfi
             f"action must be finite (no NaN or inf); got {a[tuple(bad)]} at index "
             f"{tuple(bad.tolist())}"
         )
-    if cfg.thrust_model == "ball" and a.size and np.abs(a).max() > HUGE_ACTION:
-        big = np.abs(a).max(axis=-1, keepdims=True)
-        a = np.where(big > HUGE_ACTION, a / np.maximum(big, 1.0), a)
     return a
 
 

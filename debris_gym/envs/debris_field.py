@@ -298,7 +298,7 @@ class DebrisFieldEnv(gym.Env):
         if self.config.action == "discrete":
             index = checked_discrete_action(action, self.dim)
             return self._discrete_actions[index : index + 1]
-        return checked_continuous_actions(action, (self.dim,), self.config)[None]
+        return checked_continuous_actions(action, (self.dim,))[None]
 
     def _observe(self) -> np.ndarray:
         if self._horizon is None:

@@ -389,7 +389,7 @@ class DebrisFieldVectorEnv(VectorEnv):
             if np.any((idx < 0) | (idx > 2 * d)):
                 raise ValueError(f"discrete actions must lie in [0, {2 * d}], got {idx}")
             return self._discrete_actions[idx]
-        return checked_continuous_actions(actions, (n, d), cfg)
+        return checked_continuous_actions(actions, (n, d))
 
     def _observe(self) -> np.ndarray:
         """A new (N, obs size) array of every sub-env's observation."""
