@@ -8,10 +8,13 @@ queries on the geometry live in :mod:`debris_gym.geometry`.
 Units are SI throughout: positions in m, velocities in m/s, mean motion in rad/s, time in s,
 acceleration in m/s².
 
-Debris motion: wave-1 fields are *frozen* in the LVLH frame (``motion="frozen"``): every body keeps
-its initial position. Under CWH that is exact only for n = 0 (or a body on the V-bar, x = 0); it is
-the simplifying assumption of the source papers. :meth:`Scenario.body_positions` is the one place a
-body's position at time t comes from, so natural CWH motion can be added without touching callers.
+Debris motion (``Scenario.motion``): in a ``"cwh"`` field (the v1 world) every body moves on
+unforced CWH motion from its initial LVLH state (``position``, ``velocity``), propagated exactly
+with the state-transition matrix, and a 2D polygon keeps an inertially fixed attitude (it turns at
+−n in LVLH) plus its own tumble rate ``spin``. In a ``"frozen"`` field (the v0 world) every body
+keeps its initial position, which under CWH is exact only for n = 0 or a body at rest on the V-bar
+(x = 0). :meth:`Scenario.body_states` and :meth:`Scenario.body_angles` are the one place a body's
+state and attitude at time t come from.
 
 Checks (:mod:`debris_gym.scenario_checks`, listed in ``docs/validation.md``): every value is
 checked when a :class:`Scenario` is built; the layout of the world (size, bodies inside the bounds
@@ -30,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from debris_gym.dynamics import discretize
 from debris_gym.files import write_atomic
 from debris_gym.scenario_checks import (
     MOTION_MODELS,
@@ -49,7 +53,7 @@ flown with its own physics (an absent ``dt`` must not silently mean 1 s)."""
 OPTIONAL_KEYS = {"obstacles": (), "motion": "frozen", "name": ""}
 """Keys a scenario dict may leave out, with the value they then take."""
 
-BODY_KEYS = ("position", "radius", "velocity", "vertices")
+BODY_KEYS = ("position", "radius", "velocity", "vertices", "spin")
 """Keys of one body's dict; ``position`` always, ``radius`` unless ``vertices`` give it."""
 
 
@@ -72,15 +76,18 @@ class Body:
     Attributes:
         position: centre (m), length ``dim``.
         radius: circle / sphere radius (m); for a polygon, its bounding (circum-)radius.
-        velocity: initial velocity in LVLH (m/s); zero for frozen fields.
-        vertices: 2D convex polygon vertices relative to ``position`` (m), counter-clockwise;
-            ``None`` for a circle or sphere.
+        velocity: initial velocity in LVLH (m/s) at t = 0; zero for frozen fields.
+        vertices: 2D convex polygon vertices relative to ``position`` (m), counter-clockwise,
+            at t = 0; ``None`` for a circle or sphere.
+        spin: tumble rate (rad/s, counter-clockwise) of the body's attitude in the inertial
+            frame; 0 keeps it inertially fixed. Turns 2D polygons only; 0 in frozen fields.
     """
 
     position: tuple[float, ...]
     radius: float
     velocity: tuple[float, ...] = ()
     vertices: tuple[tuple[float, float], ...] | None = None
+    spin: float = 0.0
 
     @property
     def is_polygon(self) -> bool:
@@ -96,6 +103,8 @@ class Body:
         }
         if self.vertices is not None:
             out["vertices"] = [list(v) for v in self.vertices]
+        if self.spin:
+            out["spin"] = self.spin
         return out
 
     @classmethod
@@ -125,7 +134,10 @@ class Body:
                 radius = float(max(math.hypot(x, y) for x, y in vertices))
         if radius is None:
             raise ValueError(f"{key}.radius is missing (a circle or sphere needs its radius in m)")
-        return cls(position=position, radius=radius, velocity=velocity, vertices=vertices)
+        spin = number(data.get("spin", 0.0), f"{key}.spin", unit="rad/s")
+        return cls(
+            position=position, radius=radius, velocity=velocity, vertices=vertices, spin=spin
+        )
 
 
 @dataclass(frozen=True)
@@ -141,7 +153,8 @@ class Scenario:
         mean_motion: reference-orbit mean motion n (rad/s); 0 is the double integrator.
         dt: decision step length (s).
         max_accel: thrust limit (m/s²) per axis ("box") or in norm ("ball").
-        motion: debris motion model; ``"frozen"`` (fixed in LVLH) is the only one.
+        motion: debris motion model: ``"cwh"`` (unforced CWH motion, the v1 world) or
+            ``"frozen"`` (fixed in LVLH, the v0 world); see the module docstring.
         name: free-form label, e.g. the preset or generator it came from.
     """
 
@@ -200,18 +213,71 @@ class Scenario:
         """Largest extent of the world (m)."""
         return float(np.max(self.high - self.low))
 
-    def body_positions(self, t: float = 0.0) -> np.ndarray:
-        """Centres (m) of all bodies (targets first) at time ``t`` (s), shape (n_bodies, dim).
+    @property
+    def moving(self) -> bool:
+        """True when the bodies move (``motion="cwh"``)."""
+        return self.motion == "cwh"
 
-        The single source of body motion. For ``motion="frozen"`` bodies stay where they are.
-        """
-        del t  # frozen: positions do not depend on time
-        cached = self._cache.get("positions")
+    def initial_body_states(self) -> np.ndarray:
+        """(n_bodies, 2·dim) position (m) and velocity (m/s) of every body at t = 0, targets
+        first (read-only; velocities zero in a frozen field)."""
+        cached = self._cache.get("states")
         if cached is None:
-            cached = np.array([b.position for b in self.bodies], dtype=float)
+            dim = self.dim
+            cached = np.zeros((len(self.bodies), 2 * dim))
+            for b, body in enumerate(self.bodies):
+                cached[b, :dim] = body.position
+                if body.velocity and self.moving:
+                    cached[b, dim:] = body.velocity
             cached.setflags(write=False)
-            self._cache["positions"] = cached
+            self._cache["states"] = cached
         return cached
+
+    def body_states(self, t: float = 0.0) -> np.ndarray:
+        """(n_bodies, 2·dim) position (m) and velocity (m/s) of every body at time ``t`` (s).
+
+        The single source of body motion: exact unforced CWH motion for ``motion="cwh"``
+        (the state-transition matrix of :func:`debris_gym.dynamics.discretize`), the initial
+        positions at rest for ``"frozen"``.
+        """
+        states = self.initial_body_states()
+        if t == 0.0 or not self.moving:
+            return states
+        return states @ discretize(self.mean_motion, float(t), self.dim).ad.T
+
+    def body_positions(self, t: float = 0.0) -> np.ndarray:
+        """Centres (m) of all bodies (targets first) at time ``t`` (s), shape (n_bodies, dim)."""
+        if t == 0.0 or not self.moving:
+            cached = self._cache.get("positions")
+            if cached is None:
+                cached = np.array([b.position for b in self.bodies], dtype=float)
+                cached.setflags(write=False)
+                self._cache["positions"] = cached
+            return cached
+        return self.body_states(t)[:, : self.dim]
+
+    def body_rates(self) -> np.ndarray:
+        """(n_bodies,) turn rate (rad/s) of every body's attitude in LVLH: ``spin − n`` (an
+        inertially fixed body turns at −n in the rotating frame); 0 in a frozen field."""
+        if not self.moving:
+            return np.zeros(len(self.bodies))
+        return np.array([b.spin for b in self.bodies], dtype=float) - self.mean_motion
+
+    def body_angles(self, t: float = 0.0) -> np.ndarray:
+        """(n_bodies,) angle (rad, counter-clockwise) each body has turned through in LVLH
+        since t = 0: polygon ``b`` at time ``t`` is its ``vertices`` rotated by it."""
+        return self.body_rates() * float(t)
+
+    def body_vertices(self, b: int, t: float = 0.0) -> np.ndarray | None:
+        """Polygon ``b``'s vertices (m, world coordinates) at time ``t`` (s), or None for a
+        circle / sphere."""
+        vertices = self.bodies[b].vertices
+        if vertices is None:
+            return None
+        angle = float(self.body_angles(t)[b])
+        c, s = math.cos(angle), math.sin(angle)
+        rel = np.asarray(vertices, dtype=float) @ np.array([[c, s], [-s, c]])
+        return self.body_positions(t)[b] + rel
 
     # --- serialisation ------------------------------------------------------------------------
 

@@ -56,8 +56,13 @@ MAX_WORLD_COORDINATE = float(OPTIONS["field_size"].high)
 """Largest allowed |bound| (m): the world lies within the env's largest ``field_size`` of the
 LVLH origin (the reference orbit), where the linear CWH model holds."""
 
-MOTION_MODELS = ("frozen",)
-"""Debris motion models a scenario may declare (moving fields come with the v1 IDs)."""
+MOTION_MODELS = ("frozen", "cwh")
+"""Debris motion models a scenario may declare: ``"frozen"`` (every body fixed in LVLH, the v0
+world) and ``"cwh"`` (every body on unforced CWH motion from its ``velocity``, the v1 world)."""
+
+MAX_SPIN = 1.0
+"""Largest tumble rate |spin| (rad/s) of a body: a turn every 6 s, faster than any debris
+tumble worth flying beside."""
 
 RELATIVE_TOLERANCE = 1e-9
 """Rounding allowance of the geometric comparisons, relative to the lengths compared."""
@@ -295,8 +300,17 @@ def _body_arrays_pass(scenario: Scenario, positions: list, velocities: list, rad
     dim, bodies = scenario.dim, scenario.bodies
     if not np.isfinite(np.array(positions, dtype=float)).all():
         return False
-    if velocities and (scenario.motion != "frozen" or np.any(np.array(velocities) != 0.0)):
-        return False  # moving fields come later; their velocities go the slow way until then
+    if velocities:
+        speeds = np.array(velocities, dtype=float)
+        if not np.isfinite(speeds).all():
+            return False
+        if scenario.motion == "frozen" and np.any(speeds != 0.0):
+            return False
+    spins = [b.spin for b in bodies]
+    if not (_plain(spins) and all(abs(w) <= MAX_SPIN for w in spins)):
+        return False
+    if scenario.motion == "frozen" and any(spins):
+        return False
     low = np.where(
         np.arange(len(bodies)) < len(scenario.targets),
         OPTIONS["target_radius_min"].low,
@@ -344,6 +358,11 @@ def _check_body(body: Any, dim: int, key: str, min_radius: float, motion: str) -
         raise ValueError(
             f"{key}.velocity={list(velocity)!r} m/s: a frozen field (motion='frozen') needs zero "
             "body velocities"
+        )
+    spin = number(body.spin, f"{key}.spin", low=-MAX_SPIN, high=MAX_SPIN, unit="rad/s")
+    if motion == "frozen" and spin != 0.0:
+        raise ValueError(
+            f"{key}.spin={spin!r} rad/s: a frozen field (motion='frozen') has no tumbling bodies"
         )
     number(body.radius, f"{key}.radius", low=min_radius, unit="m")
     if body.vertices is not None:
