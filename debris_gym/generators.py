@@ -24,7 +24,6 @@ import numpy as np
 
 from debris_gym.jit import inlined, kernel
 from debris_gym.scenario import Body, Scenario
-from debris_gym.scenario_checks import MAX_SPIN, number
 from debris_gym.solvability import field_route_exists, route_proof
 
 
@@ -84,18 +83,9 @@ class FieldSpec:
             value = getattr(self, key)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
                 raise ValueError(f"FieldSpec.{key} must be an int, got {value!r}")
-        if self.motion not in FIELD_MOTIONS:
-            raise ValueError(f"FieldSpec.motion={self.motion!r}; allowed: {FIELD_MOTIONS}")
-        low_n = 0.0 if self.motion == "frozen" else 1e-9  # moving bodies need n > 0
-        number(self.mean_motion, "FieldSpec.mean_motion", low=low_n, high=1.0, unit="rad/s")
-        number(self.horizon, "FieldSpec.horizon", low=0.0, high=1e7, unit="s")
-        number(self.rho_max, "FieldSpec.rho_max", low=0.0, high=1e6, unit="m")
-        number(self.spin_max, "FieldSpec.spin_max", low=0.0, high=MAX_SPIN, unit="rad/s")
-        offset = self.drift_offset
-        if not (isinstance(offset, tuple) and len(offset) == 2):
-            raise ValueError(f"FieldSpec.drift_offset must be a (min, max) pair in m, got {offset!r}")
-        low = number(offset[0], "FieldSpec.drift_offset[0]", low=0.0, high=1e6, unit="m")
-        number(offset[1], "FieldSpec.drift_offset[1]", low=low, high=1e6, unit="m")
+        from debris_gym.orbit_fields import check_motion  # imports this module
+
+        check_motion(self)
 
 
 FIELD_MOTIONS = ("frozen", "bounded", "drifting")

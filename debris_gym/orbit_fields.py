@@ -60,10 +60,12 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Sequence
+
 import numpy as np
 
 from debris_gym.generators import (
     _POLYGON_DRAWS,
+    FIELD_MOTIONS,
     MAX_POLYGON_VERTICES,
     FieldArrays,
     FieldSpec,
@@ -71,9 +73,11 @@ from debris_gym.generators import (
     route_by_construction,
 )
 from debris_gym.jit import inlined, kernel
+from debris_gym.scenario_checks import MAX_SPIN, number
 
 __all__ = [
     "ORBIT_CANDIDATES",
+    "check_motion",
     "checked_horizon",
     "moving_unplaceable",
     "orbit_draw_size",
@@ -95,6 +99,26 @@ SEARCH_STACK = 128
 
 _CHUNK = 64
 """Most fields drawn in one set of array operations."""
+
+
+def check_motion(spec: FieldSpec) -> None:
+    """Check the motion keys of ``spec`` (``FieldSpec.__post_init__`` calls this).
+
+    Raises:
+        ValueError: naming the key (``FieldSpec.<key>``) and its allowed range.
+    """
+    if spec.motion not in FIELD_MOTIONS:
+        raise ValueError(f"FieldSpec.motion={spec.motion!r}; allowed: {FIELD_MOTIONS}")
+    low_n = 0.0 if spec.motion == "frozen" else 1e-9  # moving bodies need n > 0
+    number(spec.mean_motion, "FieldSpec.mean_motion", low=low_n, high=1.0, unit="rad/s")
+    number(spec.horizon, "FieldSpec.horizon", low=0.0, high=1e7, unit="s")
+    number(spec.rho_max, "FieldSpec.rho_max", low=0.0, high=1e6, unit="m")
+    number(spec.spin_max, "FieldSpec.spin_max", low=0.0, high=MAX_SPIN, unit="rad/s")
+    offset = spec.drift_offset
+    if not (isinstance(offset, tuple) and len(offset) == 2):
+        raise ValueError(f"FieldSpec.drift_offset must be a (min, max) pair in m, got {offset!r}")
+    low = number(offset[0], "FieldSpec.drift_offset[0]", low=0.0, high=1e6, unit="m")
+    number(offset[1], "FieldSpec.drift_offset[1]", low=low, high=1e6, unit="m")
 
 
 def checked_horizon(spec: FieldSpec) -> float:
