@@ -107,6 +107,17 @@ def _import_matplotlib() -> Any:
     return matplotlib
 
 
+def _label_glyphs(count: int) -> list[Any]:
+    """Outlines of the target numbers 0 … count − 1, in points from the target's centre, placed
+    and styled like the :data:`LABEL` texts: a moving field redraws its labels on every frame,
+    and filling a few glyph outlines costs a small part of laying out and drawing text."""
+    from matplotlib.font_manager import FontProperties
+    from matplotlib.textpath import TextPath
+
+    prop = FontProperties(size=LABEL["fontsize"], weight=LABEL["fontweight"])
+    return [TextPath(LABEL["xytext"], str(i), prop=prop) for i in range(count)]
+
+
 class NoDisplayWarning(UserWarning):
     """``render_mode="human"`` found no window to show frames in and draws them off screen."""
 
@@ -151,7 +162,7 @@ class _Panel:
         self.ax, self.h, self.v = ax, h, v
         self.field: list[Any] = []  # artists of the cached field layer
         self.debris: Any = None  # a moving field's obstacles (in a frozen one, in self.field)
-        self.labels: list[Any] = []  # a moving field's target labels (likewise)
+        self.numbers: Any = None  # moving field: the target labels as one collection of glyphs
         self.paths: list[Any] = []  # a moving field's body paths (in the field layer)
         self.targets: Any = None  # true-size target discs
         self.rings: Any = None  # fixed-size rings around targets, so small ones stay visible
@@ -186,18 +197,19 @@ class _Panel:
 
     def dynamic(self) -> tuple[Any, ...]:
         """The artists drawn on every frame, bottom first."""
-        bodies = () if self.debris is None else (self.debris,)
-        return (*bodies, self.targets, self.rings, *self.labels, self.trail, self.arrow,
+        if self.debris is None:
+            return (self.targets, self.rings, self.trail, self.arrow, self.chaser)
+        return (self.debris, self.targets, self.rings, self.numbers, self.trail, self.arrow,
                 self.chaser)  # fmt: skip
 
     def remove_field(self) -> None:
         """Take the previous scenario's artists off the axes."""
-        for artist in (*self.field, *self.paths, self.debris, *self.labels, self.targets,
+        for artist in (*self.field, *self.paths, self.debris, self.numbers, self.targets,
                        self.rings):  # fmt: skip
             if artist is not None:
                 artist.remove()
-        self.field, self.paths, self.labels = [], [], []
-        self.debris = self.targets = self.rings = None
+        self.field, self.paths = [], []
+        self.debris = self.numbers = self.targets = self.rings = None
 
 
 class Renderer:
@@ -408,6 +420,7 @@ class Renderer:
         from matplotlib.collections import PatchCollection, PathCollection
         from matplotlib.lines import Line2D
         from matplotlib.patches import Circle, Polygon
+        from matplotlib.transforms import IdentityTransform
 
         moving = scenario.moving
         self._bodies, self._path_start = None, None
@@ -430,19 +443,28 @@ class Renderer:
                 animated=True,
             )  # fmt: skip
             tx, ty = panel.xy(centres)
-            labels = [ax.annotate(str(i), xy, **LABEL) for i, xy in enumerate(zip(tx, ty))]
             style = {"zorder": 1, "alpha": alpha, "animated": True}
             debris = {"facecolor": DEBRIS_FACE, "edgecolor": DEBRIS_EDGE, "linewidth": 0.7}
             target = {"edgecolor": TARGET_EDGE, "linewidth": 0.6, "zorder": 3, "animated": True}
             if moving:  # shapes set per frame (_place_bodies)
                 panel.debris = ax.add_collection(PathCollection([], **debris, **style), False)
-                panel.field, panel.labels = [ax.add_line(dock)], labels
+                panel.field = [ax.add_line(dock)]
+                panel.numbers = ax.add_collection(
+                    PathCollection(
+                        _label_glyphs(len(centres)), sizes=[1.0], offsets=np.column_stack([tx, ty]),
+                        offset_transform=ax.transData, transform=IdentityTransform(),
+                        facecolor=TARGET_EDGE, edgecolor="none", zorder=4, animated=True,
+                    ),
+                    autolim=False,
+                )  # fmt: skip
                 targets = PathCollection([], **target)
             else:
                 patches = [panel.patch(b, lo, hi, Circle, Polygon) for b in scenario.obstacles]
                 collection = PatchCollection(patches, **debris, **style)
                 panel.field = [ax.add_collection(collection, autolim=False), ax.add_line(dock)]
-                panel.field += labels
+                panel.field += [
+                    ax.annotate(str(i), xy, **LABEL) for i, xy in enumerate(zip(tx, ty))
+                ]
                 for artist in panel.field:
                     fig.draw_artist(artist)
                 targets = PatchCollection(
@@ -494,8 +516,7 @@ class Renderer:
             panel.targets.set_paths(bodies.paths(range(n_targets), *shapes))
             rings = centres[:n_targets][:, [panel.h, panel.v]]
             panel.rings.set_offsets(rings)
-            for label, xy in zip(panel.labels, rings, strict=True):
-                label.xy = (float(xy[0]), float(xy[1]))
+            panel.numbers.set_offsets(rings)
 
     @staticmethod
     def _status_line(fig: Any, canvas: Any, y: float) -> list[Any]:
