@@ -771,3 +771,38 @@ def test_moving_polygons_are_where_cw_motion_and_their_attitude_put_them(
     lo, hi = np.full(2, -HALF), np.full(2, HALF)
     (drawn,) = bodies.paths(range(1, 2), centres, vertices, 0, 1, lo, hi)
     np.testing.assert_allclose(drawn.vertices[:-1], vertices[1], rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_the_env_draws_its_moving_field_at_the_mission_time(dim: int) -> None:
+    """Through the env (the moving-world options, a pinned field): after k steps the target is
+    drawn displaced by the textbook CW displacement over k·dt."""
+    from debris_gym.envs import DebrisFieldEnv
+
+    p0, v0 = _drift_free(120.0, -100.0, 0.05, z=(40.0, 0.03))
+    p0, v0 = p0[:dim], v0[:dim]
+    obstacle = {"position": (-200.0, 250.0, 0.0)[:dim], "radius": 15.0}  # at rest, off the V-bar
+    scen = _moving_scenario([{"position": p0, "radius": 10.0, "velocity": v0}], [obstacle], dim)
+    env = DebrisFieldEnv(
+        dim=dim, debris_motion="bounded", mean_motion=N_LEO, render_mode="rgb_array"
+    )
+    try:
+        env.reset(seed=0, options={"scenario": scen})
+        first = env.render()
+        steps = 40
+        for _ in range(steps):
+            _, _, terminated, truncated, info = env.step(np.zeros(dim, np.float32))
+            assert not (terminated or truncated)
+        later = env.render()
+    finally:
+        env.close()
+    time = steps * scen.dt
+    moved = _cw_position(np.array(p0), np.array(v0), N_LEO, time) - np.array(p0)
+    views = rendering.VIEWS[dim]
+    for (h, v), a, b in zip(views, _panels(first, dim), _panels(later, dim), strict=True):
+        shift = _centroid(_mask(b, rendering.TARGET_OPEN, 60)) - _centroid(
+            _mask(a, rendering.TARGET_OPEN, 60)
+        )
+        expected = np.array([moved[h], -moved[v]]) * SCALE
+        assert np.abs(shift - expected).max() < 0.5, (shift, expected)
+        assert np.abs(expected).max() > 20
