@@ -5,8 +5,9 @@ Two jobs, both pure numpy (matplotlib's ``Path`` is imported only when paths are
 - Huge bodies (:func:`outline`): a body far wider than the view is drawn as its part near the
   view, because Agg's work to draw a circle grows with its radius in pixels.
 - Moving bodies (``Scenario.motion == "cwh"``): :class:`MovingBodies` gives every body's outline
-  at any time, as matplotlib paths in one 2D projection, and :func:`orbit_paths` samples each
-  body's relative-orbit path (the closed ellipse of a drift-free body) over a window of time.
+  at any time, as matplotlib paths in one 2D projection, :func:`orbit_paths` samples each
+  body's relative-orbit path (the closed ellipse of a drift-free body) over a window of time,
+  and :func:`label_glyphs` gives the target numbers as shapes cheap to redraw.
 
 Positions in m, times in s.
 """
@@ -117,6 +118,18 @@ def _cut(p: np.ndarray, q: np.ndarray, axis: int, limit: float) -> np.ndarray:
     point = p + (limit - p[axis]) / (q[axis] - p[axis]) * (q - p)
     point[axis] = limit
     return point
+
+
+def label_glyphs(count: int, style: dict[str, Any]) -> list[Any]:
+    """Outlines of the numbers 0 … count − 1 in points from a body's centre, set like a text
+    annotation of ``style`` (its ``xytext`` offset in points, ``fontsize``, ``fontweight``). A
+    moving field redraws its target labels on every frame, and filling a few glyph outlines costs
+    a small part of laying out and drawing text."""
+    from matplotlib.font_manager import FontProperties
+    from matplotlib.textpath import TextPath
+
+    prop = FontProperties(size=style["fontsize"], weight=style["fontweight"])
+    return [TextPath(style["xytext"], str(i), prop=prop) for i in range(count)]
 
 
 def off_view(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:

@@ -36,6 +36,7 @@ import numpy as np
 from debris_gym.envs.render_bodies import (
     CLIP_SPAN,
     MovingBodies,
+    label_glyphs,
     off_view,
     orbit_paths,
     outline,
@@ -105,17 +106,6 @@ def _import_matplotlib() -> Any:
             "`pip install matplotlib`"
         ) from exc
     return matplotlib
-
-
-def _label_glyphs(count: int) -> list[Any]:
-    """Outlines of the target numbers 0 … count − 1, in points from the target's centre, placed
-    and styled like the :data:`LABEL` texts: a moving field redraws its labels on every frame,
-    and filling a few glyph outlines costs a small part of laying out and drawing text."""
-    from matplotlib.font_manager import FontProperties
-    from matplotlib.textpath import TextPath
-
-    prop = FontProperties(size=LABEL["fontsize"], weight=LABEL["fontweight"])
-    return [TextPath(LABEL["xytext"], str(i), prop=prop) for i in range(count)]
 
 
 class NoDisplayWarning(UserWarning):
@@ -278,9 +268,15 @@ class Renderer:
             captured: one flag per target.
             trail: past chaser positions, shape (n, dim) (m).
             accel: commanded acceleration of the last step, length dim (m/s²).
-            time: elapsed time (s); in a moving field, the bodies are drawn where they are then.
+            time: elapsed time (s), >= 0; a moving field's bodies are drawn where they are then.
             delta_v: Δv spent so far (m/s).
+
+        Raises:
+            ValueError: ``time`` is negative or not finite.
         """
+        time = float(time)
+        if not (math.isfinite(time) and time >= 0.0):
+            raise ValueError(f"time must be a finite number of s >= 0, got {time!r}")
         self._ensure_scene(scenario, time)
         d = scenario.dim
         state = np.asarray(chaser_state, dtype=float).reshape(2 * d)
@@ -348,9 +344,7 @@ class Renderer:
             self._scenario = scenario  # an equal copy keeps the drawn field
         if self._bodies is not None:
             window = self._path_window
-            start = 0.0
-            if math.isfinite(window) and math.isfinite(time):
-                start = math.floor(time / window) * window
+            start = math.floor(time / window) * window if math.isfinite(window) else 0.0
             if start != self._path_start:
                 self._draw_paths(scenario, start)
 
@@ -429,7 +423,8 @@ class Renderer:
             self._bodies = MovingBodies(scenario, span)
             self._path_window = path_window(scenario)
         canvas, fig = self._canvas, self._fig
-        canvas.restore_region(self._frame_background)
+        if not moving:
+            canvas.restore_region(self._frame_background)
         centres = np.array([t.position for t in scenario.targets], dtype=float)
         alpha = 0.85 if scenario.dim == 3 else 1.0
         for panel in self._panels:
@@ -451,9 +446,10 @@ class Renderer:
                 panel.field = [ax.add_line(dock)]
                 panel.numbers = ax.add_collection(
                     PathCollection(
-                        _label_glyphs(len(centres)), sizes=[1.0], offsets=np.column_stack([tx, ty]),
-                        offset_transform=ax.transData, transform=IdentityTransform(),
-                        facecolor=TARGET_EDGE, edgecolor="none", zorder=4, animated=True,
+                        label_glyphs(len(centres), LABEL), sizes=[1.0],
+                        offsets=np.column_stack([tx, ty]), offset_transform=ax.transData,
+                        transform=IdentityTransform(), facecolor=TARGET_EDGE, edgecolor="none",
+                        zorder=4, animated=True,
                     ),
                     autolim=False,
                 )  # fmt: skip
@@ -475,7 +471,8 @@ class Renderer:
                 tx, ty, s=110, facecolors="none", edgecolors=TARGET_OPEN, linewidths=1.8,
                 zorder=3, animated=True,
             )  # fmt: skip
-        self._background = canvas.copy_from_bbox(fig.bbox)
+        if not moving:
+            self._background = canvas.copy_from_bbox(fig.bbox)
 
     def _draw_paths(self, scenario: Scenario, start: float) -> None:
         """Field layer of a moving field: each body's path from ``start`` (s) over the path window
