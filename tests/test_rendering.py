@@ -824,3 +824,16 @@ def test_draw_rejects_a_time_that_is_not_a_finite_number_of_seconds(time: float)
     scen = _moving_scenario([{"position": p0, "radius": 5.0, "velocity": v0}])
     with pytest.raises(ValueError, match="time must be a finite number of s >= 0"):
         _draw_at(rendering.Renderer("rgb_array"), scen, time)
+
+
+def test_target_numbers_show_beside_targets_in_view_only() -> None:
+    """Like the frozen field's annotations: a target at the panel's edge keeps its number
+    (drawn past the edge), and a target that has left the view shows none in the margin."""
+    edge = {"position": (0.0, HALF - 4.0), "radius": 3.0}  # on the V-bar at rest: stays put
+    gone = {"position": (0.0, HALF + 8.0), "radius": 3.0}  # likewise, just outside the view
+    dim = 2
+    (rows, cols), = _panel_boxes(dim)  # fmt: skip
+    for targets, shown in (([edge], True), ([gone], False)):
+        frame = _draw_at(rendering.Renderer("rgb_array"), _moving_scenario(targets), 500.0)
+        margin = frame[rows, cols.stop + 3 : cols.stop + 20]  # right of the axes' spine
+        assert _mask(margin, rendering.TARGET_EDGE, 60).any() == shown

@@ -449,7 +449,7 @@ class Renderer:
                         label_glyphs(len(centres), LABEL), sizes=[1.0],
                         offsets=np.column_stack([tx, ty]), offset_transform=ax.transData,
                         transform=IdentityTransform(), facecolor=TARGET_EDGE, edgecolor="none",
-                        zorder=4, animated=True,
+                        zorder=4, animated=True, clip_on=False,
                     ),
                     autolim=False,
                 )  # fmt: skip
@@ -513,7 +513,10 @@ class Renderer:
             panel.targets.set_paths(bodies.paths(range(n_targets), *shapes))
             rings = centres[:n_targets][:, [panel.h, panel.v]]
             panel.rings.set_offsets(rings)
-            panel.numbers.set_offsets(rings)
+            # Like an annotation: drawn unclipped (beside a body at the edge), but only for a
+            # body whose centre is in view (a non-finite offset is skipped).
+            inside = np.all((rings >= lo) & (rings <= hi), axis=1)
+            panel.numbers.set_offsets(np.where(inside[:, None], rings, np.nan))
 
     @staticmethod
     def _status_line(fig: Any, canvas: Any, y: float) -> list[Any]:
