@@ -28,11 +28,12 @@ distance is a trig function of time. In the plane, for two drift-free orbits, wi
 amplitude R and along-track centre offset D, the squared distance over the relative phase θ is
 R² + D² + 4DR cos θ + 3R² cos² θ, a quadratic in cos θ whose minimum is exact:
 (|D| − 2R)² when |D| ≥ 1.5 R, else R² − D²/3 (:func:`_apart`). In 3D the cross-track term
-joins; the squared distance is then a trig polynomial of degree 2 in θ, sampled at 64 phases
-with the bound |d²''| ≤ 4|D|R + 6R² + 2R_z², which makes the sampled minimum a proven lower
-bound once M₂h²/8 is taken off. A drifting pair is sampled in time the same way (the bound of
-the second derivative from the relative speed and acceleration); a check that cannot prove the
-gap rejects the candidate. Every pair first gets a cheap axis-separation test.
+joins when the plane alone does not keep them apart, and a drifting pair is not periodic: there
+the distance, whose rate is bounded by the pair's relative speed (in 3D per radian of phase:
+√(4R² + R_z²)), is searched by branch and bound (:func:`_search`): an interval whose midpoint is
+at distance d holds nothing closer than d − L·(half its width), so the search proves the gap or
+finds a violation, down to :data:`SEARCH_TOLERANCE`, where an undecided pair is refused.
+Every pair first gets a cheap axis-separation test.
 
 Solvability in space-time (the argument; tested against an independent time-expanded search in
 ``tests/test_orbit_fields.py``). With ``min_gap > 2 · chaser_radius`` and the other conditions
@@ -42,9 +43,10 @@ inflated by the chaser radius c, are pairwise disjoint and strictly inside the b
 dock, so the free space is connected at every t and each target has a free capture point. Each
 body also carries a collar, the shell r_i + c < |p − p_i(t)| < r_i + s_i/2, that no other body
 enters at any time. The chaser moves with authority to spare: a body moves at most
-n·√(4ρ² + ρ_z²) (+ 1.5 n |x_c|), ≈ 0.6 m/s at ρ = ρ_z = 250 m in LEO, and accelerates at most
-n²·(2ρ + ρ_z) < 1e-3 m/s², against the chaser's 0.05 m/s² (1 m/s within 20 s); riding a collar
-at a fixed offset d from a body costs |3n² d_x| < 1e-4 m/s² (chaser and body obey the same law);
+n·√(4ρ² + ρ_z²) (+ 1.5 n |x_c|), ≈ 0.63 m/s at ρ = ρ_z = 250 m in LEO, and accelerates at most
+n²·√(4ρ² + ρ_z²) < 1e-3 m/s², against the chaser's 0.05 m/s² (1 m/s within 20 s); riding a
+collar at a fixed offset d from a body costs a thrust (3n² d_x, 0, −n² d_z), at most 3n²|d|
+≈ 2e-4 m/s² at 50 m (chaser and body obey the same law, Coriolis terms included);
 the dock is an equilibrium kept clear at all times, where the chaser can wait. So the chaser can
 wait (at the dock or in a collar) for a gap and cross the connected free space faster than it
 deforms, reach a target's collar, match the target's velocity (≤ 0.6 m/s: ≤ 12 s of thrust)
@@ -321,7 +323,7 @@ def _draw_orbits(
                 cap = min(rho_max, lim - abs(xc), (2.0 * lim - abs(slide)) / 4.0)
                 if cap < 0.0:
                     continue
-                rho = cap * np.sqrt(u[k, q])
+                rho = cap * np.sqrt(u[k, q])  # area-uniform in the (x, y/2) disc
                 alpha = 2.0 * np.pi * u[k, q + 1]
                 ea = rho * np.cos(alpha)
                 eb = rho * np.sin(alpha)

@@ -437,12 +437,33 @@ def test_the_search_finds_a_route_in_free_space_and_none_to_an_enclosed_target()
     radii = np.array([5.0] + [10.0] * len(ring))
     ok, _ = space_time_route(np.array(states.tolist() + ring), radii, 1, 600.0, 1e-9, 5.0, 3000.0)
     assert not ok.any()
-    # a body on a drift-free orbit about the dock, sweeping the whole way out, is seen: with
-    # its ellipse (ρ = 100 m) filling the way, the search waits for it to pass
-    sweeper = [0.0, 200.0, 100.0 * N, 0.0]  # x = ρ sin nt, y = 2ρ cos nt: ρ = 100 m
-    ok, _ = space_time_route(np.array([[0.0, 350.0, 0.0, 0.0], sweeper]), np.array([5.0, 40.0]),
-                             1, 800.0, N, 5.0, 8000.0)  # fmt: skip
+
+
+def moving_wall(gap_x: float | None, speed: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """A target at rest 250 m along-track behind a wall of overlapping discs (r 10 m, 15 m
+    apart) at y = 165 m that slides radially at ``speed`` m/s, with a 3-disc gap centred at
+    x = ``gap_x`` at t = 0 (None: no gap). Free space (n ~ 0): every body moves in a line."""
+    bodies = [[0.0, 250.0, 0.0, 0.0]]
+    for x in np.arange(-1800.0, 301.0, 15.0):
+        if gap_x is None or abs(x - gap_x) > 20.0:
+            bodies.append([x, 165.0, speed, 0.0])
+    return np.array(bodies), np.array([5.0] + [10.0] * (len(bodies) - 1))
+
+
+def test_the_search_follows_the_bodies_in_time():
+    # the gap starts outside the box (x = -400 m): a snapshot at t = 0 shows a closed wall, but
+    # the gap slides in after 200 s and the chaser can pass through it, both ways
+    states, radii = moving_wall(-400.0)
+    ok, _ = space_time_route(states, radii, 1, 600.0, 1e-9, 5.0, 3000.0)
     assert ok.all()
+    frozen = states.copy()
+    frozen[:, 2:] = 0.0
+    ok, _ = space_time_route(frozen, radii, 1, 600.0, 1e-9, 5.0, 3000.0)
+    assert not ok.any()
+    # no gap at all, or a gap sliding away from the box: closed for good
+    for gap in (None, 400.0):
+        ok, _ = space_time_route(*moving_wall(gap), 1, 600.0, 1e-9, 5.0, 3000.0)
+        assert not ok.any()
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -473,3 +494,26 @@ def test_every_accepted_3d_field_is_solvable_by_the_independent_search(seed):
     )  # fmt: skip
     assert goal + 2.0 * CHASER < spec.min_gap + spec.target_clearance
     assert ok.all(), f"seed {seed}: targets {np.flatnonzero(~ok)} not reachable and back"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(8))
+def test_more_accepted_3d_fields_are_solvable_by_the_independent_search(seed):
+    test_every_accepted_3d_field_is_solvable_by_the_independent_search(100 + seed)
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_accepted_drifting_fields_are_solvable_within_their_horizon(seed):
+    spec = spec_of(2, "drifting", drift_offset=(5.0, 20.0))
+    fields = draw(spec, [seed])
+    ok, goal = space_time_route(
+        states_of(fields, 0), fields.radii[0], spec.n_targets, spec.field_size, N, 5.0, PERIOD
+    )
+    assert goal + 2.0 * CHASER < spec.min_gap + spec.target_clearance
+    assert ok.all(), f"seed {seed}: targets {np.flatnonzero(~ok)} not reachable and back"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(10))
+def test_more_accepted_drifting_fields_are_solvable_within_their_horizon(seed):
+    test_accepted_drifting_fields_are_solvable_within_their_horizon(100 + seed)
