@@ -168,6 +168,26 @@ def test_every_rule_holds_at_every_time_over_several_orbits(dim):
         check_field_over_time(fields, k, spec, t)
 
 
+def test_the_outside_check_sees_a_broken_field():
+    spec = spec_of(2)
+    fields = draw(spec, [0])
+    t = np.linspace(0.0, 3.0 * PERIOD, 6001)
+    check_field_over_time(fields, 0, spec, t)
+    # a body given 40 m of radial offset drifts 0.07 m/s along-track: out of bounds in time
+    drifting = dataclasses.replace(fields, velocities=fields.velocities.copy())
+    drifting.velocities[0, 5, 1] += 0.5 * N * 40.0  # x_c = 4x0 + 2ẏ0/n grows by 40 m
+    with pytest.raises(AssertionError):
+        check_field_over_time(drifting, 0, spec, t)
+    # two bodies on the same orbit, a few metres apart in phase
+    twin = dataclasses.replace(
+        fields, centers=fields.centers.copy(), velocities=fields.velocities.copy()
+    )
+    twin.centers[0, 6] = twin.centers[0, 5] + 1.0
+    twin.velocities[0, 6] = twin.velocities[0, 5]
+    with pytest.raises(AssertionError):
+        check_field_over_time(twin, 0, spec, t)
+
+
 def test_polygons_tumble_within_spin_max_and_the_scenario_moves():
     spec = spec_of(2, spin_max=0.03)
     fields = draw(spec, range(8))
