@@ -69,6 +69,9 @@ MAX_SPEED = 1e4
 MAX_DELTA_V = 1e6
 """Upper bound (m/s) of ``delta_v_budget``."""
 
+MAX_HOLD = 3600.0
+"""Upper bound (s) of ``capture_hold``: an hour of station-keeping beside a target."""
+
 MAX_SLOPE = 1e3
 """Upper bound (1/s) of ``shaping_speed_slope``."""
 
@@ -110,6 +113,13 @@ OPTIONS: dict[str, Option] = {
     "max_accel": Option("m/s²", 1e-6, 100.0, doc="thrust acceleration limit"),
     "observation": Option(choices=("kinematics", "lidar"), doc="observation mode"),
     "action": Option(choices=("continuous", "discrete"), doc="action mode"),
+    "fine_thrust": Option(
+        "",
+        0.0,
+        1.0,
+        doc="discrete actions: also thrust along each axis at this fraction of max_accel "
+        "(0 = full thrust only)",
+    ),
     "thrust_model": Option(
         choices=("ball", "box"),
         doc="'ball': one gimballed engine, |u| <= max_accel; 'box': per-axis thrusters",
@@ -118,7 +128,34 @@ OPTIONS: dict[str, Option] = {
         "m", 1e-6, MAX_LENGTH, doc="capture zone depth around a target's surface"
     ),
     "capture_speed": Option(
-        "m/s", 0.0, MAX_SPEED, doc="largest relative speed that still captures"
+        "m/s", 0.0, MAX_SPEED, doc="largest speed relative to the target that still captures"
+    ),
+    "capture_hold": Option(
+        "s",
+        0.0,
+        MAX_HOLD,
+        doc="how long the chaser must stay in capture range and speed: every step end over at "
+        "least this span (1 + ceil(capture_hold / dt) consecutive step ends; 0 = one)",
+    ),
+    "solid_targets": Option(
+        choices=(False, True),
+        doc="targets are solid: touching one at any speed, captured or not, is a collision "
+        "(False: only an impact faster than capture_speed that is not departing)",
+    ),
+    "debris_motion": Option(
+        choices=("frozen", "bounded", "drifting"),
+        doc="how random fields' bodies move: 'frozen' (fixed in LVLH, the v0 world), "
+        "'bounded' (drift-free relative orbits, the v1 world), 'drifting' (relative orbits "
+        "whose centres drift along-track slowly, |x_c| in the drift_offset range)",
+    ),
+    "drift_offset_min": Option(
+        "m", 0.0, MAX_LENGTH, doc="smallest radial offset |x_c| of a drifting body's orbit"
+    ),
+    "drift_offset_max": Option(
+        "m", 0.0, MAX_LENGTH, doc="largest radial offset |x_c| of a drifting body's orbit"
+    ),
+    "spin_max": Option(
+        "rad/s", 0.0, 1.0, doc="largest tumble rate of a random field's 2D polygons (inertial)"
     ),
     "target_order": Option(
         choices=("any", "queued"), doc="'any': agent chooses; 'queued': env fixes the order"
@@ -222,8 +259,15 @@ class EnvConfig:
     observation: str = "kinematics"
     action: str = "continuous"
     thrust_model: str = "ball"
+    fine_thrust: float = 0.0
     capture_radius: float = 5.0
     capture_speed: float = 0.5
+    capture_hold: float = 0.0
+    solid_targets: bool = False
+    debris_motion: str = "frozen"
+    drift_offset_min: float = 2.0
+    drift_offset_max: float = 10.0
+    spin_max: float = 0.0
     target_order: str = "any"
     return_to_dock: bool = True
     delta_v_budget: float | None = 100.0
@@ -361,6 +405,7 @@ def _check_cross_keys(cfg: EnvConfig) -> None:
     pairs = (
         ("obstacle_radius_min", "obstacle_radius_max"),
         ("target_radius_min", "target_radius_max"),
+        ("drift_offset_min", "drift_offset_max"),
     )
     for lo_key, hi_key in pairs:
         lo, hi = getattr(cfg, lo_key), getattr(cfg, hi_key)
@@ -368,6 +413,11 @@ def _check_cross_keys(cfg: EnvConfig) -> None:
             raise ValueError(f"{lo_key}={lo!r} m must be <= {hi_key}={hi!r} m")
     if cfg.scenario == "paper" and cfg.dim != 2:
         raise ValueError("scenario='paper' is a 2D world; use dim=2")
+    if cfg.debris_motion != "frozen" and cfg.n == 0.0:
+        raise ValueError(
+            f"debris_motion={cfg.debris_motion!r} needs an orbit (mean_motion > 0): in free "
+            "space (mean_motion=0) relative orbits do not exist; use debris_motion='frozen'"
+        )
     if cfg.scenario == "random":
         limit = WORLD_FRACTION * cfg.field_size
         for key in _WORLD_TIED:

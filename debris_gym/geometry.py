@@ -29,12 +29,15 @@ from debris_gym.scenario import Scenario
 
 
 class FieldGeometry:
-    """Geometry of one :class:`Scenario` (bodies at their t = 0 positions).
+    """Geometry of one :class:`Scenario` with its bodies where they are at ``time``.
 
     Args:
         scenario: the field.
         inflate: distance (m) added to every body (e.g. the chaser's radius) by the swept checks
             :meth:`first_hit` and :meth:`touched`; distances are never inflated.
+        time: the instant (s since the episode began) whose body positions and polygon
+            attitudes the queries see (:meth:`Scenario.body_states`); a frozen field is the
+            same at every time. The queries treat the bodies as standing still there.
 
     Attributes:
         centers: (B, dim) body centres (m).
@@ -43,9 +46,12 @@ class FieldGeometry:
         batch: the one-field :class:`~debris_gym.batch_geometry.FieldBatch` behind the queries.
     """
 
-    def __init__(self, scenario: Scenario, inflate: float = 0.0) -> None:
+    def __init__(self, scenario: Scenario, inflate: float = 0.0, time: float = 0.0) -> None:
         if not (math.isfinite(inflate) and inflate >= 0):
             raise ValueError(f"inflate must be >= 0 m, got {inflate!r}")
+        if not (math.isfinite(time) and time >= 0):
+            raise ValueError(f"time must be finite and >= 0 s, got {time!r}")
+        self.time = float(time)
         self.scenario = scenario
         self.dim = scenario.dim
         self.inflate = float(inflate)
@@ -53,7 +59,7 @@ class FieldGeometry:
         self.n_bodies = len(bodies)
         most = max((len(b.vertices) for b in bodies if b.is_polygon), default=3)
         self.batch = FieldBatch(1, self.n_bodies, self.dim, max_vertices=most)
-        self.batch.load(0, scenario)
+        self.batch.load(0, scenario, self.time if scenario.moving else 0.0)
         self.centers = self.batch.centers[0]
         self.radii = self.batch.radii[0]
         self.is_polygon = self.batch.is_polygon[0]

@@ -46,6 +46,18 @@ from debris_gym.observation import (
 __all__ = ["OBS_LIMIT", "MissionBatch", "check_threads"]
 
 
+def body_reach(sub: np.ndarray, dim: int) -> tuple[float, float]:
+    """Bounds of how far a free body moves within a step: the largest 2-norms, over the
+    sub-steps, of the position blocks Φ_pp(t) − I and Φ_pv(t) of the state-transition matrix
+    (``sub``: :func:`~debris_gym.dynamics.substep_position_matrix`), widened by 1e-9 of
+    themselves so that rounding never shrinks them below the truth."""
+    eye = np.eye(dim)
+    blocks = sub.reshape(-1, dim, sub.shape[1])
+    position = max(np.linalg.norm(b[:, :dim] - eye, 2) for b in blocks)
+    velocity = max(np.linalg.norm(b[:, dim : 2 * dim], 2) for b in blocks)
+    return float(position) * (1 + 1e-9), float(velocity) * (1 + 1e-9)
+
+
 def check_threads(threads: int) -> int:
     """``threads`` validated: a whole number from 1 to numba's thread count (the cores, or
     ``NUMBA_NUM_THREADS``)."""
@@ -115,8 +127,10 @@ class MissionBatch:
         end_velocity = np.hstack([model.ad[d:], model.bd[d:]])
         step_matrix_t = np.ascontiguousarray(np.vstack([sub, end_velocity]).T)
         self.rules = make_rules(
-            cfg, t, step_matrix_t, dt=dt, max_accel=max_accel, max_episode_steps=max_episode_steps
-        )
+            cfg, t, step_matrix_t, dt=dt, max_accel=max_accel, max_episode_steps=max_episode_steps,
+            body_matrix_t=np.ascontiguousarray(model.ad.T), reach=body_reach(sub, d),
+        )  # fmt: skip
+        self._turn_angles = (dt, dt / cfg.collision_substeps)
         self.shaping = make_shaping(cfg)
         """The optional potential terms, or None when all are off (the kernels are compiled
         without them then)."""
@@ -133,6 +147,9 @@ class MissionBatch:
         self.high = np.zeros((n, d))
         self.length_scale = np.ones(n)
         self.speed_scale = np.ones(n)
+        self.turns = np.zeros((n, self.field.spins.shape[1], 4))
+        """(N, P, 4) cos, sin of each polygon's turn over one step, then one sub-step."""
+        self.turns[:, :, 0] = self.turns[:, :, 2] = 1.0
         self._outputs: StepOutputs = new_step_outputs(n)
         self._field_view: Field | None = None
         self._heads: dict[str, tuple] | None = None
@@ -157,7 +174,8 @@ class MissionBatch:
             view = self._field_view = Field(
                 centers=f.centers, radii=f.radii, polygon_start=f.polygon_start,
                 polygons=f.polygons, n_vertices=f.n_vertices, vertices=f.vertices,
-                dock=self.dock, low=self.low, high=self.high, length_scale=self.length_scale,
+                velocities=f.velocities, attitude=f.attitude, turns=self.turns, dock=self.dock,
+                low=self.low, high=self.high, length_scale=self.length_scale,
                 speed_scale=self.speed_scale,
             )  # fmt: skip
             self._heads = None
@@ -177,6 +195,39 @@ class MissionBatch:
                 "observe": (*threads, self.rules, self.layout, self.missions, field),
             }
         return heads
+
+    def load_scenario(self, rows: np.ndarray, scenario) -> None:
+        """Put ``scenario``'s bodies (as at t = 0) into the fields ``rows``."""
+        self.field.load_scenario(rows, scenario)
+        self._set_turns(rows)
+
+    def load_arrays(
+        self,
+        rows: np.ndarray,
+        centers: np.ndarray,
+        radii: np.ndarray,
+        vertices: np.ndarray,
+        n_vertices: np.ndarray,
+        velocities: np.ndarray | None = None,
+        spins: np.ndarray | None = None,
+    ) -> None:
+        """Put K fields given as arrays into the fields ``rows`` (see
+        :meth:`FieldBatch.load_arrays <debris_gym.batch_geometry.FieldBatch.load_arrays>`)."""
+        self.field.load_arrays(rows, centers, radii, vertices, n_vertices, velocities, spins)
+        self._set_turns(rows)
+
+    def _set_turns(self, rows: np.ndarray) -> None:
+        """The polygons' turn per step and per sub-step in ``rows``: at spin − n in LVLH in a
+        moving field (an inertially fixed attitude turns at −n in the rotating frame), none in
+        a frozen one."""
+        if not self.rules.moving:
+            return
+        rate = self.field.spins[rows] - self.physics[0]
+        step, sub = self._turn_angles
+        self.turns[rows, :, 0] = np.cos(rate * step)
+        self.turns[rows, :, 1] = np.sin(rate * step)
+        self.turns[rows, :, 2] = np.cos(rate * sub)
+        self.turns[rows, :, 3] = np.sin(rate * sub)
 
     def set_world(self, rows: np.ndarray, dock, low, high, length_scale: float) -> None:
         """Dock position, bounds (m) and length scale L of the fields in ``rows``."""

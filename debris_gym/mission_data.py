@@ -45,7 +45,21 @@ class Rules(NamedTuple):
     capture_radius: float
     """Capture distance from a target's surface (m)."""
     capture_speed: float
-    """Highest speed at which a capture counts (m/s)."""
+    """Highest speed relative to the target at which a capture counts (m/s)."""
+    hold_steps: int
+    """Consecutive step ends a capture needs (:func:`hold_steps`)."""
+    moving: bool
+    """The bodies move on unforced CWH motion (``debris_motion`` is not "frozen")."""
+    solid_targets: bool
+    """Touching a target at any speed is a collision (else only an impact faster than
+    ``capture_speed`` that is not departing, the v0 rule)."""
+    body_matrix_t: np.ndarray
+    """(2·dim, 2·dim) transposed state-transition matrix Φ(dt)ᵀ of a free body."""
+    reach_position: float
+    """Largest 2-norm of the position block of Φ(t) − I over the sub-steps: with
+    ``reach_velocity`` it bounds how far a free body moves in a step (broad phase)."""
+    reach_velocity: float
+    """Largest 2-norm of the position-from-velocity block of Φ(t) over the sub-steps (s)."""
     n_targets: int
     """Targets per field T (the first T bodies)."""
     queued: bool
@@ -111,6 +125,11 @@ class Missions(NamedTuple):
     """(N,) the shaping potential Φ."""
     accel: np.ndarray
     """(N, dim) acceleration the last step applied (m/s², after the budget cut)."""
+    hold: np.ndarray
+    """(N, T) int64 consecutive step ends each target has been held in capture range."""
+    score: np.ndarray
+    """(N,) the unshaped task score so far: the sum of every reward term but the progress
+    shaping, undiscounted (what tables rank by; the shaping only guides learning)."""
 
 
 class Field(NamedTuple):
@@ -128,6 +147,13 @@ class Field(NamedTuple):
     """(N, P) vertex counts of the bodies from ``polygon_start`` on."""
     vertices: np.ndarray
     """(N, P, V, 4) polygon vertices and edges (m; see FieldBatch)."""
+    velocities: np.ndarray
+    """(N, B, dim) body velocities (m/s)."""
+    attitude: np.ndarray
+    """(N, P, 2) cos, sin of the angle each polygon has turned through (see FieldBatch)."""
+    turns: np.ndarray
+    """(N, P, 4) cos, sin of the angle a polygon turns through in one step, then in one
+    collision sub-step."""
     dock: np.ndarray
     """(N, dim) dock position (m)."""
     low: np.ndarray
@@ -153,6 +179,12 @@ class StepOutputs(NamedTuple):
     """(N, 7) reward terms, columns in :data:`REWARD_TERMS` order."""
 
 
+def hold_steps(capture_hold: float, dt: float) -> int:
+    """Consecutive step ends in capture range that span at least ``capture_hold`` seconds:
+    1 + ⌈capture_hold / dt⌉ (one step end for no hold; 4 for 30 s at dt = 10 s)."""
+    return 1 + max(0, math.ceil(capture_hold / dt - 1e-9))
+
+
 def make_rules(
     cfg: EnvConfig,
     n_targets: int,
@@ -161,8 +193,11 @@ def make_rules(
     dt: float,
     max_accel: float,
     max_episode_steps: int | None,
+    body_matrix_t: np.ndarray,
+    reach: tuple[float, float],
 ) -> Rules:
-    """The :class:`Rules` of ``cfg`` for fields of ``n_targets`` targets and the given physics."""
+    """The :class:`Rules` of ``cfg`` for fields of ``n_targets`` targets and the given physics
+    (``body_matrix_t`` and ``reach``: see :class:`Rules`)."""
     return Rules(
         dt=float(dt),
         max_accel=float(max_accel),
@@ -172,6 +207,12 @@ def make_rules(
         chaser_radius=float(cfg.chaser_radius),
         capture_radius=float(cfg.capture_radius),
         capture_speed=float(cfg.capture_speed),
+        hold_steps=hold_steps(cfg.capture_hold, dt),
+        moving=cfg.debris_motion != "frozen",
+        solid_targets=bool(cfg.solid_targets),
+        body_matrix_t=body_matrix_t,
+        reach_position=float(reach[0]),
+        reach_velocity=float(reach[1]),
         n_targets=int(n_targets),
         queued=cfg.target_order == "queued",
         return_to_dock=bool(cfg.return_to_dock),
@@ -213,6 +254,8 @@ def new_missions(num: int, dim: int, n_targets: int, n_bodies: int, n_ranked: in
         min_clearance=np.full(num, math.inf),
         potential=np.zeros(num),
         accel=np.zeros((num, dim)),
+        hold=np.zeros((num, n_targets), dtype=np.int64),
+        score=np.zeros(num),
     )
 
 

@@ -4,9 +4,10 @@ One row (mission) of a step is::
 
     burn       the thrust model, cut to what the Δv budget still allows
     propagate  exact zero-order-hold flight over the step, sampled at the collision sub-steps
-    contacts   the swept contact check along the sampled path
+    contacts   the swept contact check along the sampled path (relative to each moving body)
+    move       the bodies' own exact unforced flight over the step (moving fields)
     measure    the gaps to every body at the step's end (and the obstacle ranking, clearance)
-    captures   targets reached slowly enough
+    captures   targets held in range at a low relative speed for long enough
     judge      collision, bounds, success; terminated and truncated
     reward     the named terms, with the potential-based progress term
 
@@ -30,7 +31,7 @@ import math
 import numba
 import numpy as np
 
-from debris_gym.batch_geometry import field_gaps, path_touches
+from debris_gym.batch_geometry import field_gaps, moving_path_touches, path_touches
 from debris_gym.goal import DOCK_GOAL, NO_GOAL, current_goal
 from debris_gym.jit import inlined, kernel, threaded
 from debris_gym.rewards import REWARD_TERMS
@@ -94,7 +95,33 @@ def propagate(i, accel, matrix_t, rules, state, time, steps, start, path):
 
 
 @inlined
-def measure(i, state, gaps, nearest, centers, radii, polygon_start, polygons, n_vertices, vertices):
+def move_bodies(i, matrix_t, centers, velocities, attitude, turns, scratch):
+    """Every body of field ``i`` flies the step unforced: its state (``centers``,
+    ``velocities``) times the exact state-transition matrix (``matrix_t`` = Φ(dt)ᵀ), and every
+    polygon turns by its step's angle (``turns[i, j, 0:2]``). ``scratch`` is (2·dim,)."""
+    dim = centers.shape[2]
+    for b in range(centers.shape[1]):
+        for c in range(2 * dim):
+            s = 0.0
+            for k in range(dim):
+                s += centers[i, b, k] * matrix_t[k, c]
+                s += velocities[i, b, k] * matrix_t[dim + k, c]
+            scratch[c] = s
+        for k in range(dim):
+            centers[i, b, k] = scratch[k]
+            velocities[i, b, k] = scratch[dim + k]
+    for j in range(attitude.shape[1]):
+        c, s = attitude[i, j, 0], attitude[i, j, 1]
+        cd, sd = turns[i, j, 0], turns[i, j, 1]
+        attitude[i, j, 0] = c * cd - s * sd
+        attitude[i, j, 1] = s * cd + c * sd
+
+
+@inlined
+def measure(
+    i, state, gaps, nearest, centers, radii, polygon_start, polygons, n_vertices, vertices,
+    attitude,
+):  # fmt: skip
     """Gaps (m) from mission ``i``'s chaser centre to every body of its field into ``gaps[i]``,
     and its ranked obstacles ``nearest[i]`` re-sorted by gap (:func:`sort_by_gap`).
 
@@ -104,8 +131,9 @@ def measure(i, state, gaps, nearest, centers, radii, polygon_start, polygons, n_
     """
     dim = centers.shape[2]
     field_gaps(
-        state[i, :dim], i, centers, radii, polygon_start, polygons, n_vertices, vertices, gaps[i]
-    )
+        state[i, :dim], i, centers, radii, polygon_start, polygons, n_vertices, vertices,
+        attitude, gaps[i],
+    )  # fmt: skip
     sort_by_gap(gaps[i], nearest[i])
 
 
@@ -129,15 +157,26 @@ def speed_of(i, state):
 
 
 @inlined
-def captures(i, slow, rules, gaps, captured):
-    """Capture the targets within ``capture_radius`` of the chaser's surface when the chaser is
-    ``slow`` (targets are at rest in LVLH); queued, only the queue head. Returns how many."""
+def captures(i, rules, state, gaps, velocities, captured, hold):
+    """Count a step end toward each target's capture: the chaser within ``capture_radius`` of
+    the target's surface (surface to surface) with its velocity relative to the target's at
+    most ``capture_speed``; a target held so for :attr:`Rules.hold_steps` consecutive step ends
+    is captured (queued: only the queue head counts). Returns how many were captured now."""
+    dim = velocities.shape[2]
     new = 0
     reach = rules.capture_radius + rules.chaser_radius
     for j in range(rules.n_targets):
         if captured[i, j]:
             continue
-        if slow and gaps[i, j] <= reach:
+        rel2 = 0.0
+        for a in range(dim):
+            dv = state[i, dim + a] - velocities[i, j, a]
+            rel2 += dv * dv
+        if gaps[i, j] <= reach and math.sqrt(rel2) <= rules.capture_speed:
+            hold[i, j] += 1
+        else:
+            hold[i, j] = 0
+        if hold[i, j] >= rules.hold_steps:
             captured[i, j] = True
             new += 1
         if rules.queued:
@@ -146,13 +185,16 @@ def captures(i, slow, rules, gaps, captured):
 
 
 @inlined
-def collides(i, start, touched, slow, n_targets, state, centers):
-    """Did the step collide? Any contact with debris that is not a target; a target touched
+def collides(i, start, touched, slow, rules, state, centers):
+    """Did the step collide? Any contact with debris that is not a target; with
+    ``solid_targets`` any contact with a target too. Otherwise (the v0 rule) a target touched
     too fast (not ``slow``) unless the chaser is leaving it: moving away from its centre at
     both ends of the step and over the step as a whole (departing after a gentle contact is not
     an impact)."""
     dim = start.shape[0] // 2
-    for b in range(n_targets, touched.shape[0]):
+    n_targets = rules.n_targets
+    first = 0 if rules.solid_targets else n_targets
+    for b in range(first, touched.shape[0]):
         if touched[b]:
             return True
     hit = False
@@ -319,9 +361,9 @@ def begin_rows(rows, states, rules, shaping, missions, field):
     """Start new episodes in ``rows``: the chaser at ``states`` (R, 2·dim) or, if None, at rest
     at the dock; clocks, Δv and flags cleared; gaps, clearance and potential computed."""
     (state, time, steps, delta_v, captured, collision, out_of_bounds, success, gaps, nearest,
-     min_clearance, potentials, applied) = missions  # fmt: skip
-    (centers, radii, polygon_start, polygons, n_vertices, vertices, dock, _low, _high,
-     length_scale, speed_scale) = field  # fmt: skip
+     min_clearance, potentials, applied, hold, score) = missions  # fmt: skip
+    (centers, radii, polygon_start, polygons, n_vertices, vertices, _velocities, attitude,
+     _turns, dock, _low, _high, length_scale, speed_scale) = field  # fmt: skip
     dim = dock.shape[1]
     n_targets = rules.n_targets
     for r in range(rows.shape[0]):
@@ -339,14 +381,17 @@ def begin_rows(rows, states, rules, shaping, missions, field):
         time[i] = 0.0
         steps[i] = 0
         delta_v[i] = 0.0
+        score[i] = 0.0
         for j in range(n_targets):
             captured[i, j] = False
+            hold[i, j] = 0
         collision[i] = False
         out_of_bounds[i] = False
         success[i] = False
         measure(
-            i, state, gaps, nearest, centers, radii, polygon_start, polygons, n_vertices, vertices
-        )
+            i, state, gaps, nearest, centers, radii, polygon_start, polygons, n_vertices, vertices,
+            attitude,
+        )  # fmt: skip
         min_clearance[i] = nearest_obstacle(i, n_targets, gaps, math.inf)
         potentials[i] = potential(
             i, rules, shaping, state, gaps, captured, centers, dock, length_scale, speed_scale
@@ -372,17 +417,20 @@ def step_all_threaded(n_chunks, live, actions, rules, shaping, missions, field, 
 def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out):
     """One step of the missions ``lo … hi − 1`` that are ``live``: the phases in order."""
     (state, time, steps, delta_v, captured, collision, out_of_bounds, success, gaps, nearest,
-     min_clearance, potentials, applied) = missions  # fmt: skip
-    (centers, radii, polygon_start, polygons, n_vertices, vertices, dock, low, high,
-     length_scale, speed_scale) = field  # fmt: skip
+     min_clearance, potentials, applied, hold, score) = missions  # fmt: skip
+    (centers, radii, polygon_start, polygons, n_vertices, vertices, velocities, attitude, turns,
+     dock, low, high, length_scale, speed_scale) = field  # fmt: skip
     rewards, terminated, truncated, terms = out
     matrix_t = rules.step_matrix_t
+    body_matrix_t = rules.body_matrix_t
     n_targets = rules.n_targets
     dim = dock.shape[1]
     path = np.empty((matrix_t.shape[1] // dim, dim))  # start + every sub-step
     start = np.empty(2 * dim)
     accel = np.empty(dim)
     touched = np.empty(centers.shape[1], dtype=np.bool_)
+    rel = np.empty_like(path)  # the path relative to one moving body
+    scratch = np.empty(2 * dim)
     for i in range(lo, hi):
         if not live[i]:
             for k in range(terms.shape[1]):
@@ -394,21 +442,30 @@ def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out):
         # burn, propagate
         dv = burn(i, actions[i], rules, delta_v, applied, accel)
         propagate(i, accel, matrix_t, rules, state, time, steps, start, path)
-        # contacts along the path, swept from the gaps at its start
-        path_touches(
-            path, gaps[i], rules.chaser_radius, i, centers, radii, polygon_start, n_vertices,
-            vertices, touched,
-        )  # fmt: skip
+        # contacts along the path, swept from the gaps at its start; then the bodies fly
+        if rules.moving:
+            moving_path_touches(
+                path, matrix_t, rules.reach_position, rules.reach_velocity, gaps[i],
+                rules.chaser_radius, i, centers, velocities, radii, polygon_start, n_vertices,
+                vertices, attitude, turns, rel, touched,
+            )  # fmt: skip
+            move_bodies(i, body_matrix_t, centers, velocities, attitude, turns, scratch)
+        else:
+            path_touches(
+                path, gaps[i], rules.chaser_radius, i, centers, radii, polygon_start, n_vertices,
+                vertices, touched,
+            )  # fmt: skip
         # measure at the end
         measure(
-            i, state, gaps, nearest, centers, radii, polygon_start, polygons, n_vertices, vertices
-        )
+            i, state, gaps, nearest, centers, radii, polygon_start, polygons, n_vertices, vertices,
+            attitude,
+        )  # fmt: skip
         min_clearance[i] = nearest_obstacle(i, n_targets, gaps, min_clearance[i])
         # captures
         slow = speed_of(i, state) <= rules.capture_speed
-        new = captures(i, slow, rules, gaps, captured)
+        new = captures(i, rules, state, gaps, velocities, captured, hold)
         # judge
-        collision[i] = collision[i] or collides(i, start, touched, slow, n_targets, state, centers)
+        collision[i] = collision[i] or collides(i, start, touched, slow, rules, state, centers)
         out_of_bounds[i] = outside(i, state, low, high)
         success[i] = success[i] or (
             not collision[i] and succeeds(i, slow, rules, state, captured, dock)
@@ -426,6 +483,9 @@ def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out):
         rewards[i] = reward(
             i, new, dv, ended, phi, before, rules, success, collision, out_of_bounds, terms
         )
+        for k in range(terms.shape[1]):  # the task score: every term but the shaping
+            if k != _T_PROGRESS:
+                score[i] += terms[i, k]
 
 
 @kernel

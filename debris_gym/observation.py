@@ -42,6 +42,10 @@ def _kinematics(cfg: EnvConfig) -> bool:
     return cfg.observation == "kinematics"
 
 
+def _moving(cfg: EnvConfig) -> bool:
+    return cfg.debris_motion != "frozen"
+
+
 OBSERVATION_BLOCKS: tuple[ObservationBlock, ...] = (
     ObservationBlock("chaser", ("chaser_pos_{a}", "chaser_vel_{a}"), lambda cfg: 1),
     ObservationBlock(
@@ -59,6 +63,11 @@ OBSERVATION_BLOCKS: tuple[ObservationBlock, ...] = (
         "obstacles",
         ("obstacle{k}_rel_pos_{a}", "obstacle{k}_radius", "obstacle{k}_gap"),
         lambda cfg: cfg.obs_obstacles if _kinematics(cfg) else 0,
+    ),
+    ObservationBlock(
+        "obstacle_velocities",
+        ("obstacle{k}_rel_vel_{a}",),
+        lambda cfg: cfg.obs_obstacles if _kinematics(cfg) and _moving(cfg) else 0,
     ),
     ObservationBlock("lidar", ("lidar{k}",), lambda cfg: 0 if _kinematics(cfg) else cfg.lidar_rays),
     ObservationBlock("budgets", ("delta_v_remaining", "time_remaining"), lambda cfg: 1),
@@ -96,6 +105,8 @@ class ObservationLayout(NamedTuple):
     dock: int
     obstacles: int
     obstacle_slots: int
+    obstacle_velocities: int
+    obstacle_velocity_slots: int
     lidar: int
     lidar_rays: int
     budgets: int
@@ -124,6 +135,8 @@ def observation_layout(cfg: EnvConfig) -> ObservationLayout:
         dock=offsets["dock"],
         obstacles=offsets["obstacles"],
         obstacle_slots=slots["obstacles"],
+        obstacle_velocities=offsets["obstacle_velocities"],
+        obstacle_velocity_slots=slots["obstacle_velocities"],
         lidar=offsets["lidar"],
         lidar_rays=slots["lidar"],
         budgets=offsets["budgets"],
@@ -168,6 +181,8 @@ def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
     state, gaps, captured = missions.state, missions.gaps, missions.captured
     nearest, delta_v, steps = missions.nearest, missions.delta_v, missions.steps
     centers, radii, dock = field.centers, field.radii, field.dock
+    velocities, attitude = field.velocities, field.attitude
+    moving = rules.moving
     length_scale, speed_scale = field.length_scale, field.speed_scale
     n_vertices, vertices = field.n_vertices, field.vertices
     lidar_directions = layout.lidar_directions
@@ -217,7 +232,10 @@ def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
             for a in range(dim):
                 k = _put(out, i, k, (centers[i, j, a] - state[i, a]) * inv_l)
             for a in range(dim):
-                k = _put(out, i, k, -state[i, dim + a] * inv_v)  # targets at rest: minus chaser's
+                if moving:
+                    k = _put(out, i, k, (velocities[i, j, a] - state[i, dim + a]) * inv_v)
+                else:  # at rest: minus the chaser's
+                    k = _put(out, i, k, -state[i, dim + a] * inv_v)
             k = _put(out, i, k, radii[i, j] * inv_l)
             k = _put(out, i, k, 1.0 if captured[i, j] else 0.0)
         for _slot in range(m, layout.target_slots):  # empty slots read as "captured"
@@ -249,13 +267,23 @@ def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
                 for _ in range(dim + 1):
                     k = _put(out, i, k, 0.0)
                 k = _put(out, i, k, 1.0)
+            # the same bodies' velocities relative to the chaser (moving fields)
+            if layout.obstacle_velocity_slots:
+                k = layout.obstacle_velocities
+                for s in range(n_near):
+                    b = near[s]
+                    for a in range(dim):
+                        k = _put(out, i, k, (velocities[i, b, a] - state[i, dim + a]) * inv_v)
+                for _slot in range(n_near, layout.obstacle_velocity_slots):
+                    for _ in range(dim):
+                        k = _put(out, i, k, 0.0)
 
         # lidar: ray ranges / lidar_range
         if layout.lidar_rays:
             k = layout.lidar
             ray_ranges(
                 state[i, :dim], lidar_directions, layout.lidar_range, i, centers, radii,
-                field.polygon_start, n_vertices, vertices, ranges,
+                field.polygon_start, n_vertices, vertices, attitude, ranges,
             )  # fmt: skip
             for r in range(ranges.shape[0]):
                 k = _put(out, i, k, ranges[r] / layout.lidar_range)
@@ -282,7 +310,10 @@ def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
                 s += rel * rel
                 k = _put(out, i, k, rel / fine_l)
             for a in range(dim):
-                k = _put(out, i, k, 0.0 if goal == NO_GOAL else -state[i, dim + a] / (V / 10.0))
+                rel_v = 0.0 if goal == NO_GOAL else -state[i, dim + a]
+                if moving and goal >= 0:
+                    rel_v = velocities[i, goal, a] - state[i, dim + a]
+                k = _put(out, i, k, rel_v / (V / 10.0))
             if goal == DOCK_GOAL:
                 gap = math.sqrt(s)
             k = _put(out, i, k, (gap if goal != NO_GOAL else 0.0) / fine_l)

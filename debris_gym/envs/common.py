@@ -63,16 +63,20 @@ def single_spaces(cfg: EnvConfig) -> tuple[spaces.Box, spaces.Space]:
     if cfg.action == "continuous":
         act_space: spaces.Space = spaces.Box(-1.0, 1.0, shape=(cfg.dim,), dtype=np.float32)
     else:
-        act_space = spaces.Discrete(2 * cfg.dim + 1)
+        act_space = spaces.Discrete(len(discrete_action_table(cfg.dim, cfg.fine_thrust)))
     return obs_space, act_space
 
 
-def discrete_action_table(dim: int) -> np.ndarray:
-    """Row k = normalised thrust of discrete action k: coast, +x, −x, +y, −y (, +z, −z)."""
-    table = np.zeros((2 * dim + 1, dim))
-    for axis in range(dim):
-        table[1 + 2 * axis, axis] = 1.0
-        table[2 + 2 * axis, axis] = -1.0
+def discrete_action_table(dim: int, fine_thrust: float = 0.0) -> np.ndarray:
+    """Row k = normalised thrust of discrete action k: coast, +x, −x, +y, −y (, +z, −z) at
+    full thrust, then (when ``fine_thrust`` > 0) the same directions at ``fine_thrust`` of it:
+    the levels that let a discrete agent match a target's velocity finely enough to capture."""
+    levels = (1.0, fine_thrust) if fine_thrust > 0.0 else (1.0,)
+    table = np.zeros((2 * dim * len(levels) + 1, dim))
+    for level, thrust in enumerate(levels):
+        for axis in range(dim):
+            table[1 + 2 * dim * level + 2 * axis, axis] = thrust
+            table[2 + 2 * dim * level + 2 * axis, axis] = -thrust
     return table
 
 
@@ -135,6 +139,23 @@ def new_scenario(cfg: EnvConfig, spec: FieldSpec, rng: np.random.Generator) -> S
         rng, spec, mean_motion=cfg.n, dt=cfg.dt, max_accel=cfg.max_accel,
         capture_radius=cfg.capture_radius,
     )  # fmt: skip
+
+
+def check_motion_matches(cfg: EnvConfig, scenario: Scenario) -> None:
+    """A pinned field's motion must be the env's: a moving (``"cwh"``) field in an env whose
+    ``debris_motion`` is "frozen" (a v0 ID), or a frozen field in a moving-world env (a v1
+    ID), would be flown by the other world's rules.
+
+    Raises:
+        ValueError: naming the scenario's ``motion`` and the env's ``debris_motion``.
+    """
+    env_moving = cfg.debris_motion != "frozen"
+    if scenario.moving != env_moving:
+        raise ValueError(
+            f"the pinned scenario has motion={scenario.motion!r} but the env has "
+            f"debris_motion={cfg.debris_motion!r}; fly a 'cwh' scenario in a moving-world env "
+            "(the v1 IDs) and a 'frozen' one in a frozen-world env (the v0 IDs)"
+        )
 
 
 PHYSICS_DIFFER = "the pinned scenario's physics differ from the env's options"
@@ -238,14 +259,15 @@ def checked_continuous_actions(value: Any, shape: tuple[int, ...]) -> np.ndarray
     return a
 
 
-def checked_discrete_action(value: Any, dim: int) -> int:
-    """One discrete action index in [0, 2·dim]: an integer, a whole float or a one-element
-    array of either (as gymnasium's ``Discrete.sample()`` gives).
+def checked_discrete_action(value: Any, n_actions: int) -> int:
+    """One discrete action index in [0, n_actions − 1]: an integer, a whole float or a
+    one-element array of either (as gymnasium's ``Discrete.sample()`` gives).
 
     Raises:
         ValueError: naming ``action``.
     """
-    allowed = f"an integer in [0, {2 * dim}]"
+    last = n_actions - 1
+    allowed = f"an integer in [0, {last}]"
     a = real_array(value, "action")
     if a.size != 1:
         raise ValueError(f"a discrete action is one integer ({allowed}), got shape {a.shape}")
@@ -253,8 +275,8 @@ def checked_discrete_action(value: Any, dim: int) -> int:
     if not (math.isfinite(number) and float(number).is_integer()):
         raise ValueError(f"discrete action must be {allowed}, got {value!r}")
     index = int(number)
-    if not 0 <= index <= 2 * dim:
-        raise ValueError(f"discrete action {index} is outside [0, {2 * dim}]; allowed: {allowed}")
+    if not 0 <= index <= last:
+        raise ValueError(f"discrete action {index} is outside [0, {last}]; allowed: {allowed}")
     return index
 
 

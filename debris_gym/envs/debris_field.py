@@ -11,6 +11,7 @@ import numpy as np
 
 from debris_gym.config import EnvConfig
 from debris_gym.envs.common import (
+    check_motion_matches,
     checked_chaser_states,
     checked_continuous_actions,
     checked_discrete_action,
@@ -111,7 +112,7 @@ class DebrisFieldEnv(gym.Env):
         cfg = self.config
         self.dim = d = cfg.dim
         self.observation_space, self.action_space = single_spaces(cfg)
-        self._discrete_actions = discrete_action_table(d)
+        self._discrete_actions = discrete_action_table(d, cfg.fine_thrust)
         self._obs_names = observation_names(cfg)
         self._field_spec = field_spec(cfg)
         self.scenario: Scenario | None = None
@@ -147,17 +148,29 @@ class DebrisFieldEnv(gym.Env):
         return np.asarray(self._trail)
 
     @property
+    def body_states(self) -> np.ndarray:
+        """Every body's LVLH state now, (B, 2·dim) [position (m), velocity (m/s)], targets
+        first (a copy; in a moving field equal to ``scenario.body_states(elapsed)``)."""
+        f = self._missions.field
+        return np.concatenate([f.centers[0], f.velocities[0]], axis=1)
+
+    @property
     def potential(self) -> float:
         """The shaping potential Φ of the current state (dimensionless, docs/environments.md)."""
         return float(self._missions.potential[0])
 
     @property
     def geometry(self) -> FieldGeometry:
-        """Geometry of the current field, bodies inflated by the chaser radius (built on first
-        use): the clearance and collision queries planners share with the env."""
-        if self._field_geometry is None:
-            self._field_geometry = FieldGeometry(self.scenario, inflate=self.config.chaser_radius)
-        return self._field_geometry
+        """Geometry of the current field as it is now (bodies where they are at the env's
+        time), inflated by the chaser radius (built on first use, again when the bodies have
+        moved): the clearance and collision queries planners share with the env."""
+        t = self.elapsed if self.scenario.moving else 0.0
+        geometry = self._field_geometry
+        if geometry is None or geometry.time != t:
+            geometry = self._field_geometry = FieldGeometry(
+                self.scenario, inflate=self.config.chaser_radius, time=t
+            )
+        return geometry
 
     @property
     def current_goal(self) -> Goal:
@@ -205,7 +218,7 @@ class DebrisFieldEnv(gym.Env):
                 self.config, 1, n_targets, n_bodies, mean_motion=mean_motion, dt=dt,
                 max_accel=max_accel, polygon_start=0,
             )  # fmt: skip
-        m.field.load(0, scenario)
+        m.load_scenario(np.zeros(1, dtype=np.int64), scenario)
         m.set_world(
             np.zeros(1, dtype=np.int64),
             scenario.dock,
@@ -245,6 +258,7 @@ class DebrisFieldEnv(gym.Env):
                 scenario = as_scenario(options["scenario"])
                 self._check_dim(scenario)
                 warn_if_physics_differ(self.config, scenario)
+                check_motion_matches(self.config, scenario)
             else:
                 scenario = self._new_scenario()
             if options.get("chaser_state") is not None:
@@ -296,7 +310,7 @@ class DebrisFieldEnv(gym.Env):
     def _action(self, action: Any) -> np.ndarray:
         """The validated action as a normalised thrust command, shape (1, dim)."""
         if self.config.action == "discrete":
-            index = checked_discrete_action(action, self.dim)
+            index = checked_discrete_action(action, len(self._discrete_actions))
             return self._discrete_actions[index : index + 1]
         return checked_continuous_actions(action, (self.dim,))[None]
 
@@ -320,6 +334,7 @@ class DebrisFieldEnv(gym.Env):
             "out_of_bounds": bool(m.out_of_bounds[0]),
             "is_success": bool(m.success[0]),
             "applied_accel": m.accel[0].copy(),
+            "task_score": float(m.score[0]),
             "reward_terms": terms,
         }
 

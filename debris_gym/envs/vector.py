@@ -29,6 +29,7 @@ from gymnasium.vector.utils import batch_space
 from debris_gym.batch_geometry import FieldBatch
 from debris_gym.config import EnvConfig
 from debris_gym.envs.common import (
+    check_motion_matches,
     checked_chaser_states,
     checked_continuous_actions,
     checked_reset_options,
@@ -116,7 +117,7 @@ class DebrisFieldVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, n)
         self.action_space = batch_space(self.single_action_space, n)
         self._obs_names = observation_names(cfg)
-        self._discrete_actions = discrete_action_table(d)
+        self._discrete_actions = discrete_action_table(d, cfg.fine_thrust)
         self._field_spec = field_spec(cfg)
         self._rngs: list[np.random.Generator] = [np.random.default_rng() for _ in range(n)]
         self._pinned: list[Scenario | None] = [None] * n  # fields not drawn by the env
@@ -188,9 +189,10 @@ class DebrisFieldVectorEnv(VectorEnv):
             rows if self._missions is None else [i for i in listed if self._pinned[i] is not None]
         )
         missions = self._fit((cfg.n, cfg.dt, cfg.max_accel), fields.n_targets, len(fields.radii[0]))
-        missions.field.load_arrays(
-            rows, fields.centers, fields.radii, fields.vertices, fields.n_vertices
-        )
+        missions.load_arrays(
+            rows, fields.centers, fields.radii, fields.vertices, fields.n_vertices,
+            getattr(fields, "velocities", None), getattr(fields, "spins", None),
+        )  # fmt: skip
         for i in listed:
             self._pinned[i] = None
         if len(stale):
@@ -209,7 +211,7 @@ class DebrisFieldVectorEnv(VectorEnv):
             raise ValueError(f"scenario has dim={scenario.dim} but the env has dim={self.dim}")
         physics = (scenario.mean_motion, scenario.dt, scenario.max_accel)
         missions = self._fit(physics, len(scenario.targets), len(scenario.bodies))
-        missions.field.load_scenario(rows, scenario)
+        missions.load_scenario(rows, scenario)
         for i in rows.tolist():
             self._pinned[i] = scenario
         missions.set_world(rows, scenario.dock, scenario.low, scenario.high, scenario.size / 2.0)
@@ -294,6 +296,7 @@ class DebrisFieldVectorEnv(VectorEnv):
                 physics = (pinned.mean_motion, pinned.dt, pinned.max_accel)
                 self._check_fits(physics, len(pinned.targets), len(pinned.bodies))
                 warn_if_physics_differ(cfg, pinned)
+                check_motion_matches(cfg, pinned)
             else:
                 fields = self._draw(rows, rngs)
                 if fields is not None:
@@ -386,8 +389,9 @@ class DebrisFieldVectorEnv(VectorEnv):
             idx = real_array(actions, "action")
             if idx.shape != (n,) or idx.dtype.kind not in "iu":
                 raise ValueError(f"discrete actions must be {n} integers, got {actions!r}")
-            if np.any((idx < 0) | (idx > 2 * d)):
-                raise ValueError(f"discrete actions must lie in [0, {2 * d}], got {idx}")
+            last = len(self._discrete_actions) - 1
+            if np.any((idx < 0) | (idx > last)):
+                raise ValueError(f"discrete actions must lie in [0, {last}], got {idx}")
             return self._discrete_actions[idx]
         return checked_continuous_actions(actions, (n, d))
 
@@ -411,6 +415,7 @@ class DebrisFieldVectorEnv(VectorEnv):
             "out_of_bounds": m.out_of_bounds.copy(),
             "is_success": m.success.copy(),
             "applied_accel": m.accel.copy(),
+            "task_score": m.score.copy(),
         }
         info: dict[str, Any] = {}
         for key, value in values.items():
