@@ -38,10 +38,7 @@ def main(argv: list[str] | None = None) -> None:
 
     from debris_gym.generators import FieldSpec, random_field
 
-    spec = FieldSpec(
-        motion="bounded", mean_motion=N, target_clearance=17.0, dock_clearance=50.0,
-        spin_max=0.005,
-    )  # fmt: skip
+    spec = FieldSpec(motion="bounded", mean_motion=N, target_clearance=17.0, dock_clearance=50.0)
     scenario = random_field(
         np.random.default_rng(args.seed), spec, mean_motion=N, dt=10.0, max_accel=0.05,
         capture_radius=5.0,
