@@ -190,11 +190,13 @@ def random_orbit_fields(
     """
     if not route_by_construction(spec, capture_radius):
         raise ValueError(
-            "a moving field needs the disjoint-balls conditions at every instant: "
-            f"FieldSpec.min_gap={spec.min_gap} > 2·chaser_radius + 0.5·capture_radius and "
-            f"min_gap + target_clearance > 2·chaser_radius + 0.5·capture_radius, "
-            f"dock_clearance={spec.dock_clearance} > chaser_radius={spec.chaser_radius}, "
-            f"capture_radius={capture_radius} > 0; raise min_gap or lower chaser_radius"
+            "a moving field needs the disjoint-balls conditions at every instant (the "
+            "solvability argument, module docstring): FieldSpec.min_gap > 2·chaser_radius and "
+            "> chaser_radius + capture_radius/2, min_gap + target_clearance > 2·chaser_radius + "
+            "capture_radius/2, dock_clearance > chaser_radius and capture_radius > 0; got "
+            f"min_gap={spec.min_gap}, target_clearance={spec.target_clearance}, "
+            f"dock_clearance={spec.dock_clearance}, chaser_radius={spec.chaser_radius}, "
+            f"capture_radius={capture_radius}: raise min_gap or lower chaser_radius"
         )
     why = moving_unplaceable(spec)
     if why is not None:
@@ -233,8 +235,9 @@ def random_orbit_fields(
     raise ValueError(
         f"could not place n_targets={spec.n_targets} and n_obstacles={spec.n_obstacles} on "
         f"relative orbits (motion={spec.motion!r}) in field_size={spec.field_size} m with "
-        f"min_gap={spec.min_gap} m after {max_tries} draws; lower n_obstacles, rho_max or the "
-        "obstacle radius range, or raise field_size"
+        f"min_gap={spec.min_gap} m after {max_tries} draws; lower n_obstacles or the radii, "
+        "raise field_size, or give the orbits room (rho_max: every drift-free orbit is centred "
+        "on the along-track axis, so small amplitudes crowd it)"
     )
 
 
