@@ -166,43 +166,53 @@ class FieldBatch:
                 bodies from ``polygon_start`` up to it are circles).
         """
         rows = np.asarray(rows, dtype=np.int64)
-        first = self.polygon_start if vertex_start is None else vertex_start
-        if self.dim == 2 and self.n_vertices.shape[1] > 0:
-            if not self.polygon_start <= first <= self.n_bodies:
+        k, b, dim, p = rows.shape[0], self.n_bodies, self.dim, self.n_vertices.shape[1]
+        start = self.polygon_start if vertex_start is None else vertex_start
+        centers = np.ascontiguousarray(centers, dtype=float)
+        radii = np.ascontiguousarray(radii, dtype=float)
+        # the compiled copy trusts the shapes: check them here
+        if dim == 2 and p > 0:
+            if not self.polygon_start <= start <= b:
                 raise ValueError(
                     f"vertex_start={vertex_start} is out of range; allowed: "
-                    f"[{self.polygon_start}, {self.n_bodies}]"
+                    f"[{self.polygon_start}, {b}]"
                 )
             counts = np.ascontiguousarray(n_vertices, dtype=np.int64)
             vertices = np.ascontiguousarray(vertices, dtype=float)
+            want = (k, p - (start - self.polygon_start))
+            if counts.shape != want:
+                raise ValueError(f"n_vertices has shape {counts.shape}; this batch needs {want}")
+            if vertices.ndim != 4 or vertices.shape[:2] != want or vertices.shape[3] != 2:
+                raise ValueError(f"vertices has shape {vertices.shape}; needs {(*want, 'V', 2)}")
         else:  # no polygons
             counts, vertices = _NO_COUNTS, _NO_VERTICES
-        k, p = rows.shape[0], self.n_vertices.shape[1]
-        shapes = (
-            ("centers", np.shape(centers), (k, self.n_bodies, self.dim)),
-            ("radii", np.shape(radii), (k, self.n_bodies)),
-            ("n_vertices", counts.shape, (k, p - (first - self.polygon_start)) if p else (0, 0)),
-            ("velocities", np.shape(velocities), (k, self.n_bodies, self.dim)),
-            ("spins", np.shape(spins), (k, p)),
-        )
-        for name, got, want in shapes:  # the compiled copy trusts them
-            if got != want and not (got == () and name in ("velocities", "spins")):
-                raise ValueError(f"{name} has shape {got}; this batch needs {want}")
-        if counts.shape[0] and (
-            vertices.ndim != 4
-            or vertices.shape[::3] != (k, 2)
-            or vertices.shape[:2] != counts.shape
-        ):
+        if centers.shape != (k, b, dim) or radii.shape != (k, b):
             raise ValueError(
-                f"vertices has shape {vertices.shape}; needs {(*counts.shape, 'V', 2)}"
+                f"centers / radii have shapes {centers.shape} / {radii.shape}; this batch needs "
+                f"{(k, b, dim)} / {(k, b)}"
             )
+        if velocities is None:
+            velocities = _NO_MOTION
+        else:
+            velocities = np.ascontiguousarray(velocities, dtype=float)
+            if velocities.shape != (k, b, dim):
+                raise ValueError(f"velocities has shape {velocities.shape}; needs {(k, b, dim)}")
+        if spins is None:
+            spins = _NO_SPINS
+        else:
+            spins = np.ascontiguousarray(spins, dtype=float)
+            if spins.shape != (k, p):
+                raise ValueError(f"spins has shape {spins.shape}; this batch needs {(k, p)}")
         args = (
-            rows, np.ascontiguousarray(centers, dtype=float),
-            np.ascontiguousarray(radii, dtype=float), vertices, counts,
-            _NO_MOTION if velocities is None else np.ascontiguousarray(velocities, dtype=float),
-            _NO_SPINS if spins is None else np.ascontiguousarray(spins, dtype=float),
-            first - self.polygon_start,
-        )  # fmt: skip
+            rows,
+            centers,
+            radii,
+            vertices,
+            counts,
+            velocities,
+            spins,
+            start - self.polygon_start,
+        )
         most = _load_fields(*args, *self._load_outputs())
         if most > self.max_vertices:  # nothing was written: make room, then load
             self._grow_vertices(most)
