@@ -19,7 +19,7 @@ ID_2D = "DebrisGym/Rendezvous2D-v1"
 ID_3D = "DebrisGym/Rendezvous3D-v1"
 PRETRAINED_ENV = "DebrisGym/Rendezvous2D-v0"
 """The env the shipped pretrained policy flies (no policy trained on v1 ships yet)."""
-SCALING_COUNTS = (10, 50, 200, 1000)
+SCALING_COUNTS = (10, 50, 100, 200)
 """Debris counts of the single-env scaling rows (the vector rows take theirs from the sizes)."""
 DEFAULT_OBSTACLES = 20
 """Debris of the default field: the reference of both scaling tables."""
@@ -44,7 +44,7 @@ QUICK: dict[str, Any] = {
     "vector_seconds": 0.25,
     "sync_max_steps": 20,
     # vector scaling: (n_obstacles, N); a 20-debris row is added for every N
-    "scaling_rows": ((10, 256), (50, 256), (200, 64), (1000, 16)),
+    "scaling_rows": ((10, 256), (50, 256), (100, 128), (200, 64)),
     "scaling_seconds": 0.15,
     "early_steps": 45,
     # memory: (small N, large N)
@@ -74,7 +74,7 @@ FULL: dict[str, Any] = {
     "warmup_steps": 250,
     "vector_seconds": 0.8,
     "sync_max_steps": 60,
-    "scaling_rows": ((10, 1024), (50, 1024), (200, 1024), (1000, 256)),
+    "scaling_rows": ((10, 1024), (50, 1024), (100, 1024), (200, 1024)),
     "scaling_seconds": 0.5,
     "early_steps": 60,
     "memory_envs": (64, 4096),
@@ -92,7 +92,7 @@ TINY: dict[str, Any] = {
     "subproc_envs": (2,),
     "cartpole_envs": 4,
     "warmup_steps": 3,
-    "scaling_rows": ((10, 4), (50, 4), (200, 2), (1000, 2)),
+    "scaling_rows": ((10, 4), (50, 4), (100, 2), (200, 2)),
     "early_steps": 30,
     "memory_envs": (2, 6),
     "train_envs": (4,),

@@ -85,6 +85,7 @@ class DecisionMeasurement:
 
     spec: str  # an evaluate.py agent spec: a baseline name or "pretrained"
     label: str = ""
+    env_id: str = ID_2D  # the env it flies
     max_steps: int | None = None  # time limit of a mission (None: the env's)
     env: Any = None
     agent: Any = None
@@ -103,9 +104,11 @@ class DecisionMeasurement:
         start = time.perf_counter()
         spec = api.parse_agent_spec(self.spec)
         # the shipped policy flies the frozen world it was trained in; the baselines the default
-        env_id = PRETRAINED_ENV if self.spec == api.pretrained else ID_2D
-        self.label = spec.label if env_id == ID_2D else f"{spec.label} ({env_id})"
-        self.env = api.make_env(env_id, api.agent_env_options(spec, env_id), self.max_steps)
+        self.env_id = PRETRAINED_ENV if self.spec == api.pretrained else ID_2D
+        self.label = spec.label
+        self.env = api.make_env(
+            self.env_id, api.agent_env_options(spec, self.env_id), self.max_steps
+        )
         self.agent = api.build_agent(spec, self.env)
         obs, _ = self.env.reset(seed=DECISION_WARMUP_SEED)
         state = None
@@ -180,7 +183,7 @@ def decision_rows(todo: list[DecisionMeasurement], ref: Measurement) -> list[dic
         rows.append(
             {
                 "section": "decisions",
-                "env_id": ID_2D,
+                "env_id": m.env_id,
                 "variant": m.label,
                 "level": "predict",
                 "n_obstacles": DEFAULT_OBSTACLES,

@@ -377,7 +377,8 @@ def _decision_lines(decisions: list[dict[str, Any]]) -> list[str]:
         "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|",
     )
     for row in decisions:
-        first = [f"`{row['agent']}`"]
+        where = f" on `{row['env_id']}`" if row["env_id"] != ID_2D else ""
+        first = [f"`{row['agent']}`{where}"]
         rest = [
             str(row["episodes"]),
             f"{row['decisions']:,}",

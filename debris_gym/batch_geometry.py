@@ -647,20 +647,22 @@ def moving_path_touches(
 
     Broad phase: the relative path stays within ``reach(chaser) + reach(body)`` of its start,
     where a body's reach over the step is at most ``reach_position`` · |position| +
-    ``reach_velocity`` · |velocity| (the largest norms of the position blocks of Φ(t) − I and
-    Φ(t) at the sub-steps); bodies whose gap at the start (``start_gaps``) is larger are
-    skipped. ``rel`` is (K+1, dim) scratch.
+    ``reach_velocity`` · |velocity| (the largest 2-norms of the position blocks of Φ(t) − I and
+    Φ(t) at the sub-steps; the vectors' 1-norms, which are no smaller, stand in for theirs);
+    bodies whose gap at the start (``start_gaps``) is larger are skipped. ``rel`` is (K+1, dim)
+    scratch.
     """
     n_points, dim = path.shape
     reach = path_reach(path) + inflate
     for b in range(centers.shape[1]):
         out[b] = False
-        pos2 = 0.0
-        vel2 = 0.0
+        # 1-norms bound the 2-norms from above: a looser bound that needs no square root
+        pos1 = 0.0
+        vel1 = 0.0
         for a in range(dim):
-            pos2 += centers[i, b, a] * centers[i, b, a]
-            vel2 += velocities[i, b, a] * velocities[i, b, a]
-        bound = reach_position * math.sqrt(pos2) + reach_velocity * math.sqrt(vel2)
+            pos1 += abs(centers[i, b, a])
+            vel1 += abs(velocities[i, b, a])
+        bound = reach_position * pos1 + reach_velocity * vel1
         if not start_gaps[b] <= reach + bound:  # broad phase
             continue
         for a in range(dim):

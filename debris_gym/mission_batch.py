@@ -46,6 +46,26 @@ from debris_gym.observation import (
 __all__ = ["OBS_LIMIT", "MissionBatch", "check_threads"]
 
 
+def check_transition(phi: np.ndarray) -> np.ndarray:
+    """``phi``, the state-transition matrix Φ(dt) of a free body, after checking the structure
+    :func:`~debris_gym.mission_step.move_bodies` relies on: no state depends on the along-track
+    position y but y itself (Φ_yy = 1 exactly), and in 3D the cross-track pair (z, ż) neither
+    feeds nor is fed by the plane (those entries exactly zero, as the matrix exponential of the
+    CWH matrix gives them)."""
+    dim = phi.shape[0] // 2
+    expected_zero = np.zeros_like(phi, dtype=bool)
+    expected_zero[:, 1] = True
+    expected_zero[1, 1] = False
+    if dim == 3:
+        cross = np.array([2, 5])
+        plane = np.array([0, 1, 3, 4])
+        expected_zero[np.ix_(cross, plane)] = True
+        expected_zero[np.ix_(plane, cross)] = True
+    if np.any(phi[expected_zero] != 0.0) or phi[1, 1] != 1.0:
+        raise RuntimeError("the CWH state-transition matrix lost its structure: " + repr(phi))
+    return phi
+
+
 def body_reach(sub: np.ndarray, dim: int) -> tuple[float, float]:
     """Bounds of how far a free body moves within a step: the largest 2-norms, over the
     sub-steps, of the position blocks Φ_pp(t) − I and Φ_pv(t) of the state-transition matrix
@@ -128,7 +148,8 @@ class MissionBatch:
         step_matrix_t = np.ascontiguousarray(np.vstack([sub, end_velocity]).T)
         self.rules = make_rules(
             cfg, t, step_matrix_t, dt=dt, max_accel=max_accel, max_episode_steps=max_episode_steps,
-            body_matrix_t=np.ascontiguousarray(model.ad.T), reach=body_reach(sub, d),
+            body_matrix_t=np.ascontiguousarray(check_transition(model.ad).T),
+            reach=body_reach(sub, d),
         )  # fmt: skip
         self._turn_angles = (dt, dt / cfg.collision_substeps)
         self.shaping = make_shaping(cfg)

@@ -95,21 +95,35 @@ def propagate(i, accel, matrix_t, rules, state, time, steps, start, path):
 
 
 @inlined
-def move_bodies(i, matrix_t, centers, velocities, attitude, turns, scratch):
+def move_bodies(i, matrix_t, centers, velocities, attitude, turns):
     """Every body of field ``i`` flies the step unforced: its state (``centers``,
-    ``velocities``) times the exact state-transition matrix (``matrix_t`` = Φ(dt)ᵀ), and every
-    polygon turns by its step's angle (``turns[i, j, 0:2]``). ``scratch`` is (2·dim,)."""
+    ``velocities``) times the exact state-transition matrix Φ(dt) (``matrix_t`` = Φᵀ), and every
+    polygon turns by its step's angle (``turns[i, j, 0:2]``).
+
+    Written out with Φ's structure (:func:`debris_gym.mission_batch.check_transition`): the
+    along-track position feeds nothing but itself (Φ_yy = 1), and the cross-track pair (z, ż)
+    is decoupled from the plane; the entries left out are exactly zero.
+    """
     dim = centers.shape[2]
+    v = dim  # index of ẋ in the state
+    pxx, pxu, pxv = matrix_t[0, 0], matrix_t[v, 0], matrix_t[v + 1, 0]
+    pyx, pyu, pyv = matrix_t[0, 1], matrix_t[v, 1], matrix_t[v + 1, 1]
+    pux, puu, puv = matrix_t[0, v], matrix_t[v, v], matrix_t[v + 1, v]
+    pvx, pvu, pvv = matrix_t[0, v + 1], matrix_t[v, v + 1], matrix_t[v + 1, v + 1]
     for b in range(centers.shape[1]):
-        for c in range(2 * dim):
-            s = 0.0
-            for k in range(dim):
-                s += centers[i, b, k] * matrix_t[k, c]
-                s += velocities[i, b, k] * matrix_t[dim + k, c]
-            scratch[c] = s
-        for k in range(dim):
-            centers[i, b, k] = scratch[k]
-            velocities[i, b, k] = scratch[dim + k]
+        x, y = centers[i, b, 0], centers[i, b, 1]
+        vx, vy = velocities[i, b, 0], velocities[i, b, 1]
+        centers[i, b, 0] = pxx * x + pxu * vx + pxv * vy
+        centers[i, b, 1] = y + pyx * x + pyu * vx + pyv * vy
+        velocities[i, b, 0] = pux * x + puu * vx + puv * vy
+        velocities[i, b, 1] = pvx * x + pvu * vx + pvv * vy
+    if dim == 3:
+        pzz, pzw = matrix_t[2, 2], matrix_t[5, 2]
+        pwz, pww = matrix_t[2, 5], matrix_t[5, 5]
+        for b in range(centers.shape[1]):
+            z, vz = centers[i, b, 2], velocities[i, b, 2]
+            centers[i, b, 2] = pzz * z + pzw * vz
+            velocities[i, b, 2] = pwz * z + pww * vz
     for j in range(attitude.shape[1]):
         c, s = attitude[i, j, 0], attitude[i, j, 1]
         cd, sd = turns[i, j, 0], turns[i, j, 1]
@@ -430,7 +444,6 @@ def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out):
     accel = np.empty(dim)
     touched = np.empty(centers.shape[1], dtype=np.bool_)
     rel = np.empty_like(path)  # the path relative to one moving body
-    scratch = np.empty(2 * dim)
     for i in range(lo, hi):
         if not live[i]:
             for k in range(terms.shape[1]):
@@ -449,7 +462,7 @@ def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out):
                 rules.chaser_radius, i, centers, velocities, radii, polygon_start, n_vertices,
                 vertices, attitude, turns, rel, touched,
             )  # fmt: skip
-            move_bodies(i, body_matrix_t, centers, velocities, attitude, turns, scratch)
+            move_bodies(i, body_matrix_t, centers, velocities, attitude, turns)
         else:
             path_touches(
                 path, gaps[i], rules.chaser_radius, i, centers, radii, polygon_start, n_vertices,

@@ -78,7 +78,7 @@ def test_report_has_machine_header_and_a_line_per_row(rows):
     assert "- CPU: " in report and "gymnasium" in report and "numba" in report
     for env_id in (*DEBRIS_IDS, CARTPOLE):
         assert report.count(f"`{env_id}`") >= 3  # make, unwrapped, reset
-    assert "| 1000 | 7,071 |" in report
+    assert "| 200 | 3,162 |" in report
 
 
 def test_write_atomic_replaces_the_file(tmp_path):

@@ -443,8 +443,11 @@ def pretrained_path(env: Any) -> tuple[str, Path]:
     env_id = env if isinstance(env, str) else _env_id(env)
     if env_id not in PRETRAINED_POLICIES:
         known = ", ".join(PRETRAINED_POLICIES)
+        why = ""
+        if env_id and env_id.endswith("-v1"):
+            why = "; no policy trained in the v1 world (moving debris) ships yet, "
         raise ValueError(
-            f"no pretrained policy for {env_id or 'this env'} (there is one for {known})"
+            f"no pretrained policy for {env_id or 'this env'}{why} (there is one for {known})"
         )
     algo, name = PRETRAINED_POLICIES[env_id]
     path = PRETRAINED_DIR / name

@@ -61,7 +61,9 @@ class EpisodeRecord:
     """Result of one agent on one episode. Fields marked for CSV become ``episodes.csv`` columns.
 
     Units: delta_v m/s, time s, path_length m, min_clearance m (smallest surface gap to any
-    body, chaser radius subtracted), decision times ms.
+    body, chaser radius subtracted), decision times ms. ``task_score`` is the env's unshaped
+    score of the episode (every reward term but the progress shaping, undiscounted);
+    ``episode_return`` the shaped return.
     """
 
     agent: str = _csv()
@@ -82,6 +84,7 @@ class EpisodeRecord:
     decision_ms_p95: float = _csv()
     decision_ms_max: float = _csv()
     episode_return: float = _csv()
+    task_score: float = _csv()
     smoothness: float = _csv()
     max_acceleration: float = _csv()
     max_deceleration: float = _csv()

@@ -70,9 +70,9 @@ def summary_markdown(summary: dict[str, Any]) -> str:
             else f"reset seed {summary['seed']}."
         ),
         "",
-        "| agent | success | targets captured | Δv [m/s] | time [s] | path [m] | collision "
-        "| min clearance [m] | decision p50 / p95 [ms] |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| agent | success | targets captured | task score | Δv [m/s] | time [s] | path [m] "
+        "| collision | min clearance [m] | decision p50 / p95 [ms] |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for label, e in summary["agents"].items():
         captured = _with_ci(e, "targets_captured_mean")
@@ -80,7 +80,8 @@ def summary_markdown(summary: dict[str, Any]) -> str:
             captured += f" / {e['n_targets']}"
         lines.append(
             f"| {label} | {_with_ci(e, 'success_rate', 2)} | {captured} "
-            f"| {_with_ci(e, 'delta_v_mean')} | {_with_ci(e, 'time_mean')} "
+            f"| {_with_ci(e, 'task_score_mean')} | {_with_ci(e, 'delta_v_mean')} "
+            f"| {_with_ci(e, 'time_mean')} "
             f"| {_with_ci(e, 'path_length_mean')} | {_with_ci(e, 'collision_rate', 2)} "
             f"| {format_number(e['min_clearance_min'])} "
             f"| {format_number(e['decision_ms_p50'])} / {format_number(e['decision_ms_p95'])} |"
@@ -88,7 +89,9 @@ def summary_markdown(summary: dict[str, Any]) -> str:
     lines += [
         "",
         "Brackets: 95 % confidence intervals — Wilson score for rates, Student t for means "
-        "(means are over all episodes, failed ones included).",
+        "(means are over all episodes, failed ones included). Task score: the env's unshaped "
+        "score per episode (captures and success minus Δv, collision, bounds and time "
+        "penalties; the shaping left out).",
     ]
     paired = summary.get("paired_delta_v") or {}
     if paired.get("agents"):

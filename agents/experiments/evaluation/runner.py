@@ -12,6 +12,7 @@ The accelerations recorded are the env's own ``info["applied_accel"]`` (after it
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 import warnings
@@ -117,6 +118,7 @@ def run_episode(env: gym.Env, agent: Any, label: str, episode: int, seed: int) -
         decision_ms_p95=float(np.percentile(ms, 95)),
         decision_ms_max=float(ms.max()),
         episode_return=total_reward,
+        task_score=float(info.get("task_score", math.nan)),
         smoothness=metrics.smoothness,
         max_acceleration=metrics.max_acceleration,
         max_deceleration=metrics.max_deceleration,

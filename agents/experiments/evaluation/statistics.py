@@ -32,7 +32,9 @@ CI_METHODS = {
 }
 
 RATE_KEYS = ("success_rate", "collision_rate", "out_of_bounds_rate")
-MEAN_KEYS = ("targets_captured_mean", "delta_v_mean", "time_mean", "path_length_mean")
+MEAN_KEYS = (
+    "targets_captured_mean", "delta_v_mean", "time_mean", "path_length_mean", "task_score_mean"
+)  # fmt: skip
 
 
 def _z(confidence: float) -> float:
@@ -158,6 +160,7 @@ def summarize(results: EvaluationResults, reference: str | None = None) -> dict[
             "delta_v_mean": [r.delta_v for r in recs],
             "time_mean": [r.time for r in recs],
             "path_length_mean": [r.path_length for r in recs],
+            "task_score_mean": [r.task_score for r in recs],
         }
         for key, values in columns.items():
             entry[key] = _mean(values)
