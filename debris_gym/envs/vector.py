@@ -11,8 +11,9 @@ truncates resets it (its action is ignored) and returns the first observation of
 with reward 0. Each sub-env keeps its own seeded generator; the sub-envs that reset on a step
 draw their fields together (:func:`debris_gym.generators.random_fields`: one fixed block of
 random numbers per sub-env and draw, or for a moving field one 64-bit word per sub-env, so a
-field never depends on which other sub-envs reset with it) and the fields go into the batch as arrays; :attr:`DebrisFieldVectorEnv.scenarios` builds a
-sub-env's :class:`Scenario` only when read. ``step`` has no Python loop over envs or debris.
+field never depends on which other sub-envs reset with it) and the fields go into the batch as
+arrays; :attr:`DebrisFieldVectorEnv.scenarios` builds a sub-env's :class:`Scenario` only when
+read. ``step`` has no Python loop over envs or debris.
 """
 
 from __future__ import annotations
