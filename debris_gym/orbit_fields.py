@@ -141,19 +141,6 @@ def checked_horizon(spec: FieldSpec) -> float:
     return max(float(spec.horizon), 2.0 * math.pi / spec.mean_motion)
 
 
-def _params_per_candidate(spec: FieldSpec) -> int:
-    """Uniform numbers per candidate orbit: ρ, α, y_c; + ρ_z, β in 3D; + x_c when drifting."""
-    return 3 + (2 if spec.dim == 3 else 0) + (1 if spec.motion == "drifting" else 0)
-
-
-def _stream_size(spec: FieldSpec) -> int:
-    """Uniform numbers one try of one moving field may read from its stream (their indices):
-    B radii, in 2D O polygon flags, O polygon shapes and O spins, then B × C candidates."""
-    bodies = spec.n_targets + spec.n_obstacles
-    polygons = spec.n_obstacles * (2 + _POLYGON_DRAWS) if spec.dim == 2 else 0
-    return bodies + polygons + bodies * ORBIT_CANDIDATES[spec.dim] * _params_per_candidate(spec)
-
-
 def moving_unplaceable(spec: FieldSpec) -> str | None:
     """Why no moving field of ``spec`` can ever be placed, or None.
 
