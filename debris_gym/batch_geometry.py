@@ -31,6 +31,12 @@ from debris_gym.scenario import Scenario
 _VERTEX_FIELDS = 4
 """Numbers stored per polygon vertex: relative x, y (m), edge to the next vertex x, y (m)."""
 
+# stand-ins for "none given" in the compiled load (empty: the kernel writes zeros)
+_NO_COUNTS = np.zeros((0, 0), dtype=np.int64)
+_NO_VERTICES = np.zeros((0, 0, 0, 2))
+_NO_MOTION = np.zeros((0, 0, 0))
+_NO_SPINS = np.zeros((0, 0))
+
 
 class FieldBatch:
     """N fields of B bodies each.
@@ -142,37 +148,80 @@ class FieldBatch:
         n_vertices: np.ndarray,
         velocities: np.ndarray | None = None,
         spins: np.ndarray | None = None,
+        *,
+        vertex_start: int | None = None,
     ) -> None:
-        """Put K fields given as arrays into the slots ``rows`` (no Python loop over bodies).
+        """Put K fields given as arrays into the slots ``rows`` (one compiled loop).
 
         Args:
             rows: (K,) slot indices.
             centers: (K, B, dim) body centres (m).
             radii: (K, B) radii (m).
-            vertices: (K, P, V', 2) vertices of bodies ``polygon_start …`` relative to their
+            vertices: (K, P', V', 2) vertices of bodies ``vertex_start …`` relative to their
                 centres (m), counter-clockwise; slots past a polygon's count are ignored.
-            n_vertices: (K, P) vertex counts, 0 for circles / spheres.
+            n_vertices: (K, P') vertex counts, 0 for circles / spheres.
             velocities: (K, B, dim) body velocities (m/s); None: at rest.
             spins: (K, P) tumble rates of bodies ``polygon_start …`` (rad/s); None: 0.
+            vertex_start: the body of ``vertices[:, 0]`` (default ``polygon_start``; the
+                bodies from ``polygon_start`` up to it are circles).
         """
         rows = np.asarray(rows, dtype=np.int64)
-        self.velocities[rows] = 0.0 if velocities is None else velocities
-        self.start_states[rows, :, : self.dim] = centers
-        self.start_states[rows, :, self.dim :] = self.velocities[rows]
-        self.spins[rows] = 0.0 if spins is None else spins
-        self.attitude[rows, :, 0] = 1.0
-        self.attitude[rows, :, 1] = 0.0
-        if self.dim == 2 and self.n_vertices.shape[1] > 0:
+        k, b, dim, p = rows.shape[0], self.n_bodies, self.dim, self.n_vertices.shape[1]
+        start = self.polygon_start if vertex_start is None else vertex_start
+        centers = np.ascontiguousarray(centers, dtype=float)
+        radii = np.ascontiguousarray(radii, dtype=float)
+        # the compiled copy trusts the shapes: check them here
+        if dim == 2 and p > 0:
+            if not self.polygon_start <= start <= b:
+                raise ValueError(
+                    f"vertex_start={vertex_start} is out of range; allowed: "
+                    f"[{self.polygon_start}, {b}]"
+                )
             counts = np.ascontiguousarray(n_vertices, dtype=np.int64)
-            if counts.max(initial=0) > self.max_vertices:
-                self._grow_vertices(int(counts.max()))
             vertices = np.ascontiguousarray(vertices, dtype=float)
+            want = (k, p - (start - self.polygon_start))
+            if counts.shape != want:
+                raise ValueError(f"n_vertices has shape {counts.shape}; this batch needs {want}")
+            if vertices.ndim != 4 or vertices.shape[:2] != want or vertices.shape[3] != 2:
+                raise ValueError(f"vertices has shape {vertices.shape}; needs {(*want, 'V', 2)}")
         else:  # no polygons
-            counts, vertices = np.zeros((0, 0), dtype=np.int64), np.zeros((0, 0, 0, 2))
-        _load_fields(
-            rows, np.ascontiguousarray(centers, dtype=float),
-            np.ascontiguousarray(radii, dtype=float), vertices, counts, self.centers,
-            self.radii, self.polygon_start, self.n_vertices, self.vertices, self.polygons,
+            counts, vertices = _NO_COUNTS, _NO_VERTICES
+        if centers.shape != (k, b, dim) or radii.shape != (k, b):
+            raise ValueError(
+                f"centers / radii have shapes {centers.shape} / {radii.shape}; this batch needs "
+                f"{(k, b, dim)} / {(k, b)}"
+            )
+        if velocities is None:
+            velocities = _NO_MOTION
+        else:
+            velocities = np.ascontiguousarray(velocities, dtype=float)
+            if velocities.shape != (k, b, dim):
+                raise ValueError(f"velocities has shape {velocities.shape}; needs {(k, b, dim)}")
+        if spins is None:
+            spins = _NO_SPINS
+        else:
+            spins = np.ascontiguousarray(spins, dtype=float)
+            if spins.shape != (k, p):
+                raise ValueError(f"spins has shape {spins.shape}; this batch needs {(k, p)}")
+        args = (
+            rows,
+            centers,
+            radii,
+            vertices,
+            counts,
+            velocities,
+            spins,
+            start - self.polygon_start,
+        )
+        most = _load_fields(*args, *self._load_outputs())
+        if most > self.max_vertices:  # nothing was written: make room, then load
+            self._grow_vertices(most)
+            _load_fields(*args, *self._load_outputs())
+
+    def _load_outputs(self) -> tuple:
+        return (
+            self.centers, self.radii, self.velocities, self.start_states, self.spins,
+            self.attitude, self.polygon_start, self.n_vertices, self.vertices, self.polygons,
         )  # fmt: skip
 
     def _grow_vertices(self, v: int) -> None:
@@ -270,24 +319,46 @@ class FieldBatch:
 
 @kernel
 def _load_fields(
-    rows, centers, radii, vertices, counts, out_centers, out_radii, polygon_start, out_counts,
+    rows, centers, radii, vertices, counts, velocities, spins, vertex_offset, out_centers,
+    out_radii, out_velocities, out_start, out_spins, out_attitude, polygon_start, out_counts,
     out_vertices, out_polygons,
 ):  # fmt: skip
-    """Copy K fields into the slots ``rows``: centres (K, B, dim) and radii (K, B), and (when
-    ``counts`` (K, P) is not empty) the relative polygon vertices (K, P, V', 2), zero-padded,
-    with the edge vector from each vertex to the next, computed from the absolute vertices as
-    :class:`~debris_gym.geometry.FieldGeometry` does (vertex + centre, next − this)."""
+    """Copy K fields into the slots ``rows`` and return 0, or write nothing and return the
+    largest vertex count when it exceeds the slots' room.
+
+    Centres (K, B, dim), radii (K, B), velocities (K, B, dim; empty: at rest), spins (K, P;
+    empty: 0), the start states and an unturned attitude; when ``counts`` (K, P') is not empty,
+    the relative polygon vertices (K, P', V', 2) of polygon slots ``vertex_offset …`` (the slots
+    before it are circles), zero-padded, with the edge vector from each vertex to the next,
+    computed from the absolute vertices as :class:`~debris_gym.geometry.FieldGeometry` does
+    (vertex + centre, next − this)."""
+    most = 0
+    for k in range(counts.shape[0]):
+        for j in range(counts.shape[1]):
+            most = max(most, counts[k, j])
+    if most > out_vertices.shape[2]:
+        return most
+    dim = centers.shape[2]
     for k in range(rows.shape[0]):
         i = rows[k]
         for b in range(centers.shape[1]):
             out_radii[i, b] = radii[k, b]
-            for a in range(centers.shape[2]):
-                out_centers[i, b, a] = centers[k, b, a]
+            for a in range(dim):
+                c = centers[k, b, a]
+                v = velocities[k, b, a] if velocities.shape[0] else 0.0
+                out_centers[i, b, a] = c
+                out_velocities[i, b, a] = v
+                out_start[i, b, a] = c
+                out_start[i, b, dim + a] = v
+        for j in range(out_spins.shape[1]):
+            out_spins[i, j] = spins[k, j] if spins.shape[0] else 0.0
+            out_attitude[i, j, 0] = 1.0
+            out_attitude[i, j, 1] = 0.0
         if counts.shape[0] == 0:
             continue
         n_poly = 0
-        for j in range(counts.shape[1]):
-            m = counts[k, j]
+        for j in range(out_counts.shape[1]):
+            m = counts[k, j - vertex_offset] if j >= vertex_offset else 0
             out_counts[i, j] = m
             if m:
                 n_poly += 1
@@ -298,8 +369,8 @@ def _load_fields(
                 for c in range(out_vertices.shape[3]):
                     out_vertices[i, j, v, c] = 0.0
                 if v < m:
-                    out_vertices[i, j, v, 0] = vertices[k, j, v, 0]
-                    out_vertices[i, j, v, 1] = vertices[k, j, v, 1]
+                    out_vertices[i, j, v, 0] = vertices[k, j - vertex_offset, v, 0]
+                    out_vertices[i, j, v, 1] = vertices[k, j - vertex_offset, v, 1]
             for v in range(m):
                 w = v + 1 if v + 1 < m else 0
                 ex = (out_vertices[i, j, w, 0] + cx) - (out_vertices[i, j, v, 0] + cx)
@@ -307,6 +378,23 @@ def _load_fields(
                 out_vertices[i, j, v, 2] = ex
                 out_vertices[i, j, v, 3] = ey
         out_polygons[i, 0] = n_poly
+    return 0
+
+
+@kernel
+def polygon_turns(rows, spins, n, step, sub, out):
+    """cos, sin of each polygon's turn (rate spin − n, rad/s) over ``step`` and ``sub`` (s) in
+    ``rows`` of ``out`` (N, P, 4). Scalar ``math.cos`` / ``sin``, bit for bit the values Python's
+    give (numpy's vectorised ones may round differently with the array's length, and a field
+    must turn the same in every env that flies it)."""
+    for k in range(rows.shape[0]):
+        i = rows[k]
+        for j in range(spins.shape[1]):
+            rate = spins[i, j] - n
+            out[i, j, 0] = math.cos(rate * step)
+            out[i, j, 1] = math.sin(rate * step)
+            out[i, j, 2] = math.cos(rate * sub)
+            out[i, j, 3] = math.sin(rate * sub)
 
 
 @inlined

@@ -21,7 +21,7 @@ import math
 import numba
 import numpy as np
 
-from debris_gym.batch_geometry import FieldBatch
+from debris_gym.batch_geometry import FieldBatch, polygon_turns
 from debris_gym.config import EnvConfig
 from debris_gym.dynamics import discretize, substep_position_matrix
 from debris_gym.generators import MAX_POLYGON_VERTICES
@@ -231,10 +231,16 @@ class MissionBatch:
         n_vertices: np.ndarray,
         velocities: np.ndarray | None = None,
         spins: np.ndarray | None = None,
+        *,
+        vertex_start: int | None = None,
     ) -> None:
         """Put K fields given as arrays into the fields ``rows`` (see
         :meth:`FieldBatch.load_arrays <debris_gym.batch_geometry.FieldBatch.load_arrays>`)."""
-        self.field.load_arrays(rows, centers, radii, vertices, n_vertices, velocities, spins)
+        rows = np.asarray(rows, dtype=np.int64)
+        self.field.load_arrays(
+            rows, centers, radii, vertices, n_vertices, velocities, spins,
+            vertex_start=vertex_start,
+        )  # fmt: skip
         self._set_turns(rows)
 
     def _set_turns(self, rows: np.ndarray) -> None:
@@ -243,25 +249,11 @@ class MissionBatch:
         a frozen one."""
         if not self.rules.moving or self.turns.shape[1] == 0:
             return
-        spins = self.field.spins[rows]
         step, sub = self._turn_angles
-        if not spins.any():  # the usual case: every polygon inertially fixed, one turn rate
-            rate = -self.physics[0]
-            self.turns[rows] = (
-                math.cos(rate * step), math.sin(rate * step),
-                math.cos(rate * sub), math.sin(rate * sub),
-            )  # fmt: skip
-            return
-        # math.cos / sin value by value: numpy's vectorised ones may round differently with
-        # the array's length, and a field must turn the same in every env that flies it
-        rates = (spins - self.physics[0]).tolist()
-        self.turns[rows] = [
-            [
-                (math.cos(r * step), math.sin(r * step), math.cos(r * sub), math.sin(r * sub))
-                for r in row
-            ]
-            for row in rates
-        ]
+        polygon_turns(
+            np.asarray(rows, dtype=np.int64), self.field.spins, self.physics[0], step, sub,
+            self.turns,
+        )  # fmt: skip
 
     def set_world(self, rows: np.ndarray, dock, low, high, length_scale: float) -> None:
         """Dock position, bounds (m) and length scale L of the fields in ``rows``."""

@@ -53,13 +53,17 @@ deforms, reach a target's collar, match the target's velocity (≤ 0.6 m/s: ≤ 
 there, and return. This is an argument, not a proof for every conceivable field; the search in
 the tests confirms it on a seeded sample of fields.
 
-Draws take a fixed block of uniform numbers from each field's own generator
-(:func:`orbit_draw_size`), so a field depends only on its generator.
+Randomness: a field takes one 64-bit word from its own generator (so it depends on that
+generator only, whichever other fields are drawn with it). The compiled draw expands the word with
+the counter-based generator SplitMix64 ([Steele14]): uniform number i of a try is output i of
+SplitMix64 seeded with the try's key, computed on demand, so candidates are decoded only as far
+as they are tried. Try 0's key is the word itself; a field where some body found no candidate is
+tried again, up to ``max_tries`` times, with the key of try j the j-th SplitMix64 output of the
+word mixed once more (:func:`_try_key`).
 """
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Sequence
 
@@ -79,18 +83,19 @@ from debris_gym.scenario_checks import MAX_SPIN, number
 
 __all__ = [
     "ORBIT_CANDIDATES",
+    "OrbitDrawer",
     "check_motion",
     "checked_horizon",
     "moving_unplaceable",
-    "orbit_draw_size",
+    "orbit_drawer",
     "random_orbit_fields",
+    "stream_uniform",
 ]
 
 ORBIT_CANDIDATES = {2: 64, 3: 32}
-"""Candidate orbits per body in one draw, by dim (a fixed number, so a draw's block has a fixed
-size): enough that a default field places every body in ~99.8 % (2D) / ~99.9 % (3D) of draws
-(measured: 16 candidates place 74 % of 2D fields, 32 96 %, 64 99.8 %; 3D places ~100 % from 16
-on); a field that fails is drawn again from its next block."""
+"""Candidate orbits per body in one try, by dim: enough that a default field places every body in
+~99.8 % (2D) / ~99.9 % (3D) of tries (measured: 16 candidates place 74 % of 2D fields, 32 96 %,
+64 99.8 %; 3D places ~100 % from 16 on); a field that fails is tried again with a new key."""
 
 SEARCH_TOLERANCE = 0.25
 """Smallest distance slack (m) the branch and bound of a pair resolves: a pair whose smallest
@@ -99,8 +104,15 @@ distance it cannot place above ``need`` at that resolution is refused (conservat
 SEARCH_STACK = 128
 """Intervals the branch and bound holds at once (depth-first: ~8 + one per halving)."""
 
-_CHUNK = 64
-"""Most fields drawn in one set of array operations."""
+_GAMMA = np.uint64(0x9E3779B97F4A7C15)
+"""SplitMix64's counter increment (2^64 / golden ratio, odd) [Steele14]."""
+_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
+_MIX2 = np.uint64(0x94D049BB133111EB)
+_TRY_GAMMA = np.uint64(0xD1B54A32D192ED03)
+"""Odd constant spacing the keys of a draw's tries (any odd constant other than _GAMMA)."""
+_S11, _S27, _S30, _S31 = np.uint64(11), np.uint64(27), np.uint64(30), np.uint64(31)
+_ONE = np.uint64(1)
+_UNIT = 2.0**-53
 
 
 def check_motion(spec: FieldSpec) -> None:
@@ -127,20 +139,6 @@ def checked_horizon(spec: FieldSpec) -> float:
     """The time span (s) a moving field of ``spec`` is checked over: ``horizon``, at least one
     orbit 2π/n (a drift-free field is then valid for ever, since its motion repeats)."""
     return max(float(spec.horizon), 2.0 * math.pi / spec.mean_motion)
-
-
-def _params_per_candidate(spec: FieldSpec) -> int:
-    """Uniform numbers per candidate orbit: ρ, α, y_c; + ρ_z, β in 3D; + x_c when drifting."""
-    return 3 + (2 if spec.dim == 3 else 0) + (1 if spec.motion == "drifting" else 0)
-
-
-@functools.lru_cache(maxsize=64)  # called on every reset; the spec is frozen
-def orbit_draw_size(spec: FieldSpec) -> int:
-    """Uniform numbers one draw of one moving field takes from its generator (a fixed block):
-    B radii, in 2D O polygon flags, O polygon shapes and O spins, then B × C candidates."""
-    bodies = spec.n_targets + spec.n_obstacles
-    polygons = spec.n_obstacles * (2 + _POLYGON_DRAWS) if spec.dim == 2 else 0
-    return bodies + polygons + bodies * ORBIT_CANDIDATES[spec.dim] * _params_per_candidate(spec)
 
 
 def moving_unplaceable(spec: FieldSpec) -> str | None:
@@ -184,10 +182,29 @@ def random_orbit_fields(
     """Draw one moving field per generator (the moving branch of
     :func:`~debris_gym.generators.random_fields`); ``velocities`` and ``spins`` are filled.
 
+    Each field takes one 64-bit word from its generator (module docstring). The envs keep an
+    :func:`orbit_drawer` instead, which checks the spec once.
+
     Raises:
         ValueError: the spec breaks the solvability conditions (naming them), can never be
-            placed, or some field found no valid draw in ``max_tries``.
+            placed, or some field found no valid try in ``max_tries``.
     """
+    return orbit_drawer(spec, capture_radius, max_tries).draw(list(rngs))
+
+
+def orbit_drawer(spec: FieldSpec, capture_radius: float, max_tries: int = 50) -> OrbitDrawer:
+    """An :class:`OrbitDrawer` for ``spec``, the spec checked here once.
+
+    Raises:
+        ValueError: the spec breaks the solvability conditions (naming them) or can never be
+            placed; ``max_tries`` is not a whole number >= 1.
+    """
+    if isinstance(max_tries, bool) or not isinstance(max_tries, (int, np.integer)):
+        raise ValueError(f"max_tries must be a whole number >= 1, got {max_tries!r}")
+    if max_tries < 1:
+        raise ValueError(f"max_tries={max_tries} is out of range; allowed: >= 1")
+    if spec.motion == "frozen":
+        raise ValueError("FieldSpec.motion='frozen': an orbit drawer needs 'bounded' or 'drifting'")
     if not route_by_construction(spec, capture_radius):
         raise ValueError(
             "a moving field needs the disjoint-balls conditions at every instant (the "
@@ -201,84 +218,112 @@ def random_orbit_fields(
     why = moving_unplaceable(spec)
     if why is not None:
         raise ValueError(why)
-    rngs = list(rngs)
-    if len(rngs) > _CHUNK:  # bounded temporaries: a big batch goes in chunks (same fields)
-        parts = [
-            random_orbit_fields(rngs[i : i + _CHUNK], spec, capture_radius=capture_radius,
-                                max_tries=max_tries)
-            for i in range(0, len(rngs), _CHUNK)
-        ]  # fmt: skip
-        names = ("centers", "radii", "vertices", "n_vertices", "velocities", "spins")
-        return FieldArrays(
-            parts[0].dim, parts[0].half_size, parts[0].n_targets,
-            **{k: np.concatenate([getattr(p, k) for p in parts]) for k in names},
+    return OrbitDrawer(spec, int(max_tries))
+
+
+class OrbitDrawer:
+    """Draws moving fields of one checked spec (made by :func:`orbit_drawer`): the kernel's
+    arguments are built once, so a draw is one word per generator and one compiled call."""
+
+    __slots__ = ("_args", "_dim", "_half", "_targets", "max_tries", "spec")
+
+    def __init__(self, spec: FieldSpec, max_tries: int) -> None:
+        self.spec, self.max_tries = spec, max_tries
+        self._dim, self._half, self._targets = spec.dim, spec.field_size / 2.0, spec.n_targets
+        self._args = (
+            max_tries, spec.dim, spec.n_targets, spec.n_obstacles, *spec.target_radius,
+            *spec.obstacle_radius, spec.polygon_fraction, spec.field_size, spec.min_gap,
+            spec.target_clearance, spec.dock_clearance,
+            max(spec.min_target_distance, spec.dock_clearance), spec.mean_motion,
+            checked_horizon(spec), spec.motion == "drifting", *spec.drift_offset, spec.rho_max,
+            spec.spin_max, ORBIT_CANDIDATES[spec.dim],
         )  # fmt: skip
-    num = len(rngs)
-    block = np.empty((num, orbit_draw_size(spec)))
-    out: tuple[np.ndarray, ...] | None = None
-    pending = np.arange(num)
-    for _ in range(max_tries):
-        u = block[: pending.size]
-        for row, i in zip(u, pending.tolist()):
-            rngs[i].random(out=row)
-        *arrays, placed = _draw_fields(u, spec)
-        if out is None:
-            if placed.all():  # every field on its first draw (the usual case)
-                return _arrays(spec, arrays)
-            out = tuple(np.zeros((num, *a.shape[1:]), a.dtype) for a in arrays)
-        done = pending[placed]
-        for target, source in zip(out, arrays):
-            target[done] = source[placed]
-        pending = pending[~placed]
-        if pending.size == 0:
-            return _arrays(spec, out)
-    raise ValueError(
-        f"could not place n_targets={spec.n_targets} and n_obstacles={spec.n_obstacles} on "
-        f"relative orbits (motion={spec.motion!r}) in field_size={spec.field_size} m with "
-        f"min_gap={spec.min_gap} m after {max_tries} draws; lower n_obstacles or the radii, "
-        "raise field_size, or give the orbits room (rho_max: every drift-free orbit is centred "
-        "on the along-track axis, so small amplitudes crowd it)"
-    )
+
+    def draw(self, rngs: Sequence[np.random.Generator]) -> FieldArrays:
+        """One field per generator, each from one 64-bit word of its own generator.
+
+        Raises:
+            ValueError: some field found no valid try in ``max_tries`` (naming what to change).
+        """
+        if len(rngs) == 1:
+            words = rngs[0].bit_generator.random_raw(1)
+        else:
+            words = np.array([r.bit_generator.random_raw() for r in rngs], dtype=np.uint64)
+        return self.from_words(words)
+
+    def from_words(self, words: np.ndarray) -> FieldArrays:
+        """The fields of the 64-bit words ``words`` (K,) uint64 (what :meth:`draw` takes from
+        the generators)."""
+        centers, velocities, radii, vertices, n_vertices, spins, placed = _draw_orbits(
+            words, *self._args
+        )
+        if not placed.all():
+            spec = self.spec
+            raise ValueError(
+                f"could not place n_targets={spec.n_targets} and n_obstacles={spec.n_obstacles} "
+                f"on relative orbits (motion={spec.motion!r}) in field_size={spec.field_size} m "
+                f"with min_gap={spec.min_gap} m after {self.max_tries} tries; lower n_obstacles "
+                "or the radii, raise field_size, or give the orbits room (rho_max: every "
+                "drift-free orbit is centred on the along-track axis, so small amplitudes crowd "
+                "it)"
+            )
+        return FieldArrays(
+            self._dim, self._half, self._targets, centers, radii, vertices, n_vertices,
+            velocities=velocities, spins=spins,
+        )  # fmt: skip
 
 
-def _arrays(spec: FieldSpec, arrays) -> FieldArrays:
-    centers, velocities, radii, vertices, n_vertices, spins = arrays
-    return FieldArrays(
-        spec.dim, spec.field_size / 2.0, spec.n_targets, centers, radii, vertices, n_vertices,
-        velocities=velocities, spins=spins,
-    )  # fmt: skip
+def stream_uniform(key: int, index: int) -> float:
+    """Uniform number ``index`` (0, 1, ...) of the stream of ``key``: output ``index`` of
+    SplitMix64 seeded with ``key`` as a double in [0, 1) (the top 53 bits)."""
+    return float(_uniform(np.uint64(key), index))
 
 
-def _draw_fields(u: np.ndarray, spec: FieldSpec):
-    """Place the bodies of K moving fields from their blocks ``u`` (K, :func:`orbit_draw_size`).
+@inlined
+def _mix(z):
+    """SplitMix64's output function [Steele14] of a uint64."""
+    z = (z ^ (z >> _S30)) * _MIX1
+    z = (z ^ (z >> _S27)) * _MIX2
+    return z ^ (z >> _S31)
 
-    Returns ``(centers, velocities, radii, vertices, n_vertices, spins, placed)``."""
-    return _draw_orbits(
-        np.ascontiguousarray(u), spec.dim, spec.n_targets, spec.n_obstacles,
-        *spec.target_radius, *spec.obstacle_radius, spec.polygon_fraction, spec.field_size,
-        spec.min_gap, spec.target_clearance, spec.dock_clearance,
-        max(spec.min_target_distance, spec.dock_clearance), spec.mean_motion,
-        checked_horizon(spec), spec.motion == "drifting", *spec.drift_offset, spec.rho_max,
-        spec.spin_max, ORBIT_CANDIDATES[spec.dim],
-    )  # fmt: skip
+
+@inlined
+def _uniform(key, index):
+    """Number ``index`` of key ``key``'s stream: SplitMix64 output ``index`` (its state after
+    index + 1 increments), in [0, 1)."""
+    z = _mix(key + (np.uint64(index) + _ONE) * _GAMMA)
+    return np.float64(z >> _S11) * _UNIT
+
+
+@inlined
+def _try_key(word, j):
+    """Key of try ``j`` of the draw of ``word``: the word itself for try 0, else the mixed
+    j-th SplitMix64 output of the word, so the tries' streams are unrelated."""
+    if j == 0:
+        return word
+    return _mix(_mix(word + np.uint64(j) * _TRY_GAMMA))
 
 
 @kernel
 def _draw_orbits(
-    u, dim, t, o, target_lo, target_hi, obstacle_lo, obstacle_hi, polygon_fraction, field_size,
-    min_gap, target_clearance, dock_clearance, target_start, n, horizon, drifting, drift_lo,
-    drift_hi, rho_max, spin_max, n_cand,
+    words, max_tries, dim, t, o, target_lo, target_hi, obstacle_lo, obstacle_hi,
+    polygon_fraction, field_size, min_gap, target_clearance, dock_clearance, target_start, n,
+    horizon, drifting, drift_lo, drift_hi, rho_max, spin_max, n_cand,
 ):  # fmt: skip
-    """The bodies of K moving fields from their blocks ``u`` (see the module docstring).
+    """The bodies of K moving fields from their words ``words`` (K,) uint64 (module docstring):
+    each field tried with the keys :func:`_try_key` until every body is placed, at most
+    ``max_tries`` times.
 
-    Block layout: B radii (targets first); in 2D O polygon flags, O × 10 polygon shape numbers
-    and O spins; then B × C candidates of P numbers: ρ, α, y_c (+ ρ_z, β in 3D; + x_c when
-    drifting). Candidates are decoded only as far as they are tried. A body's elements
-    (x_c, y_c, a = ρ cos α, b = ρ sin α, a_z = ρ_z cos β, b_z = ρ_z sin β) give x = x_c +
-    a sin nt + b cos nt, y = y_c − 1.5 n x_c t + 2(a cos nt − b sin nt), z = a_z sin nt +
-    b_z cos nt; its state at t = 0 is what the field hands out.
+    Stream layout of a try (indices of :func:`_uniform`): B radii (targets first); in 2D O
+    polygon flags, O × 10 polygon shape numbers and O spins; then B × C candidates of P numbers:
+    ρ, α, y_c (+ ρ_z, β in 3D; + x_c when drifting), computed only as far as they are tried. A
+    body's elements (x_c, y_c, a = ρ cos α, b = ρ sin α, a_z = ρ_z cos β, b_z = ρ_z sin β)
+    give x = x_c + a sin nt + b cos nt, y = y_c − 1.5 n x_c t + 2(a cos nt − b sin nt),
+    z = a_z sin nt + b_z cos nt; its state at t = 0 is what the field hands out.
+
+    Returns ``(centers, velocities, radii, vertices, n_vertices, spins, placed)``.
     """
-    num = u.shape[0]
+    num = words.shape[0]
     b_all = t + o
     p = 3 + (2 if dim == 3 else 0) + (1 if drifting else 0)
     radii = np.empty((num, b_all))
@@ -288,95 +333,122 @@ def _draw_orbits(
     spins = np.zeros((num, b_all))
     centers = np.zeros((num, b_all, dim))
     velocities = np.zeros((num, b_all, dim))
-    placed = np.ones(num, dtype=np.bool_)
+    placed = np.zeros(num, dtype=np.bool_)
     start = b_all + (o * (2 + _POLYGON_DRAWS) if dim == 2 else 0)
     spacing = np.full(b_all, float(min_gap))
     for b in range(t):
         spacing[b] += target_clearance
     elem = np.zeros((b_all, 6))  # x_c, y_c, a, b, a_z, b_z of the bodies placed so far
+    shape = np.empty(_POLYGON_DRAWS)
     half = field_size / 2.0
     for k in range(num):
-        for b in range(b_all):
-            if b < t:
-                radii[k, b] = target_lo + (target_hi - target_lo) * u[k, b]
-            else:
-                radii[k, b] = obstacle_lo + (obstacle_hi - obstacle_lo) * u[k, b]
-        if dim == 2:
-            for j in range(o):
-                if u[k, b_all + j] < polygon_fraction:
-                    first = b_all + o + j * _POLYGON_DRAWS
-                    n_vertices[k, j] = _convex_polygon(
-                        u[k, first : first + _POLYGON_DRAWS], radii[k, t + j], vertices[k, j]
-                    )
-                    spin_u = u[k, b_all + o + o * _POLYGON_DRAWS + j]
-                    spins[k, t + j] = spin_max * (2.0 * spin_u - 1.0)
-        for b in range(b_all):
-            r = radii[k, b]
-            lim = half - r - min_gap
-            dock_need = dock_clearance + r
-            found = False
-            for c in range(n_cand):
-                q = start + (b * n_cand + c) * p
-                xc = 0.0
-                if drifting:
-                    w = u[k, q + p - 1]
-                    mag = drift_lo + (drift_hi - drift_lo) * (2.0 * w if w < 0.5 else 2.0 * w - 1.0)
-                    xc = -mag if w < 0.5 else mag
-                slide = -1.5 * n * xc * horizon  # along-track displacement of the centre
-                cap = min(rho_max, lim - abs(xc), (2.0 * lim - abs(slide)) / 4.0)
-                if cap < 0.0:
-                    continue
-                rho = cap * np.sqrt(u[k, q])  # area-uniform in the (x, y/2) disc
-                alpha = 2.0 * np.pi * u[k, q + 1]
-                ea = rho * np.cos(alpha)
-                eb = rho * np.sin(alpha)
-                y_lo = -lim + 2.0 * rho - min(slide, 0.0)
-                y_hi = lim - 2.0 * rho - max(slide, 0.0)
-                yc = y_lo + (y_hi - y_lo) * u[k, q + 2]
-                ez = 0.0
-                fz = 0.0
-                if dim == 3:
-                    rho_z = min(rho_max, lim) * u[k, q + 3]
-                    beta = 2.0 * np.pi * u[k, q + 4]
-                    ez = rho_z * np.cos(beta)
-                    fz = rho_z * np.sin(beta)
-                if b < t:  # a target starts min_target_distance from the dock
-                    x0 = xc + eb
-                    y0 = yc + 2.0 * ea
-                    reach = target_start + r
-                    if x0 * x0 + y0 * y0 + fz * fz < reach * reach:
-                        continue
-                if not _apart(xc, yc, ea, eb, ez, fz, dock_need, dim, n, horizon):
-                    continue
-                clear = True
-                for j in range(b):
-                    need = r + radii[k, j] + max(spacing[b], spacing[j])
-                    if not _apart(
-                        xc - elem[j, 0], yc - elem[j, 1], ea - elem[j, 2], eb - elem[j, 3],
-                        ez - elem[j, 4], fz - elem[j, 5], need, dim, n, horizon,
-                    ):  # fmt: skip
-                        clear = False
-                        break
-                if clear:
-                    elem[b, 0] = xc
-                    elem[b, 1] = yc
-                    elem[b, 2] = ea
-                    elem[b, 3] = eb
-                    elem[b, 4] = ez
-                    elem[b, 5] = fz
-                    centers[k, b, 0] = xc + eb
-                    centers[k, b, 1] = yc + 2.0 * ea
-                    velocities[k, b, 0] = n * ea
-                    velocities[k, b, 1] = -1.5 * n * xc - 2.0 * n * eb
-                    if dim == 3:
-                        centers[k, b, 2] = fz
-                        velocities[k, b, 2] = n * ez
-                    found = True
-                    break
-            if not found:
-                placed[k] = False
+        for attempt in range(max_tries):
+            key = _try_key(words[k], attempt)
+            placed[k] = _place(
+                key, k, dim, t, o, target_lo, target_hi, obstacle_lo, obstacle_hi,
+                polygon_fraction, min_gap, dock_clearance, target_start, n, horizon, drifting,
+                drift_lo, drift_hi, rho_max, spin_max, n_cand, p, start, half, spacing, elem,
+                shape, radii, vertices, n_vertices, spins, centers, velocities,
+            )  # fmt: skip
+            if placed[k]:
                 break
     return centers, velocities, radii, vertices, n_vertices, spins, placed
+
+
+@kernel
+def _place(
+    key, k, dim, t, o, target_lo, target_hi, obstacle_lo, obstacle_hi, polygon_fraction,
+    min_gap, dock_clearance, target_start, n, horizon, drifting, drift_lo, drift_hi, rho_max,
+    spin_max, n_cand, p, start, half, spacing, elem, shape, radii, vertices, n_vertices, spins,
+    centers, velocities,
+):  # fmt: skip
+    """One try of field ``k`` from the stream of ``key`` (layout: :func:`_draw_orbits`),
+    written into row ``k`` of the outputs; True if every body found a candidate."""
+    b_all = t + o
+    for b in range(b_all):
+        if b < t:
+            radii[k, b] = target_lo + (target_hi - target_lo) * _uniform(key, b)
+        else:
+            radii[k, b] = obstacle_lo + (obstacle_hi - obstacle_lo) * _uniform(key, b)
+    if dim == 2:
+        for j in range(o):
+            # a failed try may have left a polygon here
+            n_vertices[k, j] = 0
+            vertices[k, j] = 0.0
+            spins[k, t + j] = 0.0
+            if _uniform(key, b_all + j) < polygon_fraction:
+                first = b_all + o + j * _POLYGON_DRAWS
+                for i in range(_POLYGON_DRAWS):
+                    shape[i] = _uniform(key, first + i)
+                n_vertices[k, j] = _convex_polygon(shape, radii[k, t + j], vertices[k, j])
+                spin_u = _uniform(key, b_all + o + o * _POLYGON_DRAWS + j)
+                spins[k, t + j] = spin_max * (2.0 * spin_u - 1.0)
+    for b in range(b_all):
+        r = radii[k, b]
+        lim = half - r - min_gap
+        dock_need = dock_clearance + r
+        found = False
+        for c in range(n_cand):
+            q = start + (b * n_cand + c) * p
+            xc = 0.0
+            if drifting:
+                w = _uniform(key, q + p - 1)
+                mag = drift_lo + (drift_hi - drift_lo) * (2.0 * w if w < 0.5 else 2.0 * w - 1.0)
+                xc = -mag if w < 0.5 else mag
+            slide = -1.5 * n * xc * horizon  # along-track displacement of the centre
+            cap = min(rho_max, lim - abs(xc), (2.0 * lim - abs(slide)) / 4.0)
+            if cap < 0.0:
+                continue
+            rho = cap * np.sqrt(_uniform(key, q))  # area-uniform in the (x, y/2) disc
+            alpha = 2.0 * np.pi * _uniform(key, q + 1)
+            ea = rho * np.cos(alpha)
+            eb = rho * np.sin(alpha)
+            y_lo = -lim + 2.0 * rho - min(slide, 0.0)
+            y_hi = lim - 2.0 * rho - max(slide, 0.0)
+            yc = y_lo + (y_hi - y_lo) * _uniform(key, q + 2)
+            ez = 0.0
+            fz = 0.0
+            if dim == 3:
+                rho_z = min(rho_max, lim) * _uniform(key, q + 3)
+                beta = 2.0 * np.pi * _uniform(key, q + 4)
+                ez = rho_z * np.cos(beta)
+                fz = rho_z * np.sin(beta)
+            if b < t:  # a target starts min_target_distance from the dock
+                x0 = xc + eb
+                y0 = yc + 2.0 * ea
+                reach = target_start + r
+                if x0 * x0 + y0 * y0 + fz * fz < reach * reach:
+                    continue
+            if not _apart(xc, yc, ea, eb, ez, fz, dock_need, dim, n, horizon):
+                continue
+            clear = True
+            for j in range(b):
+                need = r + radii[k, j] + max(spacing[b], spacing[j])
+                if not _apart(
+                    xc - elem[j, 0], yc - elem[j, 1], ea - elem[j, 2], eb - elem[j, 3],
+                    ez - elem[j, 4], fz - elem[j, 5], need, dim, n, horizon,
+                ):  # fmt: skip
+                    clear = False
+                    break
+            if clear:
+                elem[b, 0] = xc
+                elem[b, 1] = yc
+                elem[b, 2] = ea
+                elem[b, 3] = eb
+                elem[b, 4] = ez
+                elem[b, 5] = fz
+                centers[k, b, 0] = xc + eb
+                centers[k, b, 1] = yc + 2.0 * ea
+                velocities[k, b, 0] = n * ea
+                velocities[k, b, 1] = -1.5 * n * xc - 2.0 * n * eb
+                if dim == 3:
+                    centers[k, b, 2] = fz
+                    velocities[k, b, 2] = n * ez
+                found = True
+                break
+        if not found:
+            return False
+    return True
 
 
 @inlined

@@ -20,7 +20,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from debris_gym.generators import FieldSpec, draw_size, random_field, random_fields, unplaceable
-from debris_gym.orbit_fields import orbit_draw_size
+from debris_gym.orbit_fields import orbit_drawer, stream_uniform
 
 N = 1.1314e-3  # rad/s, the default LEO mean motion (~92.6 min orbit)
 PERIOD = 2.0 * math.pi / N
@@ -94,13 +94,72 @@ def test_same_seed_same_field_and_a_field_depends_only_on_its_generator(dim, mot
     for name in ("centers", "velocities", "radii", "spins", "vertices", "n_vertices"):
         np.testing.assert_array_equal(getattr(a, name), getattr(c, name))
         np.testing.assert_array_equal(getattr(a, name)[2], getattr(b, name)[0])
-    # one draw takes whole fixed blocks of its generator (a redraw takes the next one)
+    # a field takes exactly one 64-bit word of its generator (retries happen inside the draw)
     rng = np.random.default_rng(7)
     random_fields([rng], spec, capture_radius=CAPTURE)
-    after = rng.random()
-    size = orbit_draw_size(spec)
-    taken = [k for k in range(1, 51) if np.random.default_rng(7).random(size * k + 1)[-1] == after]
-    assert taken
+    ref = np.random.default_rng(7)
+    ref.bit_generator.random_raw()
+    assert rng.bit_generator.random_raw() == ref.bit_generator.random_raw()
+
+
+def splitmix64(seed: int, count: int) -> list[int]:
+    """SplitMix64 typed in from its reference (Steele, Lea, Flood 2014; Vigna's splitmix64.c),
+    in Python integers: the first ``count`` outputs of ``seed``."""
+    mask, out, x = (1 << 64) - 1, [], seed
+    for _ in range(count):
+        x = (x + 0x9E3779B97F4A7C15) & mask
+        z = x
+        z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & mask
+        z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & mask
+        out.append(z ^ (z >> 31))
+    return out
+
+
+def test_the_stream_is_splitmix64():
+    # the reference's published first outputs for seed 1234567
+    assert splitmix64(1234567, 3) == [6457827717110365317, 3203168211198807973, 9817491932198370423]
+    for key in (0, 1234567, 2**64 - 1, 0xDEADBEEFCAFEF00D):
+        outputs = splitmix64(key, 40)
+        for i in (0, 1, 2, 17, 39):
+            assert stream_uniform(key, i) == (outputs[i] >> 11) * 2.0**-53
+    # a long stream looks uniform (mean 1/2 ± a few standard errors of 1/√(12·N))
+    u = np.array([(z >> 11) * 2.0**-53 for z in splitmix64(99, 4000)])
+    assert abs(u.mean() - 0.5) < 4.0 / math.sqrt(12 * 4000)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_a_field_is_its_word_and_a_big_batch_is_its_rows(dim):
+    spec = spec_of(dim)
+    drawer = orbit_drawer(spec, CAPTURE)
+    seeds = range(70)  # more than any chunk the draw could split a batch into
+    batch = draw(spec, seeds)
+    words = np.array(
+        [np.random.default_rng(s).bit_generator.random_raw() for s in seeds], dtype=np.uint64
+    )
+    again = drawer.from_words(words[::-1])
+    for name in ("centers", "velocities", "radii", "spins", "vertices", "n_vertices"):
+        np.testing.assert_array_equal(getattr(again, name)[::-1], getattr(batch, name))
+        for k in (0, 33, 69):
+            np.testing.assert_array_equal(
+                getattr(draw(spec, [k]), name)[0], getattr(batch, name)[k]
+            )
+
+
+def test_the_orbit_drawer_refuses_bad_arguments_by_name():
+    with pytest.raises(ValueError, match="max_tries"):
+        orbit_drawer(spec_of(2), CAPTURE, max_tries=0)
+    with pytest.raises(ValueError, match="max_tries"):
+        orbit_drawer(spec_of(2), CAPTURE, max_tries=2.5)
+    with pytest.raises(ValueError, match=r"FieldSpec\.motion"):
+        orbit_drawer(FieldSpec(dim=2), CAPTURE)
+    # a spec that places nothing says so after its tries, and the generator moved by one word
+    crowded = spec_of(2, n_obstacles=400, field_size=800.0)
+    rng = np.random.default_rng(3)
+    with pytest.raises(ValueError, match=r"could not place.*after 2 tries"):
+        random_fields([rng], crowded, capture_radius=CAPTURE, max_tries=2)
+    ref = np.random.default_rng(3)
+    ref.bit_generator.random_raw()
+    assert rng.bit_generator.random_raw() == ref.bit_generator.random_raw()
 
 
 V0_DIGESTS = {

@@ -28,6 +28,7 @@ from debris_gym.generators import FieldArrays, paper_field, random_fields
 from debris_gym.geometry import FieldGeometry
 from debris_gym.goal import DOCK_GOAL, Goal, current_goal
 from debris_gym.mission_batch import MissionBatch
+from debris_gym.orbit_fields import OrbitDrawer, orbit_drawer
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.scenario import Scenario, as_scenario
 from debris_gym.scenario_checks import check_dock_clear
@@ -117,6 +118,9 @@ class DebrisFieldEnv(gym.Env):
         self._field_spec = field_spec(cfg)
         self._scenario: Scenario | None = None
         self._drawn: FieldArrays | None = None  # a random field, until it is asked for
+        self._drawer: OrbitDrawer | None = None  # draws the moving fields (spec checked once)
+        self._world_drawn = False  # the batch holds a random field's world (dock, bounds, L)
+        self._row = np.zeros(1, dtype=np.int64)  # the rows of the batch of one
         self._missions: MissionBatch | None = None  # this env's mission, a batch of one
         self._field_geometry: FieldGeometry | None = None
         self._obs_buffer = np.zeros((1, len(self._obs_names)), dtype=np.float32)
@@ -210,7 +214,13 @@ class DebrisFieldEnv(gym.Env):
 
     def _draw(self) -> FieldArrays:
         cfg = self.config
-        return random_fields([self.np_random], self._field_spec, capture_radius=cfg.capture_radius)
+        if self._field_spec.motion == "frozen":
+            return random_fields(
+                [self.np_random], self._field_spec, capture_radius=cfg.capture_radius
+            )
+        if self._drawer is None:  # checks the spec (raises ValueError naming what is wrong)
+            self._drawer = orbit_drawer(self._field_spec, cfg.capture_radius)
+        return self._drawer.draw((self.np_random,))
 
     def _check_dim(self, scenario: Scenario) -> None:
         if scenario.dim != self.dim:
@@ -230,33 +240,33 @@ class DebrisFieldEnv(gym.Env):
                 self.config, 1, n_targets, n_bodies, mean_motion=mean_motion, dt=dt,
                 max_accel=max_accel, polygon_start=0,
             )  # fmt: skip
+            self._world_drawn = False
         return m
 
     def _set_drawn(self, fields: FieldArrays) -> None:
         """Load a random field drawn as arrays (its Scenario is built only when asked for)."""
         self._scenario, self._drawn, self._field_geometry = None, fields, None
         cfg = self.config
-        t, n_bodies = fields.n_targets, fields.radii.shape[1]
-        m = self._batch_for((cfg.n, cfg.dt, cfg.max_accel), t, n_bodies)
+        t = fields.n_targets
+        m = self._batch_for((cfg.n, cfg.dt, cfg.max_accel), t, fields.radii.shape[1])
         # the batch of the single env lets any body be a polygon (pinned fields may have
-        # polygon targets): the targets' vertex slots are empty
-        vertices = np.zeros((1, n_bodies, *fields.vertices.shape[2:]))
-        vertices[:, t:] = fields.vertices
-        counts = np.zeros((1, n_bodies), dtype=np.int64)
-        counts[:, t:] = fields.n_vertices
+        # polygon targets): the drawn vertices are the obstacles', from body t on
         spins = None if fields.spins is None else fields.spins[:, m.field.polygon_start :]
         m.load_arrays(
-            np.zeros(1, dtype=np.int64), fields.centers, fields.radii, vertices, counts,
-            fields.velocities, spins,
+            self._row, fields.centers, fields.radii, fields.vertices, fields.n_vertices,
+            fields.velocities, spins, vertex_start=t,
         )  # fmt: skip
-        half = fields.half_size
-        m.set_world(np.zeros(1, dtype=np.int64), 0.0, -half, half, half)
+        if not self._world_drawn:  # every random field has the same world
+            half = fields.half_size
+            m.set_world(self._row, 0.0, -half, half, half)
+            self._world_drawn = True
 
     def _set_scenario(self, scenario: Scenario) -> None:
         self._scenario, self._drawn, self._field_geometry = scenario, None, None
         n_targets, n_bodies = len(scenario.targets), len(scenario.bodies)
         physics = (scenario.mean_motion, scenario.dt, scenario.max_accel)
         m = self._batch_for(physics, n_targets, n_bodies)
+        self._world_drawn = False
         m.load_scenario(np.zeros(1, dtype=np.int64), scenario)
         m.set_world(
             np.zeros(1, dtype=np.int64),

@@ -9,10 +9,11 @@ the single env as a batch of one.
 Autoreset follows Gymnasium 1.x's default *next-step* mode: the step after a sub-env terminates or
 truncates resets it (its action is ignored) and returns the first observation of the new episode
 with reward 0. Each sub-env keeps its own seeded generator; the sub-envs that reset on a step
-draw their fields together (:func:`debris_gym.generators.random_fields`, one fixed block of
-random numbers per sub-env and draw, so a field never depends on which other sub-envs reset with
-it) and the fields go into the batch as arrays; :attr:`DebrisFieldVectorEnv.scenarios` builds a
-sub-env's :class:`Scenario` only when read. ``step`` has no Python loop over envs or debris.
+draw their fields together (:func:`debris_gym.generators.random_fields`: one fixed block of
+random numbers per sub-env and draw, or for a moving field one 64-bit word per sub-env, so a
+field never depends on which other sub-envs reset with it) and the fields go into the batch as
+arrays; :attr:`DebrisFieldVectorEnv.scenarios` builds a sub-env's :class:`Scenario` only when
+read. ``step`` has no Python loop over envs or debris.
 """
 
 from __future__ import annotations
@@ -51,6 +52,7 @@ from debris_gym.generators import (
 )
 from debris_gym.geometry import FieldGeometry
 from debris_gym.mission_batch import MissionBatch, check_threads
+from debris_gym.orbit_fields import OrbitDrawer, orbit_drawer
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.scenario import Scenario, as_scenario
 from debris_gym.scenario_checks import check_dock_clear
@@ -119,6 +121,7 @@ class DebrisFieldVectorEnv(VectorEnv):
         self._obs_names = observation_names(cfg)
         self._discrete_actions = discrete_action_table(d, cfg.fine_thrust)
         self._field_spec = field_spec(cfg)
+        self._drawer: OrbitDrawer | None = None  # draws the moving fields (spec checked once)
         self._rngs: list[np.random.Generator] = [np.random.default_rng() for _ in range(n)]
         self._pinned: list[Scenario | None] = [None] * n  # fields not drawn by the env
         self._paper: Scenario | None = None
@@ -180,9 +183,12 @@ class DebrisFieldVectorEnv(VectorEnv):
         cfg = self.config
         if cfg.scenario == "paper":
             return None
-        return random_fields(
-            [rngs[i] for i in rows.tolist()], self._field_spec, capture_radius=cfg.capture_radius
-        )
+        chosen = [rngs[i] for i in rows.tolist()]
+        if self._field_spec.motion == "frozen":
+            return random_fields(chosen, self._field_spec, capture_radius=cfg.capture_radius)
+        if self._drawer is None:  # checks the spec (raises ValueError naming what is wrong)
+            self._drawer = orbit_drawer(self._field_spec, cfg.capture_radius)
+        return self._drawer.draw(chosen)
 
     def _install(self, rows: np.ndarray, fields: FieldArrays | None) -> None:
         """Load the fields :meth:`_draw` gave into the sub-envs ``rows``."""
