@@ -44,7 +44,7 @@ EXACT_MAX_N = 12
 _MAX_LOCAL_SEARCH_ROUNDS = 1000
 
 #: Largest number of moving targets whose orders are all enumerated by :func:`moving_order`.
-MOVING_EXACT_MAX_N = 7
+MOVING_EXACT_MAX_N = 5
 
 
 # --------------------------------------------------------------------------------------------------
@@ -351,14 +351,17 @@ def intercept_time(
     t0: float,
     speed: float,
     overhead: float = 0.0,
-    iterations: int = 8,
+    tolerance: float = 1e-6,
+    max_iterations: int = 200,
 ) -> float:
     """Flight time (s) from ``start`` at time ``t0`` to target ``index`` where it will be then.
 
     Fixed point of T = ‖p_i(t0 + T) − start‖ / speed + overhead, iterated from T = overhead: a
     straight flight at the planning ``speed`` (m/s) to the target's future position, plus a
     fixed ``overhead`` (s; braking, matching its velocity, the capture hold). A target slower
-    than ``speed`` makes the map a contraction, so a few iterations settle it.
+    than ``speed`` makes the map a contraction (the error shrinks by at least the ratio of the
+    speeds per iteration); iteration stops when T changes by less than ``tolerance`` (s), or
+    after ``max_iterations`` (a target faster than the planning speed).
 
     Args:
         track: positions (N, dim) of every target at a time (s).
@@ -367,16 +370,19 @@ def intercept_time(
         t0: departure time (s).
         speed: planning speed (m/s), > 0.
         overhead: fixed time per visit (s), >= 0.
-        iterations: fixed-point iterations.
+        tolerance: convergence threshold (s).
+        max_iterations: iteration cap.
     """
     if not (math.isfinite(speed) and speed > 0):
         raise ValueError(f"speed must be > 0 m/s, got {speed!r}")
     if not (math.isfinite(overhead) and overhead >= 0):
         raise ValueError(f"overhead must be >= 0 s, got {overhead!r}")
     flight = float(overhead)
-    for _ in range(iterations):
+    for _ in range(max_iterations):
         gap = float(np.linalg.norm(np.asarray(track(t0 + flight))[index] - start))
-        flight = gap / speed + overhead
+        flight, before = gap / speed + overhead, flight
+        if abs(flight - before) <= tolerance:
+            break
     return flight
 
 
