@@ -44,6 +44,16 @@ class FieldSpec:
         target_clearance: free zone around each target's surface (holds the capture zone).
         min_target_distance: smallest dock-to-target centre distance.
         chaser_radius: chaser radius, used to inflate bodies in the route check.
+        motion: ``"frozen"`` (bodies at rest in LVLH, the v0 fields), ``"bounded"`` (drift-free
+            relative orbits, the v1 default) or ``"drifting"`` (orbits whose centre slides
+            along-track); the moving draws are :mod:`debris_gym.orbit_fields`.
+        mean_motion: n (rad/s) of the reference orbit the bodies move about (> 0 when moving).
+        horizon: how long (s) a moving field must stay valid; at least one orbit 2π/n is
+            checked (a drift-free field then stays valid for ever).
+        drift_offset: (min, max) radial offset |x_c| (m) of a drifting body's orbit centre.
+        rho_max: largest in-plane amplitude ρ (and cross-track ρ_z) of a body's orbit (m); each
+            body's is also capped so that its orbit stays in the bounds.
+        spin_max: tumble rates (rad/s) of 2D polygons are drawn uniformly in ±spin_max.
     """
 
     dim: int = 2
@@ -58,6 +68,12 @@ class FieldSpec:
     target_clearance: float = 15.0
     min_target_distance: float = 150.0
     chaser_radius: float = 1.0
+    motion: str = "frozen"
+    mean_motion: float = 1.1314e-3
+    horizon: float = 0.0
+    drift_offset: tuple[float, float] = (5.0, 20.0)
+    rho_max: float = 250.0
+    spin_max: float = 0.0
 
     def __post_init__(self) -> None:
         # the counts size arrays and key the cached helpers (draw_size, route_by_construction):
@@ -67,6 +83,13 @@ class FieldSpec:
             value = getattr(self, key)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
                 raise ValueError(f"FieldSpec.{key} must be an int, got {value!r}")
+        from debris_gym.orbit_fields import check_motion  # imports this module
+
+        check_motion(self)
+
+
+FIELD_MOTIONS = ("frozen", "bounded", "drifting")
+"""Body motions a random field may have (:attr:`FieldSpec.motion`)."""
 
 
 MAX_POLYGON_VERTICES = 7
@@ -103,6 +126,8 @@ class FieldArrays:
             counter-clockwise, padded with the first vertex; V is
             :data:`MAX_POLYGON_VERTICES` in 2D and 0 in 3D.
         n_vertices: (K, O) vertex count of each obstacle, 0 for a circle / sphere.
+        velocities: (K, B, dim) LVLH body velocities at t = 0 (m/s), or None (frozen field).
+        spins: (K, B) tumble rates (rad/s), or None (frozen field).
     """
 
     dim: int
@@ -112,6 +137,8 @@ class FieldArrays:
     radii: np.ndarray
     vertices: np.ndarray
     n_vertices: np.ndarray
+    velocities: np.ndarray | None = None
+    spins: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.centers.shape[0]
@@ -122,10 +149,14 @@ class FieldArrays:
         return ((-self.half_size, self.half_size),) * self.dim
 
     def scenario(self, k: int, *, mean_motion: float, dt: float, max_accel: float) -> Scenario:
-        """Field ``k`` as a :class:`Scenario` with the given physical parameters."""
+        """Field ``k`` as a :class:`Scenario` with the given physical parameters (a
+        ``motion="cwh"`` one when the field moves)."""
+        moving = self.velocities is not None
         return scenario_from_arrays(
             self.centers[k], self.radii[k], self.vertices[k], self.n_vertices[k],
             self.n_targets, self.bounds, mean_motion=mean_motion, dt=dt, max_accel=max_accel,
+            velocities=self.velocities[k] if moving else None,
+            spins=self.spins[k] if moving and self.spins is not None else None,
         )  # fmt: skip
 
 
@@ -140,6 +171,8 @@ def scenario_from_arrays(
     mean_motion: float,
     dt: float,
     max_accel: float,
+    velocities: np.ndarray | None = None,
+    spins: np.ndarray | None = None,
 ) -> Scenario:
     """One random field's arrays (one row of :class:`FieldArrays`) as a :class:`Scenario`.
 
@@ -151,15 +184,24 @@ def scenario_from_arrays(
         n_targets: number of targets T (the first T bodies).
         bounds: per-axis ``(low, high)`` world limits (m); the dock is at the origin.
         mean_motion, dt, max_accel: the scenario's physical parameters.
+        velocities: (B, dim) LVLH velocities at t = 0 (m/s); given, the scenario moves
+            (``motion="cwh"``); None keeps it frozen.
+        spins: (B,) tumble rates (rad/s) of a moving field's bodies, or None (no tumble).
     """
     dim = centers.shape[1]
     zero = (0.0,) * dim
     counts = n_vertices.tolist()
+    n_bodies = len(radii)
+    speeds = [zero] * n_bodies if velocities is None else list(map(tuple, velocities.tolist()))
+    turns = [0.0] * n_bodies if spins is None else spins.tolist()
     bodies = []
     for b, (position, radius) in enumerate(zip(centers.tolist(), radii.tolist())):
         m = counts[b - n_targets] if b >= n_targets else 0
         verts = tuple(map(tuple, vertices[b - n_targets, :m].tolist())) if m else None
-        bodies.append(Body(position=tuple(position), radius=radius, velocity=zero, vertices=verts))
+        bodies.append(
+            Body(position=tuple(position), radius=radius, velocity=speeds[b], vertices=verts,
+                 spin=turns[b] if m else 0.0)
+        )  # fmt: skip
     return Scenario(
         dim=dim,
         bounds=bounds,
@@ -169,6 +211,7 @@ def scenario_from_arrays(
         mean_motion=mean_motion,
         dt=dt,
         max_accel=max_accel,
+        motion="frozen" if velocities is None else "cwh",
         name=f"random{dim}d",
     )
 
@@ -203,6 +246,10 @@ def unplaceable(spec: FieldSpec) -> str | None:
     is the farthest point — every draw fails. A spec this refuses can never give a field; one
     it lets through may still fail when crowded (:func:`random_fields` then says so).
     """
+    if spec.motion != "frozen":
+        from debris_gym.orbit_fields import moving_unplaceable  # imports this module
+
+        return moving_unplaceable(spec)
     dock_clearance = spec.dock_clearance
     kinds = [("target", spec.target_radius[0], max(spec.min_target_distance, dock_clearance))]
     if spec.n_obstacles:
@@ -283,9 +330,17 @@ def random_fields(
         capture_radius: capture depth (m) the route check must reach around each target.
         max_tries: draws per field before giving up.
 
+    A moving spec (``motion`` ``"bounded"`` / ``"drifting"``) is drawn by
+    :func:`debris_gym.orbit_fields.random_orbit_fields` instead (bodies on relative orbits,
+    checked over the horizon; ``velocities`` and ``spins`` filled).
+
     Raises:
         ValueError: some field found no valid draw in ``max_tries``; names the settings to change.
     """
+    if spec.motion != "frozen":
+        from debris_gym.orbit_fields import random_orbit_fields  # imports this module
+
+        return random_orbit_fields(rngs, spec, capture_radius=capture_radius, max_tries=max_tries)
     rngs = list(rngs)
     if len(rngs) > _CHUNK:  # bounded temporaries: a big batch goes in chunks (same fields)
         parts = [

@@ -26,6 +26,7 @@ import numba
 COMPILED_MODULES = (
     "batch_geometry",
     "generators",
+    "orbit_fields",
     "geometry_kernels",
     "goal",
     "mission_step",
