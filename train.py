@@ -20,7 +20,7 @@ from agents.experiments.run_directory import OutputDirError
 EXAMPLES = """\
 examples:
   python train.py --algo ppo --timesteps 4096 --n-envs 2 --out /tmp/t1     # a quick check
-  python train.py --env DebrisGym/Rendezvous2D-v0 --algo ppo --out runs/ppo  # the full recipe
+  python train.py --env DebrisGym/Rendezvous2D-v1 --algo ppo --out runs/ppo  # the full recipe
   python train.py --algo sac --out runs/sac --set algo_kwargs.batch_size=512
   python train.py --resume runs/ppo                                          # after Ctrl-C
   python train.py --resume runs/ppo --timesteps 1000000                      # 1M steps more
@@ -48,7 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--env",
         dest="env_id",
         metavar="ID",
-        help="environment ID (default: DebrisGym/Rendezvous2D-v0)",
+        help="environment ID (default: DebrisGym/Rendezvous2D-v1)",
     )
     parser.add_argument("--algo", choices=ALGOS, help="algorithm (default: ppo)")
     parser.add_argument(

@@ -25,7 +25,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from bench.config import DEFAULT_OBSTACLES, ID_2D
+from bench.config import DEFAULT_OBSTACLES, ID_2D, PRETRAINED_ENV
 from bench.harness import interleave
 from bench.single import Measurement, step_measurement
 
@@ -102,8 +102,10 @@ class DecisionMeasurement:
         api = agents_api()
         start = time.perf_counter()
         spec = api.parse_agent_spec(self.spec)
-        self.label = spec.label
-        self.env = api.make_env(ID_2D, api.agent_env_options(spec, ID_2D), self.max_steps)
+        # the shipped policy flies the frozen world it was trained in; the baselines the default
+        env_id = PRETRAINED_ENV if self.spec == api.pretrained else ID_2D
+        self.label = spec.label if env_id == ID_2D else f"{spec.label} ({env_id})"
+        self.env = api.make_env(env_id, api.agent_env_options(spec, env_id), self.max_steps)
         self.agent = api.build_agent(spec, self.env)
         obs, _ = self.env.reset(seed=DECISION_WARMUP_SEED)
         state = None

@@ -71,7 +71,7 @@ class FieldSpec:
     motion: str = "frozen"
     mean_motion: float = 1.1314e-3
     horizon: float = 0.0
-    drift_offset: tuple[float, float] = (5.0, 20.0)
+    drift_offset: tuple[float, float] = (2.0, 10.0)
     rho_max: float = 250.0
     spin_max: float = 0.0
 

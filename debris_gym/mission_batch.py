@@ -220,14 +220,27 @@ class MissionBatch:
         """The polygons' turn per step and per sub-step in ``rows``: at spin − n in LVLH in a
         moving field (an inertially fixed attitude turns at −n in the rotating frame), none in
         a frozen one."""
-        if not self.rules.moving:
+        if not self.rules.moving or self.turns.shape[1] == 0:
             return
-        rate = self.field.spins[rows] - self.physics[0]
+        spins = self.field.spins[rows]
         step, sub = self._turn_angles
-        self.turns[rows, :, 0] = np.cos(rate * step)
-        self.turns[rows, :, 1] = np.sin(rate * step)
-        self.turns[rows, :, 2] = np.cos(rate * sub)
-        self.turns[rows, :, 3] = np.sin(rate * sub)
+        if not spins.any():  # the usual case: every polygon inertially fixed, one turn rate
+            rate = -self.physics[0]
+            self.turns[rows] = (
+                math.cos(rate * step), math.sin(rate * step),
+                math.cos(rate * sub), math.sin(rate * sub),
+            )  # fmt: skip
+            return
+        # math.cos / sin value by value: numpy's vectorised ones may round differently with
+        # the array's length, and a field must turn the same in every env that flies it
+        rates = (spins - self.physics[0]).tolist()
+        self.turns[rows] = [
+            [
+                (math.cos(r * step), math.sin(r * step), math.cos(r * sub), math.sin(r * sub))
+                for r in row
+            ]
+            for row in rates
+        ]
 
     def set_world(self, rows: np.ndarray, dock, low, high, length_scale: float) -> None:
         """Dock position, bounds (m) and length scale L of the fields in ``rows``."""

@@ -28,11 +28,12 @@ distance is a trig function of time. In the plane, for two drift-free orbits, wi
 amplitude R and along-track centre offset D, the squared distance over the relative phase θ is
 R² + D² + 4DR cos θ + 3R² cos² θ, a quadratic in cos θ whose minimum is exact:
 (|D| − 2R)² when |D| ≥ 1.5 R, else R² − D²/3 (:func:`_apart`). In 3D the cross-track term
-joins; the squared distance is then a trig polynomial of degree 2 in θ, sampled at 64 phases
-with the bound |d²''| ≤ 4|D|R + 6R² + 2R_z², which makes the sampled minimum a proven lower
-bound once M₂h²/8 is taken off. A drifting pair is sampled in time the same way (the bound of
-the second derivative from the relative speed and acceleration); a check that cannot prove the
-gap rejects the candidate. Every pair first gets a cheap axis-separation test.
+joins when the plane alone does not keep them apart, and a drifting pair is not periodic: there
+the squared distance f, whose second derivative is bounded from the pair's elements (relative
+amplitudes, speed and acceleration), is searched by branch and bound (:func:`_search`): over an
+interval of width w, f >= min(f at its ends) − max|f''| · w²/8, so the search proves the gap or
+finds a violation, down to about :data:`SEARCH_TOLERANCE` m, where an undecided pair is refused.
+Every pair first gets a cheap axis-separation test.
 
 Solvability in space-time (the argument; tested against an independent time-expanded search in
 ``tests/test_orbit_fields.py``). With ``min_gap > 2 · chaser_radius`` and the other conditions
@@ -42,9 +43,10 @@ inflated by the chaser radius c, are pairwise disjoint and strictly inside the b
 dock, so the free space is connected at every t and each target has a free capture point. Each
 body also carries a collar, the shell r_i + c < |p − p_i(t)| < r_i + s_i/2, that no other body
 enters at any time. The chaser moves with authority to spare: a body moves at most
-n·√(4ρ² + ρ_z²) (+ 1.5 n |x_c|), ≈ 0.6 m/s at ρ = ρ_z = 250 m in LEO, and accelerates at most
-n²·(2ρ + ρ_z) < 1e-3 m/s², against the chaser's 0.05 m/s² (1 m/s within 20 s); riding a collar
-at a fixed offset d from a body costs |3n² d_x| < 1e-4 m/s² (chaser and body obey the same law);
+n·√(4ρ² + ρ_z²) (+ 1.5 n |x_c|), ≈ 0.63 m/s at ρ = ρ_z = 250 m in LEO, and accelerates at most
+n²·√(4ρ² + ρ_z²) < 1e-3 m/s², against the chaser's 0.05 m/s² (1 m/s within 20 s); riding a
+collar at a fixed offset d from a body costs a thrust (3n² d_x, 0, −n² d_z), at most 3n²|d|
+≈ 2e-4 m/s² at 50 m (chaser and body obey the same law, Coriolis terms included);
 the dock is an equilibrium kept clear at all times, where the chaser can wait. So the chaser can
 wait (at the dock or in a collar) for a gap and cross the connected free space faster than it
 deforms, reach a target's collar, match the target's velocity (≤ 0.6 m/s: ≤ 12 s of thrust)
@@ -188,11 +190,13 @@ def random_orbit_fields(
     """
     if not route_by_construction(spec, capture_radius):
         raise ValueError(
-            "a moving field needs the disjoint-balls conditions at every instant: "
-            f"FieldSpec.min_gap={spec.min_gap} > 2·chaser_radius + 0.5·capture_radius and "
-            f"min_gap + target_clearance > 2·chaser_radius + 0.5·capture_radius, "
-            f"dock_clearance={spec.dock_clearance} > chaser_radius={spec.chaser_radius}, "
-            f"capture_radius={capture_radius} > 0; raise min_gap or lower chaser_radius"
+            "a moving field needs the disjoint-balls conditions at every instant (the "
+            "solvability argument, module docstring): FieldSpec.min_gap > 2·chaser_radius and "
+            "> chaser_radius + capture_radius/2, min_gap + target_clearance > 2·chaser_radius + "
+            "capture_radius/2, dock_clearance > chaser_radius and capture_radius > 0; got "
+            f"min_gap={spec.min_gap}, target_clearance={spec.target_clearance}, "
+            f"dock_clearance={spec.dock_clearance}, chaser_radius={spec.chaser_radius}, "
+            f"capture_radius={capture_radius}: raise min_gap or lower chaser_radius"
         )
     why = moving_unplaceable(spec)
     if why is not None:
@@ -231,8 +235,9 @@ def random_orbit_fields(
     raise ValueError(
         f"could not place n_targets={spec.n_targets} and n_obstacles={spec.n_obstacles} on "
         f"relative orbits (motion={spec.motion!r}) in field_size={spec.field_size} m with "
-        f"min_gap={spec.min_gap} m after {max_tries} draws; lower n_obstacles, rho_max or the "
-        "obstacle radius range, or raise field_size"
+        f"min_gap={spec.min_gap} m after {max_tries} draws; lower n_obstacles or the radii, "
+        "raise field_size, or give the orbits room (rho_max: every drift-free orbit is centred "
+        "on the along-track axis, so small amplitudes crowd it)"
     )
 
 
@@ -321,7 +326,7 @@ def _draw_orbits(
                 cap = min(rho_max, lim - abs(xc), (2.0 * lim - abs(slide)) / 4.0)
                 if cap < 0.0:
                     continue
-                rho = cap * np.sqrt(u[k, q])
+                rho = cap * np.sqrt(u[k, q])  # area-uniform in the (x, y/2) disc
                 alpha = 2.0 * np.pi * u[k, q + 1]
                 ea = rho * np.cos(alpha)
                 eb = rho * np.sin(alpha)
@@ -402,59 +407,86 @@ def _apart(dxc, dyc, da, db, daz, dbz, need, dim, n, horizon):
             plane = rr * rr - d * d / 3.0
         if plane >= need2 or dim == 2:
             return plane >= need2
-        # 3D: the cross-track term may keep them apart; search the phase θ = nt in [0, 2π],
-        # where |dΔp/dθ| <= √(4R² + R_z²)
-        return _search(
-            0.0, da, db, dyc, daz, dbz, need, 1.0, 0.0, 2.0 * np.pi,
-            np.sqrt(4.0 * rr * rr + rz * rz),
-        )  # fmt: skip
-    # drifting pair: search time t in [0, horizon], where |Δv| <= n√(R² + (1.5|Δx_c| + 2R)² + R_z²)
+        # 3D: the cross-track term may keep them apart; search the phase θ = nt in [0, 2π].
+        # d²(θ) = R² sin²u + (D + 2R cos u)² + R_z² sin²v (u, v: θ + phases) has
+        # d²'' = −4DR cos u − 6R² cos 2u + 2R_z² cos 2v, so |d²''| <= 4|D|R + 6R² + 2R_z²
+        bend = 4.0 * abs(dyc) * rr + 6.0 * rr * rr + 2.0 * rz * rz
+        return _search(0.0, da, db, dyc, daz, dbz, need, 1.0, 0.0, 2.0 * np.pi, bend)
+    # drifting pair: search time t in [0, horizon]; d²'' = 2|Δv|² + 2 Δp·Δa, with
+    # |Δv| <= n√(R² + (1.5|Δx_c| + 2R)² + R_z²), |Δa| <= n²√(5R² + R_z²) and |Δp| bounded by the
+    # extent of the relative motion over the horizon
     speed = n * np.sqrt(rr * rr + (1.5 * abs(dxc) + 2.0 * rr) ** 2 + rz * rz)
-    return _search(dxc, da, db, dyc, daz, dbz, need, n, -1.5 * n * dxc, horizon, speed)
+    accel = n * n * np.sqrt(5.0 * rr * rr + rz * rz)
+    far_y = max(abs(dyc), abs(dyc - slide)) + 2.0 * rr
+    far = np.sqrt((abs(dxc) + rr) ** 2 + far_y * far_y + rz * rz)
+    bend = 2.0 * speed * speed + 2.0 * far * accel
+    return _search(dxc, da, db, dyc, daz, dbz, need, n, -1.5 * n * dxc, horizon, bend)
 
 
 @inlined
-def _distance(dxc, da, db, dyc, daz, dbz, rate, slope, s):
-    """Centre distance (m) of a pair at parameter ``s``: phase ``rate · s`` (rad), along-track
-    centre offset ``dyc + slope · s`` (m)."""
+def _distance2(dxc, da, db, dyc, daz, dbz, rate, slope, s):
+    """Squared centre distance (m²) of a pair at parameter ``s``: phase ``rate · s`` (rad),
+    along-track centre offset ``dyc + slope · s`` (m)."""
     th = rate * s
     sn = np.sin(th)
     co = np.cos(th)
     ex = dxc + da * sn + db * co
     ey = dyc + slope * s + 2.0 * (da * co - db * sn)
     ez = daz * sn + dbz * co
-    return np.sqrt(ex * ex + ey * ey + ez * ez)
+    return ex * ex + ey * ey + ez * ez
 
 
 @inlined
-def _search(dxc, da, db, dyc, daz, dbz, need, rate, slope, span, lipschitz):
-    """True if the pair's distance (:func:`_distance`) is >= ``need`` for every s in
-    ``[0, span]``, proven by branch and bound: an interval of half-width w whose midpoint is at
-    distance d holds nothing closer than d − ``lipschitz`` · w. An interval that cannot be
-    decided once ``lipschitz`` · w < :data:`SEARCH_TOLERANCE` counts as too close."""
-    stack = np.empty((SEARCH_STACK, 2))
+def _search(dxc, da, db, dyc, daz, dbz, need, rate, slope, span, bend):
+    """True if the pair's distance (:func:`_distance2`) is >= ``need`` for every s in
+    ``[0, span]``, proven by branch and bound on the squared distance f: on an interval of
+    width w whose ends are known, f >= min(f(ends)) − ``bend`` · w² / 8 (``bend`` >= |f''|, the
+    error of linear interpolation). An interval that cannot be decided once that margin is below
+    2 · need · :data:`SEARCH_TOLERANCE` (about :data:`SEARCH_TOLERANCE` m of distance) counts
+    as too close, so a pair that stays ``need`` + :data:`SEARCH_TOLERANCE` apart always passes.
+    """
+    need2 = need * need
+    tol2 = 2.0 * need * SEARCH_TOLERANCE
+    stack = np.empty((SEARCH_STACK, 4))  # lo, hi, f(lo), f(hi)
     top = 0
-    pieces = 8
+    pieces = 16
+    f_lo = _distance2(dxc, da, db, dyc, daz, dbz, rate, slope, 0.0)
+    if f_lo < need2:
+        return False
     for i in range(pieces):
-        stack[top, 0] = span * i / pieces
-        stack[top, 1] = span * (i + 1) / pieces
+        lo = span * i / pieces
+        hi = span * (i + 1) / pieces
+        f_hi = _distance2(dxc, da, db, dyc, daz, dbz, rate, slope, hi)
+        if f_hi < need2:
+            return False
+        stack[top, 0] = lo
+        stack[top, 1] = hi
+        stack[top, 2] = f_lo
+        stack[top, 3] = f_hi
         top += 1
+        f_lo = f_hi
     while top > 0:
         top -= 1
         lo = stack[top, 0]
         hi = stack[top, 1]
-        mid = 0.5 * (lo + hi)
-        d = _distance(dxc, da, db, dyc, daz, dbz, rate, slope, mid)
-        if d < need:
-            return False
-        slack = lipschitz * 0.5 * (hi - lo)
-        if d - slack >= need:
+        f_lo = stack[top, 2]
+        f_hi = stack[top, 3]
+        margin = bend * (hi - lo) * (hi - lo) / 8.0
+        if min(f_lo, f_hi) - margin >= need2:
             continue
-        if slack < SEARCH_TOLERANCE or top + 2 > SEARCH_STACK:
+        if margin < tol2 or top + 2 > SEARCH_STACK:
+            return False
+        mid = 0.5 * (lo + hi)
+        f_mid = _distance2(dxc, da, db, dyc, daz, dbz, rate, slope, mid)
+        if f_mid < need2:
             return False
         stack[top, 0] = lo
         stack[top, 1] = mid
+        stack[top, 2] = f_lo
+        stack[top, 3] = f_mid
         stack[top + 1, 0] = mid
         stack[top + 1, 1] = hi
+        stack[top + 1, 2] = f_mid
+        stack[top + 1, 3] = f_hi
         top += 2
     return True

@@ -10,7 +10,29 @@ import gymnasium as gym
 ENTRY_POINT = "debris_gym.envs.debris_field:DebrisFieldEnv"
 VECTOR_ENTRY_POINT = "debris_gym.envs.vector:DebrisFieldVectorEnv"
 
+PHYSICAL_WORLD: dict[str, object] = {
+    "debris_motion": "bounded",
+    "solid_targets": True,
+    "capture_speed": 0.2,
+    "capture_hold": 30.0,
+    "fine_thrust": 0.1,
+    "shaping_gamma": 1.0,
+    "shaping_terminal": "hold",
+}
+"""The options that make the v1 world (docs/environments.md, "What v1 changes"): bodies on
+natural CWH relative orbits, solid targets, capture held for 30 s at ≤ 0.2 m/s relative to the
+target, fine discrete thrust, and undiscounted shaping that never refunds (so the return ranks
+a success above idling, crashing, fleeing and burning the budget)."""
+
 ENV_SPECS: dict[str, dict] = {
+    "DebrisGym/Rendezvous2D-v1": {
+        "max_episode_steps": 1000,
+        "kwargs": {"dim": 2, **PHYSICAL_WORLD},
+    },
+    "DebrisGym/Rendezvous3D-v1": {
+        "max_episode_steps": 1000,
+        "kwargs": {"dim": 3, **PHYSICAL_WORLD},
+    },
     "DebrisGym/Rendezvous2D-v0": {"max_episode_steps": 1000, "kwargs": {"dim": 2}},
     "DebrisGym/Rendezvous3D-v0": {"max_episode_steps": 1000, "kwargs": {"dim": 3}},
     "DebrisGym/PaperField2D-v0": {

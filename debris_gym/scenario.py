@@ -99,7 +99,8 @@ class Body:
         out: dict[str, Any] = {
             "position": list(self.position),
             "radius": self.radius,
-            "velocity": list(self.velocity),
+            # a body built without a velocity is at rest: written as zeros, which from_dict reads
+            "velocity": list(self.velocity) if self.velocity else [0.0] * len(self.position),
         }
         if self.vertices is not None:
             out["vertices"] = [list(v) for v in self.vertices]

@@ -98,7 +98,7 @@ def test_script_writes_every_output(tmp_path):
             lo, hi = entry[key]
             assert lo <= entry[key.removesuffix("_ci95")] <= hi
     assert summary["agents"]["zero"]["delta_v_mean"] == 0.0
-    assert (out / "summary.md").read_text().startswith("Env `DebrisGym/Rendezvous2D-v0`")
+    assert (out / "summary.md").read_text().startswith("Env `DebrisGym/Rendezvous2D-v1`")
 
     pngs = sorted(out.glob("trajectories_ep*.png"))
     assert [p.name for p in pngs] == ["trajectories_ep000.png", "trajectories_ep001.png"]

@@ -34,7 +34,7 @@ from debris_gym.envs import DebrisFieldEnv
 from tests.helpers import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
-ENV_ID = "DebrisGym/Rendezvous2D-v0"
+ENV_ID = "DebrisGym/Rendezvous2D-v1"
 TINY = {
     "bc_episodes": 2,
     "dagger_rounds": 1,
@@ -109,7 +109,7 @@ def test_unknown_ordering_is_refused_by_name():
 
 
 def test_apf_mpc_with_the_envs_goal_completes_a_mission():
-    env = gym.make(ENV_ID)
+    env = gym.make("DebrisGym/Rendezvous2D-v0")
     expert = agents.make_agent("apf-mpc", env, ordering="nearest")
     obs, info = env.reset(seed=11)
     done = False

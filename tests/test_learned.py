@@ -175,7 +175,7 @@ def test_evaluate_py_shows_and_keeps_the_raw_observation_warning(saved_run, tmp_
     out = tmp_path / "eval"
     argv = [
         "--agents", f"zero,ppo={model}", "--episodes", "1", "--max-steps", "5", "--plots", "0",
-        "--no-progress", "--out", str(out),
+        "--no-progress", "--out", str(out), "--env", ENV_ID,
     ]  # fmt: skip
     assert cli.main(argv) == 0
     captured = capsys.readouterr()

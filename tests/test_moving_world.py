@@ -250,3 +250,29 @@ def test_a_pinned_field_must_move_as_the_env_does():
     env = DebrisFieldEnv(dim=2, mean_motion=N)  # a frozen-world env
     with pytest.raises(ValueError, match="debris_motion"):
         env.reset(options={"scenario": field(2)})
+
+
+@pytest.mark.parametrize("env_id", ["DebrisGym/Rendezvous3D-v0", "DebrisGym/Rendezvous3D-v1"])
+def test_the_3d_vector_env_lists_its_fields(env_id):
+    """Regression: ``scenarios[i]`` of a 3D vector env raised IndexError (no polygon slots)."""
+    import gymnasium as gym
+
+    venv = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point")
+    venv.reset(seed=5)
+    env = gym.make(env_id)
+    env.reset(seed=6)  # sub-env 1 was seeded with 5 + 1
+    assert venv.unwrapped.scenarios[1] == env.unwrapped.scenario
+
+
+@pytest.mark.parametrize("env_id", ["DebrisGym/Rendezvous2D-v1", "DebrisGym/Rendezvous3D-v1"])
+def test_the_vector_env_gives_the_drawn_field_after_its_bodies_moved(env_id):
+    import gymnasium as gym
+
+    venv = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point")
+    venv.reset(seed=11)
+    for _ in range(20):
+        venv.step(np.zeros((2, venv.unwrapped.dim)))
+    env = gym.make(env_id)
+    env.reset(seed=11)
+    assert venv.unwrapped.scenarios[0] == env.unwrapped.scenario
+    assert env.unwrapped.scenario.motion == "cwh"

@@ -168,6 +168,26 @@ def test_every_rule_holds_at_every_time_over_several_orbits(dim):
         check_field_over_time(fields, k, spec, t)
 
 
+def test_the_outside_check_sees_a_broken_field():
+    spec = spec_of(2)
+    fields = draw(spec, [0])
+    t = np.linspace(0.0, 3.0 * PERIOD, 6001)
+    check_field_over_time(fields, 0, spec, t)
+    # a body given 40 m of radial offset drifts 0.07 m/s along-track: out of bounds in time
+    drifting = dataclasses.replace(fields, velocities=fields.velocities.copy())
+    drifting.velocities[0, 5, 1] += 0.5 * N * 40.0  # x_c = 4x0 + 2ẏ0/n grows by 40 m
+    with pytest.raises(AssertionError):
+        check_field_over_time(drifting, 0, spec, t)
+    # two bodies on the same orbit, a few metres apart in phase
+    twin = dataclasses.replace(
+        fields, centers=fields.centers.copy(), velocities=fields.velocities.copy()
+    )
+    twin.centers[0, 6] = twin.centers[0, 5] + 1.0
+    twin.velocities[0, 6] = twin.velocities[0, 5]
+    with pytest.raises(AssertionError):
+        check_field_over_time(twin, 0, spec, t)
+
+
 def test_polygons_tumble_within_spin_max_and_the_scenario_moves():
     spec = spec_of(2, spin_max=0.03)
     fields = draw(spec, range(8))
@@ -227,6 +247,62 @@ def test_generated_fields_keep_every_rule_over_the_horizon(
         if motion == "bounded":
             x_c = 4.0 * fields.centers[k, :, 0] + 2.0 * fields.velocities[k, :, 1] / N
             assert np.all(np.abs(x_c) <= 1e-9 * field_size)
+
+
+def elements_of(state: np.ndarray, n: float) -> np.ndarray:
+    """(x_c, y_c, a, b, a_z, b_z) of a state [x, y, (z), vx, vy, (vz)]: x_c = 4x₀ + 2ẏ₀/n,
+    x₀ = x_c + b, ẋ₀ = n a, y₀ = y_c + 2a, z₀ = b_z, ż₀ = n a_z (textbook, typed in)."""
+    dim = len(state) // 2
+    x0, y0, vx0, vy0 = state[0], state[1], state[dim], state[dim + 1]
+    x_c = 4.0 * x0 + 2.0 * vy0 / n
+    a = vx0 / n
+    z = (state[5] / n, state[2]) if dim == 3 else (0.0, 0.0)
+    return np.array([x_c, y0 - 2.0 * a, a, x0 - x_c, *z])
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    dim=st.sampled_from([2, 3]),
+    drifting=st.booleans(),
+    values=st.lists(st.floats(-1.0, 1.0), min_size=12, max_size=12),
+    ratio=st.floats(0.8, 1.2),
+)
+def test_the_pair_check_agrees_with_dense_sampling(dim, drifting, values, ratio):
+    """_apart (exact in 2D, branch and bound otherwise) never passes a pair that comes closer
+    than ``need`` on a dense time grid, and never refuses one that stays clearly apart; ``need``
+    is set near the pair's true closest approach, where a wrong bound would show."""
+    from debris_gym.orbit_fields import SEARCH_TOLERANCE, _apart
+
+    v = np.array(values)
+    horizon = 1.3 * PERIOD
+    states = []
+    for body in (v[:6], v[6:]):
+        pos = body[:3] * 300.0
+        vel = body[3:] * 0.3
+        if drifting:
+            vel[1] = -2.0 * N * pos[0] + vel[1] * 0.05  # |x_c| up to ~30 m
+        else:
+            vel[1] = -2.0 * N * pos[0]  # drift-free
+        states.append(np.r_[pos[:dim], vel[:dim]])
+    states = np.array(states)
+    e = elements_of(states[0], N) - elements_of(states[1], N)
+    if dim == 2:
+        e[4:] = 0.0
+    if not drifting:
+        e[0] = 0.0  # both x_c are 0 up to rounding
+    t = np.linspace(0.0, horizon if drifting else PERIOD, 40001)
+    pos = cw_positions(states, N, t)
+    dist = np.linalg.norm(pos[:, 0] - pos[:, 1], axis=1)
+    slack = np.abs(np.diff(dist)).max()  # the true minimum may lie this far below the sampled
+    need = max(1.0, ratio * dist.min())
+    ok = _apart(e[0], e[1], e[2], e[3], e[4], e[5], need, dim, N, horizon)
+    if ok:
+        assert dist.min() >= need - 1e-6 * (1.0 + need)
+    if dim == 2 and not drifting:
+        if dist.min() - slack > need + 1e-6:
+            assert ok  # exact in the plane: no refusal of a pair that stays apart
+    elif dist.min() - slack > need + SEARCH_TOLERANCE:
+        assert ok
 
 
 # --- bad input ---------------------------------------------------------------------------------
@@ -437,12 +513,33 @@ def test_the_search_finds_a_route_in_free_space_and_none_to_an_enclosed_target()
     radii = np.array([5.0] + [10.0] * len(ring))
     ok, _ = space_time_route(np.array(states.tolist() + ring), radii, 1, 600.0, 1e-9, 5.0, 3000.0)
     assert not ok.any()
-    # a body on a drift-free orbit about the dock, sweeping the whole way out, is seen: with
-    # its ellipse (ρ = 100 m) filling the way, the search waits for it to pass
-    sweeper = [0.0, 200.0, 100.0 * N, 0.0]  # x = ρ sin nt, y = 2ρ cos nt: ρ = 100 m
-    ok, _ = space_time_route(np.array([[0.0, 350.0, 0.0, 0.0], sweeper]), np.array([5.0, 40.0]),
-                             1, 800.0, N, 5.0, 8000.0)  # fmt: skip
+
+
+def moving_wall(gap_x: float | None, speed: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """A target at rest 250 m along-track behind a wall of overlapping discs (r 10 m, 15 m
+    apart) at y = 165 m that slides radially at ``speed`` m/s, with a 3-disc gap centred at
+    x = ``gap_x`` at t = 0 (None: no gap). Free space (n ~ 0): every body moves in a line."""
+    bodies = [[0.0, 250.0, 0.0, 0.0]]
+    for x in np.arange(-1800.0, 301.0, 15.0):
+        if gap_x is None or abs(x - gap_x) > 20.0:
+            bodies.append([x, 165.0, speed, 0.0])
+    return np.array(bodies), np.array([5.0] + [10.0] * (len(bodies) - 1))
+
+
+def test_the_search_follows_the_bodies_in_time():
+    # the gap starts outside the box (x = -400 m): a snapshot at t = 0 shows a closed wall, but
+    # the gap slides in after 200 s and the chaser can pass through it, both ways
+    states, radii = moving_wall(-400.0)
+    ok, _ = space_time_route(states, radii, 1, 600.0, 1e-9, 5.0, 3000.0)
     assert ok.all()
+    frozen = states.copy()
+    frozen[:, 2:] = 0.0
+    ok, _ = space_time_route(frozen, radii, 1, 600.0, 1e-9, 5.0, 3000.0)
+    assert not ok.any()
+    # no gap at all, or a gap sliding away from the box: closed for good
+    for gap in (None, 400.0):
+        ok, _ = space_time_route(*moving_wall(gap), 1, 600.0, 1e-9, 5.0, 3000.0)
+        assert not ok.any()
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -473,3 +570,26 @@ def test_every_accepted_3d_field_is_solvable_by_the_independent_search(seed):
     )  # fmt: skip
     assert goal + 2.0 * CHASER < spec.min_gap + spec.target_clearance
     assert ok.all(), f"seed {seed}: targets {np.flatnonzero(~ok)} not reachable and back"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(8))
+def test_more_accepted_3d_fields_are_solvable_by_the_independent_search(seed):
+    test_every_accepted_3d_field_is_solvable_by_the_independent_search(100 + seed)
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_accepted_drifting_fields_are_solvable_within_their_horizon(seed):
+    spec = spec_of(2, "drifting", drift_offset=(5.0, 20.0))
+    fields = draw(spec, [seed])
+    ok, goal = space_time_route(
+        states_of(fields, 0), fields.radii[0], spec.n_targets, spec.field_size, N, 5.0, PERIOD
+    )
+    assert goal + 2.0 * CHASER < spec.min_gap + spec.target_clearance
+    assert ok.all(), f"seed {seed}: targets {np.flatnonzero(~ok)} not reachable and back"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(10))
+def test_more_accepted_drifting_fields_are_solvable_within_their_horizon(seed):
+    test_accepted_drifting_fields_are_solvable_within_their_horizon(100 + seed)

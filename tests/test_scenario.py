@@ -689,3 +689,14 @@ def test_an_env_can_ask_for_the_dock_to_clear_its_chaser():
     check_dock_clear(scen, chaser_radius=0.4)
     with pytest.raises(ValueError, match=r"dock=\[0.0, 0.0\] m is within the chaser radius 1.0 m"):
         check_dock_clear(scen, chaser_radius=1.0)
+
+
+def test_a_body_built_without_a_velocity_round_trips():
+    """Regression: to_dict wrote "velocity": [], which from_dict refused."""
+    scen = Scenario(
+        dim=2, bounds=((-50.0, 50.0), (-50.0, 50.0)), dock=(0.0, 0.0),
+        targets=(Body(position=(20.0, 0.0), radius=2.0),), mean_motion=0.0, dt=1.0, max_accel=1.0,
+    )  # fmt: skip
+    again = Scenario.from_dict(scen.to_dict())
+    assert again.targets[0].velocity == (0.0, 0.0)
+    assert again.body_states(5.0).tolist() == scen.body_states(5.0).tolist()

@@ -48,7 +48,7 @@ from tests.helpers import load_script
 ROOT = Path(__file__).resolve().parents[1]
 TRAIN = ROOT / "train.py"
 EVALUATE = ROOT / "evaluate.py"
-ENV_ID = "DebrisGym/Rendezvous2D-v0"
+ENV_ID = "DebrisGym/Rendezvous2D-v1"
 
 TINY = [
     "--no-progress", "--n-envs", "2", "--timesteps", "256",
@@ -486,9 +486,10 @@ def test_the_shipped_pretrained_policy_flies_its_env():
     options of its run, and refuses the default env with an error naming them."""
     from agents import observation_options
 
-    options = observation_options("pretrained", ENV_ID)
+    v0 = "DebrisGym/Rendezvous2D-v0"  # the shipped policy flies the frozen world it learned
+    options = observation_options("pretrained", v0)
     assert options == {"obs_targets": 1, "obs_goal": True, "obs_other_targets": True}
-    env = gym.make(ENV_ID, **options)
+    env = gym.make(v0, **options)
     agent = agents.load_agent("pretrained", env)
     assert agent.algo == "ppo" and agent.obs_normalizer is not None
     obs, _ = env.reset(seed=10_000_000)
@@ -499,10 +500,12 @@ def test_the_shipped_pretrained_policy_flies_its_env():
         if terminated or truncated:
             break
     env.close()
-    default = gym.make(ENV_ID)
+    default = gym.make(v0)
     with pytest.raises(ValueError, match=re.escape("trained with env options {'obs_targets': 1")):
         agents.load_agent("pretrained", default)
     default.close()
+    with pytest.raises(ValueError, match="no pretrained policy for DebrisGym/Rendezvous2D-v1"):
+        agents.load_agent("pretrained", gym.make("DebrisGym/Rendezvous2D-v1"))
 
 
 def test_dqn_policy_flies_discrete_and_continuous_envs(trained):
@@ -517,7 +520,8 @@ def test_dqn_policy_flies_discrete_and_continuous_envs(trained):
     thrust, _ = agent.predict(obs2)
     from debris_gym.envs.common import discrete_action_table
 
-    np.testing.assert_array_equal(thrust, discrete_action_table(2)[int(action)])
+    table = discrete_action_table(2, continuous.unwrapped.config.fine_thrust)
+    np.testing.assert_array_equal(thrust, table[int(action)])
     assert continuous.action_space.contains(thrust)
     discrete.close()
     continuous.close()

@@ -155,11 +155,14 @@ def _env_id(env: Any) -> str | None:
     return getattr(spec, "id", None)
 
 
-def _env_dim(env: Any) -> int | None:
+def _env_config(env: Any) -> Any:
     base = env.envs[0] if hasattr(env, "envs") and env.envs else env
     base = getattr(base, "unwrapped", base)
-    config = getattr(base, "config", None)
-    return getattr(config, "dim", None)
+    return getattr(base, "config", None)
+
+
+def _env_dim(env: Any) -> int | None:
+    return getattr(_env_config(env), "dim", None)
 
 
 def _describe(space: spaces.Space) -> str:
@@ -214,10 +217,13 @@ def _check_spaces(model: Any, env: Any, path: Path) -> np.ndarray | None:
             return None
     elif isinstance(m_act, spaces.Discrete) and isinstance(act_space, spaces.Box):
         dim = act_space.shape[0] if len(act_space.shape) == 1 else None
-        if dim is not None and m_act.n == 2 * dim + 1 and _env_dim(env) in (None, dim):
+        if dim is not None and _env_dim(env) in (None, dim):
             from debris_gym.envs.common import discrete_action_table
 
-            return discrete_action_table(dim).astype(np.float32)
+            fine = getattr(_env_config(env), "fine_thrust", 0.0)  # the env's discrete table
+            table = discrete_action_table(dim, fine)
+            if m_act.n == len(table):
+                return table.astype(np.float32)
     raise ValueError(
         f"{path}: the model acts in {_describe(m_act)} but the env expects {_describe(act_space)}"
         + (

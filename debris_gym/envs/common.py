@@ -14,7 +14,7 @@ from gymnasium import spaces
 from gymnasium.envs.registration import EnvSpec
 
 from debris_gym.config import EnvConfig
-from debris_gym.generators import FieldSpec, paper_field, random_field, unplaceable
+from debris_gym.generators import FieldSpec, unplaceable
 from debris_gym.observation import OBS_LIMIT, observation_names
 from debris_gym.scenario import Scenario
 
@@ -28,7 +28,6 @@ __all__ = [
     "checked_seed",
     "discrete_action_table",
     "field_spec",
-    "new_scenario",
     "observation_names",
     "real_array",
     "registered_horizon",
@@ -93,6 +92,11 @@ FIELD_KEYS = (
 """The options that decide whether a random field can be placed at all."""
 
 
+FIELD_HORIZON_STEPS = 1000
+"""Steps over which a random moving field is checked (the v1 IDs' time limit); a drift-free
+field repeats every orbit and is checked over at least one, so it stays valid for ever."""
+
+
 def field_spec(cfg: EnvConfig) -> FieldSpec:
     """Generator settings of the random fields an env with ``cfg`` draws.
 
@@ -128,17 +132,13 @@ def _field_spec(cfg: EnvConfig) -> FieldSpec:
         target_clearance=cfg.capture_radius + 2.0 * cfg.chaser_radius + cfg.min_gap,
         min_target_distance=0.15 * cfg.field_size,
         chaser_radius=cfg.chaser_radius,
+        motion=cfg.debris_motion,
+        mean_motion=cfg.n if cfg.debris_motion != "frozen" else FieldSpec.mean_motion,
+        horizon=FIELD_HORIZON_STEPS * cfg.dt,
+        drift_offset=(cfg.drift_offset_min, cfg.drift_offset_max),
+        rho_max=cfg.field_size / 4.0,
+        spin_max=cfg.spin_max,
     )
-
-
-def new_scenario(cfg: EnvConfig, spec: FieldSpec, rng: np.random.Generator) -> Scenario:
-    """The field an env draws on reset: the [APF-MPC] world, or a random field from ``rng``."""
-    if cfg.scenario == "paper":
-        return paper_field(dt=cfg.dt, max_accel=cfg.max_accel)
-    return random_field(
-        rng, spec, mean_motion=cfg.n, dt=cfg.dt, max_accel=cfg.max_accel,
-        capture_radius=cfg.capture_radius,
-    )  # fmt: skip
 
 
 def check_motion_matches(cfg: EnvConfig, scenario: Scenario) -> None:

@@ -19,12 +19,12 @@ from debris_gym.envs.common import (
     checked_seed,
     discrete_action_table,
     field_spec,
-    new_scenario,
     observation_names,
     registered_horizon,
     single_spaces,
     warn_if_physics_differ,
 )
+from debris_gym.generators import FieldArrays, paper_field, random_fields
 from debris_gym.geometry import FieldGeometry
 from debris_gym.goal import DOCK_GOAL, Goal, current_goal
 from debris_gym.mission_batch import MissionBatch
@@ -115,7 +115,8 @@ class DebrisFieldEnv(gym.Env):
         self._discrete_actions = discrete_action_table(d, cfg.fine_thrust)
         self._obs_names = observation_names(cfg)
         self._field_spec = field_spec(cfg)
-        self.scenario: Scenario | None = None
+        self._scenario: Scenario | None = None
+        self._drawn: FieldArrays | None = None  # a random field, until it is asked for
         self._missions: MissionBatch | None = None  # this env's mission, a batch of one
         self._field_geometry: FieldGeometry | None = None
         self._obs_buffer = np.zeros((1, len(self._obs_names)), dtype=np.float32)
@@ -124,6 +125,18 @@ class DebrisFieldEnv(gym.Env):
         self._renderer = None
 
     # --- state accessors --------------------------------------------------------------------
+
+    @property
+    def scenario(self) -> Scenario | None:
+        """The current field (None before the first reset). A random field is drawn as arrays
+        and loaded as they are; its :class:`Scenario` is built when first asked for here (the
+        same object a :func:`~debris_gym.generators.random_field` draw gives)."""
+        if self._scenario is None and self._drawn is not None:
+            cfg = self.config
+            self._scenario = self._drawn.scenario(
+                0, mean_motion=cfg.n, dt=cfg.dt, max_accel=cfg.max_accel
+            )
+        return self._scenario
 
     @property
     def chaser_state(self) -> np.ndarray:
@@ -195,18 +208,17 @@ class DebrisFieldEnv(gym.Env):
 
     # --- scenario -----------------------------------------------------------------------------
 
-    def _new_scenario(self) -> Scenario:
-        return new_scenario(self.config, self._field_spec, self.np_random)
+    def _draw(self) -> FieldArrays:
+        cfg = self.config
+        return random_fields([self.np_random], self._field_spec, capture_radius=cfg.capture_radius)
 
     def _check_dim(self, scenario: Scenario) -> None:
         if scenario.dim != self.dim:
             raise ValueError(f"scenario has dim={scenario.dim} but the env has dim={self.dim}")
 
-    def _set_scenario(self, scenario: Scenario) -> None:
-        self.scenario = scenario
-        self._field_geometry = None
-        n_targets, n_bodies = len(scenario.targets), len(scenario.bodies)
-        physics = (scenario.mean_motion, scenario.dt, scenario.max_accel)
+    def _batch_for(self, physics: tuple[float, float, float], n_targets: int, n_bodies: int):
+        """The batch of one mission for fields of this physics and size (made again when they
+        change)."""
         m = self._missions
         if m is None or (m.physics, m.n_targets, m.field.n_bodies) != (
             physics,
@@ -218,6 +230,33 @@ class DebrisFieldEnv(gym.Env):
                 self.config, 1, n_targets, n_bodies, mean_motion=mean_motion, dt=dt,
                 max_accel=max_accel, polygon_start=0,
             )  # fmt: skip
+        return m
+
+    def _set_drawn(self, fields: FieldArrays) -> None:
+        """Load a random field drawn as arrays (its Scenario is built only when asked for)."""
+        self._scenario, self._drawn, self._field_geometry = None, fields, None
+        cfg = self.config
+        t, n_bodies = fields.n_targets, fields.radii.shape[1]
+        m = self._batch_for((cfg.n, cfg.dt, cfg.max_accel), t, n_bodies)
+        # the batch of the single env lets any body be a polygon (pinned fields may have
+        # polygon targets): the targets' vertex slots are empty
+        vertices = np.zeros((1, n_bodies, *fields.vertices.shape[2:]))
+        vertices[:, t:] = fields.vertices
+        counts = np.zeros((1, n_bodies), dtype=np.int64)
+        counts[:, t:] = fields.n_vertices
+        spins = None if fields.spins is None else fields.spins[:, m.field.polygon_start :]
+        m.load_arrays(
+            np.zeros(1, dtype=np.int64), fields.centers, fields.radii, vertices, counts,
+            fields.velocities, spins,
+        )  # fmt: skip
+        half = fields.half_size
+        m.set_world(np.zeros(1, dtype=np.int64), 0.0, -half, half, half)
+
+    def _set_scenario(self, scenario: Scenario) -> None:
+        self._scenario, self._drawn, self._field_geometry = scenario, None, None
+        n_targets, n_bodies = len(scenario.targets), len(scenario.bodies)
+        physics = (scenario.mean_motion, scenario.dt, scenario.max_accel)
+        m = self._batch_for(physics, n_targets, n_bodies)
         m.load_scenario(np.zeros(1, dtype=np.int64), scenario)
         m.set_world(
             np.zeros(1, dtype=np.int64),
@@ -254,14 +293,23 @@ class DebrisFieldEnv(gym.Env):
         saved_state = None if saved[0] is None else saved[0].bit_generator.state
         try:
             super().reset(seed=seed)
+            drawn = None
             if options.get("scenario") is not None:
                 scenario = as_scenario(options["scenario"])
                 self._check_dim(scenario)
                 warn_if_physics_differ(self.config, scenario)
                 check_motion_matches(self.config, scenario)
+            elif self.config.scenario == "paper":
+                scenario = paper_field(dt=self.config.dt, max_accel=self.config.max_accel)
             else:
-                scenario = self._new_scenario()
+                drawn = self._draw()
+                scenario = None
             if options.get("chaser_state") is not None:
+                if scenario is None:  # the initial state is checked against the field itself
+                    cfg = self.config
+                    scenario = drawn.scenario(
+                        0, mean_motion=cfg.n, dt=cfg.dt, max_accel=cfg.max_accel
+                    )
                 state = checked_chaser_states(
                     options["chaser_state"], 1, scenario.low, scenario.high,
                     scenario.size / scenario.dt, FieldGeometry(scenario).signed_distance,
@@ -277,10 +325,15 @@ class DebrisFieldEnv(gym.Env):
                 saved[0].bit_generator.state = saved_state
             raise
         # commit: the field and state are valid, nothing below raises on them
-        self._set_scenario(scenario)
+        if drawn is not None:
+            self._set_drawn(drawn)
+            if scenario is not None:
+                self._scenario = scenario
+        else:
+            self._set_scenario(scenario)
         d = self.dim
-        if state is None:
-            state = np.concatenate([np.asarray(scenario.dock, dtype=float), np.zeros(d)])
+        if state is None:  # at rest at the dock
+            state = np.concatenate([self._missions.dock[0], np.zeros(d)])
         self._missions.begin(np.zeros(1, dtype=np.int64), state[None])
         self._trail = deque([state[:d].copy()], maxlen=TRAIL_LENGTH)
         terms = dict.fromkeys(REWARD_TERMS, 0.0)
@@ -295,7 +348,7 @@ class DebrisFieldEnv(gym.Env):
             observation, reward, terminated, truncated (always False: the time limit belongs to
             the ``TimeLimit`` wrapper), info.
         """
-        if self.scenario is None:
+        if self._missions is None:
             raise RuntimeError("call reset() before step()")
         m = self._missions
         reward, terminated, _, terms = m.step(self._action(action), self._live)
@@ -345,7 +398,7 @@ class DebrisFieldEnv(gym.Env):
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode= to make()")
             return None
-        if self.scenario is None:
+        if self._missions is None:
             raise RuntimeError("call reset() before render()")
         from debris_gym.envs.rendering import Renderer
 

@@ -5,11 +5,18 @@ right, radial (x) up. A 3D field gets a second panel beside it, along-track (y) 
 cross-track (z) up; spheres are drawn as circles in both projections.
 
 Speed: a frame is three layers. The *frame* layer (axes, ticks, labels, legend, titles) depends
-only on the world's bounds, dimension and name and is drawn once; the *field* layer (debris, dock,
-target labels) is drawn on top of it once per scenario; each frame restores that cached picture
-and draws only the dynamic artists (targets, trail, chaser, thrust arrow, status numbers) on top
-("blitting"). Frames are rendered off screen with Agg in both modes; ``"human"`` also shows them in
-a pyplot window. Without a display (or with a non-interactive matplotlib backend) ``"human"`` keeps
+only on the world's bounds, dimension, name and motion model and is drawn once; the *field* layer
+is drawn on top of it once per scenario; each frame restores that cached picture and draws only
+the dynamic artists on top ("blitting"). In a frozen field (``Scenario.motion == "frozen"``) the
+field layer holds the debris, the dock and the target labels, and the dynamic artists are the
+targets, trail, chaser, thrust arrow and status numbers. In a moving field (``"cwh"``) every body
+is drawn where it is at the frame's ``time`` (polygons turned), so the bodies and target labels
+are dynamic too, and the field layer holds the dock and each body's path, drawn faintly: its
+positions over one orbit period (a drift-free body's closed relative-orbit ellipse), for the
+period that holds ``time`` (:func:`debris_gym.envs.render_bodies.path_window`).
+
+Frames are rendered off screen with Agg in both modes; ``"human"`` also shows them in a pyplot
+window. Without a display (or with a non-interactive matplotlib backend) ``"human"`` keeps
 drawing off screen, like a pygame env under SDL's dummy video driver, and says so once with a
 :class:`NoDisplayWarning`; headless checks such as gymnasium's ``check_env`` then still run.
 
@@ -18,6 +25,7 @@ Matplotlib is imported only when a :class:`Renderer` is built, so importing the 
 
 from __future__ import annotations
 
+import math
 import os
 import sys
 import warnings
@@ -25,7 +33,18 @@ from typing import Any
 
 import numpy as np
 
+from debris_gym.envs.render_bodies import (
+    CLIP_SPAN,
+    MovingBodies,
+    label_glyphs,
+    off_view,
+    orbit_paths,
+    outline,
+    path_window,
+)
 from debris_gym.scenario import Scenario
+
+__all__ = ["CLIP_SPAN", "RENDER_MODES", "NoDisplayWarning", "Renderer", "outline"]
 
 RENDER_MODES = ("human", "rgb_array")
 
@@ -39,6 +58,11 @@ ARROW_FRACTION = 0.05
 DEBRIS_FACE, DEBRIS_EDGE = "#a6a6a6", "#5f5f5f"
 TARGET_OPEN, TARGET_DONE, TARGET_EDGE = "#ff8c00", "#2ca02c", "#6b3d00"
 CHASER, TRAIL, THRUST, DOCK = "#1f5fd0", "#5b8fe8", "#d62728", "#222222"
+DEBRIS_ORBIT, TARGET_ORBIT = "#c4c8dc", "#f3c48f"
+"""Faint colours of the bodies' paths in a moving field (light enough to read bodies over)."""
+LABEL = {"xytext": (7, 6), "textcoords": "offset points", "fontsize": 8, "color": TARGET_EDGE,
+         "fontweight": "bold", "zorder": 4, "animated": True}  # fmt: skip
+"""Style of the target numbers, set beside each target."""
 
 AXIS_LABELS = {0: "x radial [m]", 1: "y along-track [m]", 2: "z cross-track [m]"}
 PANEL_TITLES = {
@@ -57,19 +81,6 @@ STATUS_FIELDS = (
 )
 STATUS_FONTSIZE = 9.5
 
-CLIP_SPAN = 4.0
-"""A body wider than this many view spans is drawn as its part near the view (:func:`outline`).
-
-Agg flattens a circle's Bézier curves by subdividing them until each piece is under a pixel's
-tolerance: the work grows with the radius in pixels, and at ~1e12 px (an obstacle of 1e15 m in a
-1 km view) a single draw runs for minutes. Bodies up to this size are drawn whole (every body of
-a checked scenario lies inside the bounds, so well below it); larger ones are replaced by a
-polygon of bounded size that matches them to far below a pixel inside the view."""
-
-ARC_POINTS = 256
-"""Points along the arc of a clipped disc (the arc inside the view is at most ~6 view spans
-long, so at most ~12 px apart on a 480 px panel, where the chord error stays below 0.01 px)."""
-
 
 def style_field_axes(ax: Any, scenario: Any, h: int, v: int, title: bool) -> None:
     """Limits, equal aspect, axis labels and grid of one field panel (axis h right, v up)."""
@@ -84,86 +95,6 @@ def style_field_axes(ax: Any, scenario: Any, h: int, v: int, title: bool) -> Non
     ax.set_facecolor("#fbfbfd")
     if title:
         ax.set_title(PANEL_TITLES[(h, v)], fontsize=9, pad=4)
-
-
-def outline(
-    centre: np.ndarray, radius: float, vertices: np.ndarray | None, lo: np.ndarray, hi: np.ndarray
-) -> np.ndarray | None:
-    """What to draw of one body in the view box ``[lo, hi]`` (2-vectors, m).
-
-    Returns ``None`` to draw the body whole (a circle of ``radius`` at ``centre``, or its polygon
-    ``vertices`` in world coordinates), otherwise the polygon (k, 2) to draw instead: the body's
-    part inside the view box grown by one view span on every side, so the cut edges stay off
-    screen. An empty (0, 2) array means nothing of the body is near the view. Only bodies wider
-    than :data:`CLIP_SPAN` view spans are cut (see there why).
-    """
-    span = float(np.max(hi - lo))
-    box_lo, box_hi = lo - span, hi + span
-    if vertices is None:
-        if not radius > CLIP_SPAN * span:
-            return None
-        return _clipped_disc(centre, radius, box_lo, box_hi)
-    extent = float(np.max(vertices.max(axis=0) - vertices.min(axis=0)))
-    if not extent > CLIP_SPAN * span:
-        return None
-    return _clip_polygon(vertices, box_lo, box_hi)
-
-
-def _clipped_disc(centre: np.ndarray, radius: float, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """A disc far larger than the box ``[lo, hi]``, cut to the box (polygon vertices, m).
-
-    Worked in a frame at the box centre with axis u pointing away from the disc's centre and w
-    across it, where the disc's edge is a = sqrt(r² − b²) − D, written as
-    (r − D) − b² / (r + sqrt(r² − b²)) so that no two huge numbers are subtracted but r − D
-    (which is as precise as the inputs allow).
-    """
-    mid = (lo + hi) / 2.0
-    half = float(np.hypot(*((hi - lo) / 2.0)))  # the box lies within this distance of mid
-    offset = mid - centre
-    dist = float(np.hypot(*offset))
-    gap = dist - radius  # first: dist ± half would round back to dist beside a huge radius
-    if gap + half <= 0.0:  # the disc covers the box
-        return np.array([lo, [hi[0], lo[1]], hi, [lo[0], hi[1]]], dtype=float)
-    if gap - half >= 0.0:  # the disc misses the box
-        return np.zeros((0, 2))
-    u = offset / dist  # dist > radius - half > 0: the centre is far outside the box
-    w = np.array([-u[1], u[0]])
-    b = np.linspace(-half, half, ARC_POINTS)
-    a = -gap - b * b / (radius + np.sqrt(radius * radius - b * b))
-    far = min(float(a.min()), -half) - half  # behind the box, on the disc's side
-    a = np.concatenate([a, [far, far]])
-    b = np.concatenate([b, [half, -half]])
-    return mid + a[:, None] * u + b[:, None] * w
-
-
-def _clip_polygon(points: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """A convex polygon cut to the box ``[lo, hi]`` (Sutherland–Hodgman), (k, 2) vertices."""
-    out = np.asarray(points, dtype=float)
-    for axis in (0, 1):
-        for limit, sign in ((lo[axis], 1.0), (hi[axis], -1.0)):
-            if len(out) == 0:
-                return np.zeros((0, 2))
-            inside = sign * (out[:, axis] - limit) >= 0.0
-            kept = []
-            for k in range(len(out)):
-                p, q = out[k], out[(k + 1) % len(out)]
-                if inside[k]:
-                    kept.append(p)
-                if inside[k] != inside[(k + 1) % len(out)]:
-                    kept.append(_cut(p, q, axis, limit))
-            out = np.array(kept).reshape(-1, 2)
-    return out
-
-
-def _cut(p: np.ndarray, q: np.ndarray, axis: int, limit: float) -> np.ndarray:
-    """Where segment pq crosses the line ``coordinate[axis] = limit``, interpolated from the end
-    nearer to that line: the ends of a huge body's edge may lie 1e20 m apart, and interpolating
-    from the far end would lose the crossing in rounding."""
-    if abs(p[axis] - limit) > abs(q[axis] - limit):
-        p, q = q, p
-    point = p + (limit - p[axis]) / (q[axis] - p[axis]) * (q - p)
-    point[axis] = limit
-    return point
 
 
 def _import_matplotlib() -> Any:
@@ -219,7 +150,10 @@ class _Panel:
 
     def __init__(self, ax: Any, h: int, v: int) -> None:
         self.ax, self.h, self.v = ax, h, v
-        self.field: list[Any] = []  # static per-scenario artists (debris, dock, labels)
+        self.field: list[Any] = []  # artists of the cached field layer
+        self.debris: Any = None  # a moving field's obstacles (in a frozen one, in self.field)
+        self.numbers: Any = None  # moving field: the target labels as one collection of glyphs
+        self.paths: list[Any] = []  # a moving field's body paths (in the field layer)
         self.targets: Any = None  # true-size target discs
         self.rings: Any = None  # fixed-size rings around targets, so small ones stay visible
         self.trail: Any = None
@@ -248,11 +182,24 @@ class _Panel:
         if shape is None:
             return circle(centre, body.radius) if vertices is None else polygon(vertices)
         if len(shape) == 0:  # keep one patch per body: the targets' colours are per patch
-            shape = np.repeat(lo[None] - (hi - lo), 3, axis=0)
+            shape = off_view(lo, hi)
         return polygon(shape, closed=True)
 
     def dynamic(self) -> tuple[Any, ...]:
-        return (self.targets, self.rings, self.trail, self.arrow, self.chaser)
+        """The artists drawn on every frame, bottom first."""
+        if self.debris is None:
+            return (self.targets, self.rings, self.trail, self.arrow, self.chaser)
+        return (self.debris, self.targets, self.rings, self.numbers, self.trail, self.arrow,
+                self.chaser)  # fmt: skip
+
+    def remove_field(self) -> None:
+        """Take the previous scenario's artists off the axes."""
+        for artist in (*self.field, *self.paths, self.debris, self.numbers, self.targets,
+                       self.rings):  # fmt: skip
+            if artist is not None:
+                artist.remove()
+        self.field, self.paths = [], []
+        self.debris = self.numbers = self.targets = self.rings = None
 
 
 class Renderer:
@@ -281,6 +228,9 @@ class Renderer:
             if self._plt is None:
                 _warn_no_window(reason)
         self._scenario: Scenario | None = None
+        self._bodies: MovingBodies | None = None  # set while a moving field is drawn
+        self._path_window = math.inf  # length (s) of the stretch of motion drawn as paths
+        self._path_start: float | None = None  # start (s) of the paths in the field layer
         self._layout_key: tuple[Any, ...] | None = None
         self._fig: Any = None
         self._canvas: Any = None
@@ -318,10 +268,16 @@ class Renderer:
             captured: one flag per target.
             trail: past chaser positions, shape (n, dim) (m).
             accel: commanded acceleration of the last step, length dim (m/s²).
-            time: elapsed time (s).
+            time: elapsed time (s), >= 0; a moving field's bodies are drawn where they are then.
             delta_v: Δv spent so far (m/s).
+
+        Raises:
+            ValueError: ``time`` is negative or not finite.
         """
-        self._ensure_scene(scenario)
+        time = float(time)
+        if not (math.isfinite(time) and time >= 0.0):
+            raise ValueError(f"time must be a finite number of s >= 0, got {time!r}")
+        self._ensure_scene(scenario, time)
         d = scenario.dim
         state = np.asarray(chaser_state, dtype=float).reshape(2 * d)
         pos, vel = state[:d], state[d:]
@@ -329,6 +285,8 @@ class Renderer:
         trail = np.asarray(trail, dtype=float).reshape(-1, d)
         accel = np.asarray(accel, dtype=float).reshape(d)
 
+        if self._bodies is not None:
+            self._place_bodies(time)
         colours = np.where(captured[:, None], self._rgba_done, self._rgba_open)
         thrust = float(np.linalg.norm(accel)) / scenario.max_accel
         arrow = accel / scenario.max_accel * (ARROW_FRACTION * scenario.size)
@@ -370,22 +328,25 @@ class Renderer:
         self._window = self._window_image = None
         self._fig = self._canvas = self._frame_background = self._background = None
         self._panels, self._status = [], []
-        self._scenario = self._layout_key = None
+        self._scenario = self._layout_key = self._bodies = self._path_start = None
 
     # --- cached layers ------------------------------------------------------------------------
 
-    def _ensure_scene(self, scenario: Scenario) -> None:
-        if scenario is self._scenario:
-            return
-        key = (scenario.dim, scenario.bounds, scenario.name)
-        if key != self._layout_key:
-            self._build_frame(scenario)
-            self._layout_key = key
-        elif scenario == self._scenario:  # an equal copy: keep the drawn field
-            self._scenario = scenario
-            return
-        self._build_field(scenario)
-        self._scenario = scenario
+    def _ensure_scene(self, scenario: Scenario, time: float) -> None:
+        if scenario is not self._scenario:
+            key = (scenario.dim, scenario.bounds, scenario.name, scenario.moving)
+            if key != self._layout_key:
+                self._build_frame(scenario)
+                self._layout_key = key
+                self._build_field(scenario)
+            elif scenario != self._scenario:
+                self._build_field(scenario)
+            self._scenario = scenario  # an equal copy keeps the drawn field
+        if self._bodies is not None:
+            window = self._path_window
+            start = math.floor(time / window) * window if math.isfinite(window) else 0.0
+            if start != self._path_start:
+                self._draw_paths(scenario, start)
 
     def _build_frame(self, scenario: Scenario) -> None:
         """Figure, axes, titles, status labels and legend: everything but the field itself."""
@@ -435,9 +396,10 @@ class Renderer:
             ha="center", va="center", fontsize=11, fontweight="bold",
         )  # fmt: skip
         self._status = self._status_line(fig, canvas, 1.0 - 36 / height)
+        handles = self._legend_handles(scenario.moving)
         fig.legend(
-            handles=self._legend_handles(), loc="lower center", bbox_to_anchor=(0.5, 0.0),
-            ncol=7 if n > 1 else 4, fontsize=8, frameon=False, handlelength=1.6,
+            handles=handles, loc="lower center", bbox_to_anchor=(0.5, 0.0),
+            ncol=len(handles) if n > 1 else 4, fontsize=8, frameon=False, handlelength=1.6,
             columnspacing=1.2, borderaxespad=0.3,
         )  # fmt: skip
         canvas.draw()
@@ -446,53 +408,115 @@ class Renderer:
         self._scenario = None
 
     def _build_field(self, scenario: Scenario) -> None:
-        """Draw debris, dock and target labels over the frame layer; cache the result."""
-        from matplotlib.collections import PatchCollection
+        """Make the scenario's artists. A frozen field's debris, dock and target labels are drawn
+        over the frame layer here and the result cached; a moving field's bodies and labels are
+        dynamic, and its field layer (paths and dock) is drawn by :meth:`_draw_paths`."""
+        from matplotlib.collections import PatchCollection, PathCollection
         from matplotlib.lines import Line2D
         from matplotlib.patches import Circle, Polygon
+        from matplotlib.transforms import IdentityTransform
 
+        moving = scenario.moving
+        self._bodies, self._path_start = None, None
+        if moving:
+            span = min(float(np.max(hi - lo)) for lo, hi in (p.view() for p in self._panels))
+            self._bodies = MovingBodies(scenario, span)
+            self._path_window = path_window(scenario)
         canvas, fig = self._canvas, self._fig
-        canvas.restore_region(self._frame_background)
+        if not moving:
+            canvas.restore_region(self._frame_background)
         centres = np.array([t.position for t in scenario.targets], dtype=float)
+        alpha = 0.85 if scenario.dim == 3 else 1.0
         for panel in self._panels:
-            for artist in (*panel.field, panel.targets, panel.rings):
-                if artist is not None:
-                    artist.remove()
+            panel.remove_field()
             ax = panel.ax
             lo, hi = panel.view()
-            patches = [panel.patch(body, lo, hi, Circle, Polygon) for body in scenario.obstacles]
-            debris = PatchCollection(
-                patches, facecolor=DEBRIS_FACE, edgecolor=DEBRIS_EDGE, linewidth=0.7, zorder=1,
-                alpha=0.85 if scenario.dim == 3 else 1.0, animated=True,
-            )  # fmt: skip
             dx, dy = panel.xy(scenario.dock)
             dock = Line2D(
                 [dx], [dy], marker="s", markersize=11, markerfacecolor="white",
                 markeredgecolor=DOCK, markeredgewidth=1.8, linestyle="none", zorder=2,
                 animated=True,
             )  # fmt: skip
-            panel.field = [ax.add_collection(debris, autolim=False), ax.add_line(dock)]
             tx, ty = panel.xy(centres)
-            for i, (x, y) in enumerate(zip(tx, ty, strict=True)):
-                label = ax.annotate(
-                    str(i), (x, y), xytext=(7, 6), textcoords="offset points", fontsize=8,
-                    color=TARGET_EDGE, fontweight="bold", zorder=4, animated=True,
+            style = {"zorder": 1, "alpha": alpha, "animated": True}
+            debris = {"facecolor": DEBRIS_FACE, "edgecolor": DEBRIS_EDGE, "linewidth": 0.7}
+            target = {"edgecolor": TARGET_EDGE, "linewidth": 0.6, "zorder": 3, "animated": True}
+            if moving:  # shapes set per frame (_place_bodies)
+                panel.debris = ax.add_collection(PathCollection([], **debris, **style), False)
+                panel.field = [ax.add_line(dock)]
+                panel.numbers = ax.add_collection(
+                    PathCollection(
+                        label_glyphs(len(centres), LABEL), sizes=[1.0],
+                        offsets=np.column_stack([tx, ty]), offset_transform=ax.transData,
+                        transform=IdentityTransform(), facecolor=TARGET_EDGE, edgecolor="none",
+                        zorder=4, animated=True, clip_on=False,
+                    ),
+                    autolim=False,
                 )  # fmt: skip
-                panel.field.append(label)
-            for artist in panel.field:
-                fig.draw_artist(artist)
-            panel.targets = ax.add_collection(
-                PatchCollection(
-                    [panel.patch(t, lo, hi, Circle, Polygon) for t in scenario.targets],
-                    edgecolor=TARGET_EDGE, linewidth=0.6, zorder=3, animated=True,
-                ),
-                autolim=False,
-            )  # fmt: skip
+                targets = PathCollection([], **target)
+            else:
+                patches = [panel.patch(b, lo, hi, Circle, Polygon) for b in scenario.obstacles]
+                collection = PatchCollection(patches, **debris, **style)
+                panel.field = [ax.add_collection(collection, autolim=False), ax.add_line(dock)]
+                panel.field += [
+                    ax.annotate(str(i), xy, **LABEL) for i, xy in enumerate(zip(tx, ty))
+                ]
+                for artist in panel.field:
+                    fig.draw_artist(artist)
+                targets = PatchCollection(
+                    [panel.patch(t, lo, hi, Circle, Polygon) for t in scenario.targets], **target
+                )
+            panel.targets = ax.add_collection(targets, autolim=False)
             panel.rings = ax.scatter(
                 tx, ty, s=110, facecolors="none", edgecolors=TARGET_OPEN, linewidths=1.8,
                 zorder=3, animated=True,
             )  # fmt: skip
+        if not moving:
+            self._background = canvas.copy_from_bbox(fig.bbox)
+
+    def _draw_paths(self, scenario: Scenario, start: float) -> None:
+        """Field layer of a moving field: each body's path from ``start`` (s) over the path window
+        (bodies cut by ``outline`` have none: their centres are far off the view), then the dock;
+        cached as the background of the frames in that window."""
+        from matplotlib.collections import LineCollection
+
+        canvas, fig = self._canvas, self._fig
+        canvas.restore_region(self._frame_background)
+        window = self._path_window
+        paths = orbit_paths(scenario, start, window) if math.isfinite(window) else None
+        is_target = np.arange(len(scenario.bodies)) < len(scenario.targets)
+        for panel in self._panels:
+            for artist in panel.paths:
+                artist.remove()
+            panel.paths = []
+            if paths is not None:
+                for chosen, colour in ((~is_target, DEBRIS_ORBIT), (is_target, TARGET_ORBIT)):
+                    lines = paths[chosen & ~self._bodies.huge][:, :, [panel.h, panel.v]]
+                    collection = LineCollection(
+                        lines, colors=colour, linewidths=1.0, zorder=0.5, animated=True
+                    )
+                    panel.paths.append(panel.ax.add_collection(collection, autolim=False))
+            for artist in (*panel.paths, *panel.field):
+                fig.draw_artist(artist)
         self._background = canvas.copy_from_bbox(fig.bbox)
+        self._path_start = start
+
+    def _place_bodies(self, time: float) -> None:
+        """Put a moving field's bodies, target rings and labels where they are at ``time``."""
+        bodies, scenario = self._bodies, self._scenario
+        centres, vertices = bodies.at(time)
+        n_targets = len(scenario.targets)
+        for panel in self._panels:
+            lo, hi = panel.view()
+            shapes = (centres, vertices, panel.h, panel.v, lo, hi)
+            panel.debris.set_paths(bodies.paths(range(n_targets, len(centres)), *shapes))
+            panel.targets.set_paths(bodies.paths(range(n_targets), *shapes))
+            rings = centres[:n_targets][:, [panel.h, panel.v]]
+            panel.rings.set_offsets(rings)
+            # Like an annotation: drawn unclipped (beside a body at the edge), but only for a
+            # body whose centre is in view (a non-finite offset is skipped).
+            inside = np.all((rings >= lo) & (rings <= hi), axis=1)
+            panel.numbers.set_offsets(np.where(inside[:, None], rings, np.nan))
 
     @staticmethod
     def _status_line(fig: Any, canvas: Any, y: float) -> list[Any]:
@@ -531,7 +555,7 @@ class Renderer:
         return values
 
     @staticmethod
-    def _legend_handles() -> list[Any]:
+    def _legend_handles(moving: bool) -> list[Any]:
         from matplotlib.lines import Line2D
         from matplotlib.patches import Patch
 
@@ -551,7 +575,8 @@ class Renderer:
             marker("captured", marker="o", markersize=8, markerfacecolor=TARGET_DONE,
                    markeredgecolor=TARGET_DONE),
             Patch(facecolor=DEBRIS_FACE, edgecolor=DEBRIS_EDGE, label="debris"),
-        ]  # fmt: skip
+        ] + ([Line2D([], [], color=DEBRIS_ORBIT, linewidth=1.5, label="paths")] if moving
+             else [])  # fmt: skip
 
     # --- human window -------------------------------------------------------------------------
 

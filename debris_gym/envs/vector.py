@@ -154,12 +154,20 @@ class DebrisFieldVectorEnv(VectorEnv):
         pinned = self._pinned[i]
         if pinned is not None:
             return pinned
-        cfg, field = self.config, self._missions.field
+        cfg, field, d = self.config, self._missions.field, self.dim
         vertices, counts = field.vertex_arrays(i)
+        n_obstacles = field.n_bodies - self._missions.n_targets
+        if counts.shape[0] != n_obstacles:  # 3D: spheres only, the batch keeps no polygon slots
+            vertices, counts = np.zeros((n_obstacles, 0, 2)), np.zeros(n_obstacles, dtype=int)
         half = self._field_spec.field_size / 2.0
+        moving = cfg.debris_motion != "frozen"
+        start = field.start_states[i]  # the field as drawn: the bodies have moved since
+        spins = np.zeros(field.n_bodies)
+        spins[field.polygon_start :] = field.spins[i]
         return scenario_from_arrays(
-            field.centers[i], field.radii[i], vertices, counts, self._missions.n_targets,
-            ((-half, half),) * self.dim, mean_motion=cfg.n, dt=cfg.dt, max_accel=cfg.max_accel,
+            start[:, :d], field.radii[i], vertices, counts, self._missions.n_targets,
+            ((-half, half),) * d, mean_motion=cfg.n, dt=cfg.dt, max_accel=cfg.max_accel,
+            velocities=start[:, d:] if moving else None, spins=spins if moving else None,
         )  # fmt: skip
 
     def _load_new(self, rows: np.ndarray) -> None:
@@ -189,9 +197,10 @@ class DebrisFieldVectorEnv(VectorEnv):
             rows if self._missions is None else [i for i in listed if self._pinned[i] is not None]
         )
         missions = self._fit((cfg.n, cfg.dt, cfg.max_accel), fields.n_targets, len(fields.radii[0]))
+        spins = None if fields.spins is None else fields.spins[:, missions.field.polygon_start :]
         missions.load_arrays(
             rows, fields.centers, fields.radii, fields.vertices, fields.n_vertices,
-            getattr(fields, "velocities", None), getattr(fields, "spins", None),
+            fields.velocities, spins,
         )  # fmt: skip
         for i in listed:
             self._pinned[i] = None

@@ -62,7 +62,7 @@ __all__ = [
     "run_evaluation",
 ]
 
-DEFAULT_ENV = "DebrisGym/Rendezvous2D-v0"
+DEFAULT_ENV = "DebrisGym/Rendezvous2D-v1"
 """Env of a plain ``python evaluate.py``."""
 
 DEFAULT_EPISODES = 20

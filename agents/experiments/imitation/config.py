@@ -66,7 +66,7 @@ class ImitationConfig:
         seed: base seed (fields, network initialisation, minibatch order).
     """
 
-    env_id: str = "DebrisGym/Rendezvous2D-v0"
+    env_id: str = "DebrisGym/Rendezvous2D-v1"
     env_kwargs: dict[str, Any] = field(
         default_factory=lambda: {"obs_goal": True, "obs_targets": 1, "obs_other_targets": True}
     )
@@ -252,8 +252,9 @@ def load_imitation_config(
     data, _ = load_config_file(source)
     data = apply_overrides(data, overrides)
     file_env = data.setdefault("env_id", env_id)
-    if file_env != env_id:
+    if env_stub(str(file_env)) != env_stub(env_id):  # versions of one env share a config
         raise ValueError(f"{source}: env_id {file_env!r} differs from --env {env_id!r}")
+    data["env_id"] = env_id
     if seed is not None:
         data["seed"] = seed
     return ImitationConfig.from_dict(data, str(source))

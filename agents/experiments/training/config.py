@@ -32,7 +32,7 @@ OFF_POLICY = ("sac", "td3", "dqn")
 EVAL_SEED = 1_000_000
 """Evaluation sub-env ``i`` is reset with seed ``EVAL_SEED + i``; training seeds stay below it."""
 
-DEFAULT_ENV = "DebrisGym/Rendezvous2D-v0"
+DEFAULT_ENV = "DebrisGym/Rendezvous2D-v1"
 """Env of a ``train.py`` run that names neither ``--env`` nor ``--config``."""
 
 

@@ -23,7 +23,7 @@ from typing import Any
 
 from stable_baselines3.common.callbacks import ProgressBarCallback
 
-from agents.experiments.config_files import CONFIG_DIR, apply_overrides
+from agents.experiments.config_files import CONFIG_DIR, apply_overrides, env_stub
 from agents.experiments.provenance import library_versions, utc_now
 from agents.experiments.run_directory import LOCK_FILE, RunDirectoryLock, check_output_dir
 from agents.experiments.training.callbacks import close_progress_bar, make_callbacks
@@ -151,10 +151,20 @@ def resolve_config(options: TrainOptions) -> tuple[TrainConfig, str]:
                 "--config FILE"
             )
     data, _ = load_config_file(path)
-    for key, flag, value in (("env_id", "--env", options.env_id), ("algo", "--algo", options.algo)):
-        given = data.get(key)
-        if value is not None and given is not None and str(given).lower() != value.lower():
-            raise ConfigError(f"{flag} {value!r} disagrees with {key}: {given!r} in {path}")
+    given_env = data.get("env_id")
+    if options.env_id is not None and given_env is not None:
+        # the versions of one env share its recipe: --env picks the version
+        if env_stub(str(given_env)) != env_stub(options.env_id):
+            raise ConfigError(
+                f"--env {options.env_id!r} disagrees with env_id: {given_env!r} in {path}"
+            )
+        data["env_id"] = options.env_id
+    given_algo = data.get("algo")
+    if options.algo is not None and given_algo is not None:
+        if str(given_algo).lower() != options.algo.lower():
+            raise ConfigError(
+                f"--algo {options.algo!r} disagrees with algo: {given_algo!r} in {path}"
+            )
     data = apply_overrides(data, options.overrides)
     if options.n_envs is not None:
         data["n_envs"] = options.n_envs
