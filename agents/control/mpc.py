@@ -448,7 +448,7 @@ class MPCTracker:
         normals = np.empty((k_pts, self.M, self.dim))
         offsets = np.empty((k_pts, self.M))
         bodies = np.empty((k_pts, self.M), dtype=np.int64)
-        centres = np.array([motion.positions(t0 + k * dt) for k in range(k_pts + 1)])
+        centres = np.array([motion.positions(t0 + k * dt) for k in range(k_pts)])
         for k in range(k_pts):
             geom = motion.geometry(t0 + k * dt)
             nk, ok, _, bk = self._halfspaces(points[k : k + 1], margins, geom)
