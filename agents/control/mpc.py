@@ -31,6 +31,13 @@ between consecutive predicted positions is clear of that body too (the true arc 
 chord by at most a·dt²/8 ≈ 0.6 m on the default env, inside the margin). One slack per step, with
 a large linear + quadratic penalty, keeps the QP feasible; if OSQP still fails the tracker brakes.
 
+Moving bodies (a ``motion="cwh"`` field, given as a :class:`~agents.planners.motion.FieldMotion`
+and the current time): the keep-out is time-indexed. The half-spaces around p̂_k come from the
+bodies where they will be at t + k·dt; a half-space found at p̂_k and carried to p_{k+1} moves
+with its body (its offset shifted by n·(c(t_{k+1}) − c(t_k)), c the body's centre), so it holds
+in the body's own frame at both ends of the chord. The chaser's motion relative to a body obeys
+the same CWH law, so this is the static argument in each body's frame.
+
 The QP is set up once per tracker (one scenario and one parameter set) with a fixed sparsity
 pattern; every decision only calls ``update(q=, l=, u=, Ax=)`` and warm-starts from the previous
 primal and dual solution shifted by one step.
@@ -53,6 +60,7 @@ import osqp
 import scipy.sparse as sp
 from scipy.spatial import HalfspaceIntersection
 
+from agents.planners.motion import FieldMotion
 from debris_gym.dynamics import discretize
 from debris_gym.geometry import FieldGeometry
 from debris_gym.scenario import Scenario
@@ -202,6 +210,8 @@ class MPCTracker:
         thrust_model: "ball" or "box", as the env's ``thrust_model``.
         chaser_radius: chaser radius (m), added to every keep-out distance.
         geometry: the field's :class:`FieldGeometry` (built, not inflated, if omitted).
+        motion: the bodies' predicted motion; given for a moving field, the keep-out uses the
+            bodies where they will be at each step of the horizon (``now`` of :meth:`solve`).
     """
 
     def __init__(
@@ -212,8 +222,10 @@ class MPCTracker:
         thrust_model: str = "ball",
         chaser_radius: float = 0.0,
         geometry: FieldGeometry | None = None,
+        motion: FieldMotion | None = None,
     ) -> None:
         self.params = p = params or MPCParams()
+        self.motion = motion if motion is not None and motion.moving else None
         self.scenario = scenario
         self.dim = d = scenario.dim
         self.thrust_model = thrust_model
@@ -382,18 +394,19 @@ class MPCTracker:
     # --- keep-out -----------------------------------------------------------------------------
 
     def _halfspaces(
-        self, points: np.ndarray, margins: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        self, points: np.ndarray, margins: np.ndarray, geometry: FieldGeometry | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Supporting half-spaces n·p ≥ b of the nearest bodies around each point.
 
         Args:
             points: (P, dim) linearisation points (m).
             margins: (n_bodies,) required distance (m) from each surface (∞ skips a body).
+            geometry: the bodies as they are for these points (default: the tracker's field).
 
         Returns:
-            ``(normals (P, M, dim), offsets (P, M) [m], valid (P, M))``.
+            ``(normals (P, M, dim), offsets (P, M) [m], valid (P, M), bodies (P, M))``.
         """
-        geom, M, d = self.geometry, self.M, self.dim
+        geom, M, d = geometry or self.geometry, self.M, self.dim
         gaps = geom.signed_distance(points)  # (P, B)
         score = gaps - np.where(np.isfinite(margins), margins, -np.inf)[None]
         score = np.where(np.isfinite(margins)[None], score, np.inf)
@@ -418,7 +431,32 @@ class MPCTracker:
             surface[rows, slots] = body_surface[rows, bodies]
         offsets = np.einsum("pmd,pmd->pm", normals, surface) + margins[nearest]
         del d
-        return normals, np.where(valid, offsets, -np.inf), valid
+        return normals, np.where(valid, offsets, -np.inf), valid, nearest
+
+    def _moving_halfspaces(
+        self, points: np.ndarray, margins: np.ndarray, t0: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Half-spaces around p̂_k (k = 0 … N) from the bodies where they are at t0 + k·dt, and
+        each carried one step on with its body (see the module docstring).
+
+        Returns:
+            ``(normals (N+1, M, dim), offsets (N+1, M), carried offsets (N, M))``: the
+            carried offsets are those of p̂_k's half-spaces moved to t0 + (k+1)·dt.
+        """
+        motion, dt = self.motion, self.dt
+        k_pts = len(points)
+        normals = np.empty((k_pts, self.M, self.dim))
+        offsets = np.empty((k_pts, self.M))
+        bodies = np.empty((k_pts, self.M), dtype=np.int64)
+        centres = np.array([motion.positions(t0 + k * dt) for k in range(k_pts)])
+        for k in range(k_pts):
+            geom = motion.geometry(t0 + k * dt)
+            nk, ok, _, bk = self._halfspaces(points[k : k + 1], margins, geom)
+            normals[k], offsets[k], bodies[k] = nk[0], ok[0], bk[0]
+        shift = centres[1:k_pts] - centres[: k_pts - 1]  # (N, B, dim)
+        rows = np.arange(k_pts - 1)[:, None]
+        moved = np.einsum("kmd,kmd->km", normals[:-1], shift[rows, bodies[:-1]])
+        return normals, offsets, offsets[:-1] + moved
 
     # --- solving ------------------------------------------------------------------------------
 
@@ -443,6 +481,7 @@ class MPCTracker:
         guess: np.ndarray | None = None,
         dual_guess: np.ndarray | None = None,
         margins: Mapping[int, float] | None = None,
+        now: float = 0.0,
     ) -> MPCSolution:
         """Solve one MPC problem (the tracker's warm-start state is left alone).
 
@@ -455,6 +494,8 @@ class MPCTracker:
                 keep-out around; None: a cold start (zeros), linearised around the reference.
             dual_guess: OSQP dual vector to warm-start with (None: zeros).
             margins: per-body keep-out margin overrides (see :meth:`body_margins`).
+            now: the current time (s since the episode began): where the bodies of a moving
+                field are (ignored for a frozen one).
         """
         p, d, N, a, ell = self.params, self.dim, self.N, self.max_accel, self.ell
         x0 = np.asarray(state, dtype=float)
@@ -477,10 +518,16 @@ class MPCTracker:
                     "kdc,c->kd", self._su[:, :d, :], guess_n.reshape(-1) * a
                 )
             points = np.vstack([x0[:d], lin])  # p̂_0 … p̂_N
-            normals, offsets, _ = self._halfspaces(points, self.body_margins(margins))
+            if self.motion is None:
+                normals, offsets, _, _ = self._halfspaces(points, self.body_margins(margins))
+                carried = offsets[:-1]
+            else:
+                normals, offsets, carried = self._moving_halfspaces(
+                    points, self.body_margins(margins), now
+                )
             # step k (position p_{k+1}): half-spaces of p̂_{k+1} (own) and of p̂_k (previous)
             n_rows = np.concatenate([normals[1:], normals[:-1]], axis=1)  # (N, 2M, d)
-            b_rows = np.concatenate([offsets[1:], offsets[:-1]], axis=1)  # (N, 2M)
+            b_rows = np.concatenate([offsets[1:], carried], axis=1)  # (N, 2M)
             coef = np.einsum("kmd,kdc->kmc", n_rows, self._gp)  # (N, 2M, nu)
             self._a_vals[self._ko_ctrl_idx] = coef[self._ko_mask]
             base = np.einsum("kmd,kd->km", n_rows, free[:, :d])  # n·(free position)
@@ -539,6 +586,7 @@ class MPCTracker:
         ref_pos: np.ndarray,
         ref_vel: np.ndarray,
         margins: Mapping[int, float] | None = None,
+        now: float = 0.0,
     ) -> np.ndarray:
         """The acceleration (m/s²) to apply now: the first move of the MPC solution.
 
@@ -560,6 +608,7 @@ class MPCTracker:
             guess=guess,
             dual_guess=dual,
             margins=margins,
+            now=now,
         )
         self.stats["solves"] += 1
         self.stats["iters"].append(sol.iterations)

@@ -8,6 +8,10 @@ References (keys refer to docs/references.md):
       Exact by Held–Karp dynamic programming ([Held62]); for larger sets a local search: nearest
       neighbour construction, 2-opt ([Croes58]) and Or-opt ([Or76]), seeded also with the polygon
       tour.
+    * :func:`moving_order` — the same question when the targets move (the v1 world): the tour of
+      least estimated mission time, each target met where it will be when the chaser gets there
+      (an intercept time found by fixed-point iteration at a planning speed), by enumeration of
+      every order for a few targets.
 
 All functions are pure: they take coordinates (any length unit, e.g. m) and return Python lists of
 indices into ``points``. Tours are closed; the returned orders do not repeat their first element.
@@ -15,18 +19,32 @@ indices into ``points``. Tours are closed; the returned orders do not repeat the
 
 from __future__ import annotations
 
+import itertools
+import math
 import operator
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-__all__ = ["EXACT_MAX_N", "polygon_order", "shortest_order", "tour_length"]
+__all__ = [
+    "EXACT_MAX_N",
+    "MOVING_EXACT_MAX_N",
+    "intercept_time",
+    "moving_order",
+    "moving_tour_time",
+    "polygon_order",
+    "shortest_order",
+    "tour_length",
+]
 
 #: Largest number of points solved exactly (Held–Karp, O(2^N N^2) time) by default.
 EXACT_MAX_N = 12
 
 _MAX_LOCAL_SEARCH_ROUNDS = 1000
+
+#: Largest number of moving targets whose orders are all enumerated by :func:`moving_order`.
+MOVING_EXACT_MAX_N = 5
 
 
 # --------------------------------------------------------------------------------------------------
@@ -319,3 +337,105 @@ def _local_search_best(dist: np.ndarray, pts: np.ndarray) -> np.ndarray:
         improved.append(tour)
     # min keeps the first (polygon-seeded) tour on ties
     return min(improved, key=lambda tour: _cycle_length(dist, tour))
+
+
+# --------------------------------------------------------------------------------------------------
+# moving targets
+# --------------------------------------------------------------------------------------------------
+
+
+def intercept_time(
+    track: Callable[[float], np.ndarray],
+    index: int,
+    start: np.ndarray,
+    t0: float,
+    speed: float,
+    overhead: float = 0.0,
+    tolerance: float = 1e-6,
+    max_iterations: int = 200,
+) -> float:
+    """Flight time (s) from ``start`` at time ``t0`` to target ``index`` where it will be then.
+
+    Fixed point of T = ‖p_i(t0 + T) − start‖ / speed + overhead, iterated from T = overhead: a
+    straight flight at the planning ``speed`` (m/s) to the target's future position, plus a
+    fixed ``overhead`` (s; braking, matching its velocity, the capture hold). A target slower
+    than ``speed`` makes the map a contraction (the error shrinks by at least the ratio of the
+    speeds per iteration); iteration stops when T changes by less than ``tolerance`` (s), or
+    after ``max_iterations`` (a target faster than the planning speed).
+
+    Args:
+        track: positions (N, dim) of every target at a time (s).
+        index: the target.
+        start: (dim,) where the chaser is at ``t0`` (m).
+        t0: departure time (s).
+        speed: planning speed (m/s), > 0.
+        overhead: fixed time per visit (s), >= 0.
+        tolerance: convergence threshold (s).
+        max_iterations: iteration cap.
+    """
+    if not (math.isfinite(speed) and speed > 0):
+        raise ValueError(f"speed must be > 0 m/s, got {speed!r}")
+    if not (math.isfinite(overhead) and overhead >= 0):
+        raise ValueError(f"overhead must be >= 0 s, got {overhead!r}")
+    flight = float(overhead)
+    for _ in range(max_iterations):
+        gap = float(np.linalg.norm(np.asarray(track(t0 + flight))[index] - start))
+        flight, before = gap / speed + overhead, flight
+        if abs(flight - before) <= tolerance:
+            break
+    return flight
+
+
+def moving_tour_time(
+    track: Callable[[float], np.ndarray],
+    start: ArrayLike,
+    order: Sequence[int],
+    speed: float,
+    overhead: float = 0.0,
+) -> float:
+    """Estimated time (s) of the closed tour ``start`` → targets in ``order`` → ``start``, each
+    target met where it will be (:func:`intercept_time`); ``start`` (the dock) does not move."""
+    here = np.asarray(start, dtype=float)
+    t = 0.0
+    for i in order:
+        t += intercept_time(track, i, here, t, speed, overhead)
+        here = np.asarray(track(t))[i]
+    return t + float(np.linalg.norm(here - np.asarray(start, dtype=float))) / speed
+
+
+def moving_order(
+    track: Callable[[float], np.ndarray],
+    start: ArrayLike,
+    speed: float,
+    overhead: float = 0.0,
+    *,
+    exact_max_n: int = MOVING_EXACT_MAX_N,
+) -> list[int]:
+    """Visiting order of the moving targets with the least :func:`moving_tour_time`.
+
+    Every order is tried for up to ``exact_max_n`` targets; beyond that the targets' positions
+    at t = 0 go to :func:`shortest_order` (a static tour: the enumeration grows as N!).
+
+    Args:
+        track: positions (N, dim) (m) of every target at a time t (s since the mission began).
+        start: the dock, (dim,) (m).
+        speed: planning speed (m/s), > 0.
+        overhead: fixed time per visit (s), >= 0.
+        exact_max_n: largest N enumerated.
+
+    Returns:
+        Indices of the targets in visiting order.
+    """
+    first = _as_points(track(0.0))
+    s = _as_start(start, first.shape[1])
+    n = len(first)
+    if n == 1:
+        return [0]
+    if n > exact_max_n:
+        return shortest_order(first, s)
+    best, best_time = list(range(n)), math.inf
+    for order in itertools.permutations(range(n)):
+        total = moving_tour_time(track, s, order, speed, overhead)
+        if total < best_time - 1e-9:
+            best, best_time = list(order), total
+    return best

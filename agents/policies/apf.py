@@ -6,6 +6,13 @@ speed-limited toward the goal and every nearby body
 (:func:`agents.control.reference.braking_speed`), with the natural CWH acceleration of the env's
 own model (:func:`debris_gym.dynamics.cwh_acceleration`) cancelled. Forces are accelerations
 (m/s²) here, so ``k_att`` is in 1/s² and ``k_rep`` in m⁴/s².
+
+In a moving field (the v1 world) the agent flies in the *goal's frame*: the chaser's state
+relative to the goal target obeys the same CWH law (the target is unforced), so the CWH terms of
+the relative state are cancelled, damping and goal braking act on the velocity relative to the
+target (the chaser arrives matching the target's velocity, as capture asks), the repulsion sees
+the bodies where they are now (:class:`~agents.planners.motion.FieldMotion`), and the closing-speed
+limits use the velocity relative to each body. The dock, an equilibrium, is its own frame.
 """
 
 from __future__ import annotations
@@ -29,6 +36,7 @@ from agents.planners.apf import (
     repulsion,
 )
 from agents.planners.mission import Goal, MissionPlan
+from agents.planners.motion import FieldMotion
 from agents.policies.base import ClassicalAgent
 from debris_gym.dynamics import cwh_acceleration
 from debris_gym.scenario import Scenario
@@ -138,8 +146,11 @@ class APFAgent(ClassicalAgent):
         cfg = self.env.config
         self.params = self._fixed_params or APFParams.for_scenario(scenario)
         self.guidance = self._fixed_guidance or APFGuidance.for_scenario(scenario)
-        self.mission = MissionPlan(scenario, cfg, self.ordering)
-        self.geometry = self.env.geometry
+        self.motion = FieldMotion(scenario) if scenario.moving else None
+        self.mission = MissionPlan(scenario, cfg, self.ordering, motion=self.motion)
+        self.geometry = self.env.geometry if self.motion is None else self.motion.geometry(0.0)
+        self.frame_pos = np.zeros(scenario.dim)  # the goal frame's origin now (m)
+        self.body_vel: np.ndarray | None = None  # (B, dim) body velocities now (moving field)
         self.inflate = cfg.chaser_radius
         self.goal_key: tuple | None = None
         self.virtual: list[VirtualPoint] = []
@@ -148,7 +159,8 @@ class APFAgent(ClassicalAgent):
 
     def current_goal(self, pos: np.ndarray) -> Goal | None:
         """The mission's current goal, or None when everything is done."""
-        return self.mission.current_goal(self.env.captured, pos)
+        now = self.env.elapsed if self.motion is not None else None
+        return self.mission.current_goal(self.env.captured, pos, now)
 
     def attractor(self, pos: np.ndarray, goal: Goal) -> np.ndarray:
         """The point the attractive field pulls toward (APF-RRT swaps in RRT waypoints)."""
@@ -160,6 +172,16 @@ class APFAgent(ClassicalAgent):
         d = self.env.dim
         pos, vel = state[:d], state[d:]
         goal = self.current_goal(pos)
+        if self.motion is not None:  # the goal's frame; bodies where they are now
+            now = self.env.elapsed
+            self.geometry = self.motion.geometry(now)
+            self.body_vel = self.motion.states(now)[:, d:]
+            frame = np.zeros(2 * d)
+            if goal is not None and goal.kind == "target":
+                frame = self.motion.body_state(goal.index, now)
+            self.frame_pos = frame[:d]
+            state = state - frame
+            vel = state[d:]
         compensation = -cwh_acceleration(state, self.env.scenario.mean_motion)
         if goal is None:  # mission over: hold still
             accel = prioritised_sum(compensation, -vel / self.env.scenario.dt, self._limit())
@@ -180,7 +202,7 @@ class APFAgent(ClassicalAgent):
         self.observe_forces(pos, vel, goal, f_att, f_rep)
         nominal = f_att + f_rep + self._damping(pos, vel, aim, gaps, normals, active)
         nominal += self._goal_braking(pos, vel, aim)
-        toward, allowed = self._closing_limits(pos, vel, gaps, normals, active)
+        toward, allowed = self._closing_limits(pos, vel + self.frame_vel(), gaps, normals, active)
         # brake now where the closing speed already exceeds the limit ...
         braking = np.minimum(allowed, 0.0) @ toward  # (negative) · toward: away
         # ... and keep the APF term from pushing any closing speed past its limit next step
@@ -202,8 +224,16 @@ class APFAgent(ClassicalAgent):
         """Called every step with the forces (APF-RRT watches for local minima here)."""
 
     def active_virtual(self) -> list[VirtualPoint]:
-        """Virtual repulsive points in force now."""
-        return self.virtual
+        """Virtual repulsive points in force now (kept in the goal's frame)."""
+        if self.motion is None:
+            return self.virtual
+        return [(point + self.frame_pos, radius) for point, radius in self.virtual]
+
+    def frame_vel(self) -> np.ndarray:
+        """Velocity (m/s) of the goal's frame now (zero in a frozen field or for the dock)."""
+        if self.motion is None or self.goal_key is None or self.goal_key[1] is None:
+            return np.zeros_like(self.frame_pos)
+        return self.body_vel[self.goal_key[1]]
 
     def repulsion_scale(self) -> float:
         """Scale of the repulsion now (APF-RRT weakens it on a collision-checked route)."""
@@ -281,6 +311,10 @@ class APFAgent(ClassicalAgent):
         goal target (not repelled) counts too: the chaser must stop a quarter of the capture
         depth short of its surface, inside the capture zone.
 
+        Args:
+            vel: the chaser's velocity (m/s) in LVLH; toward a moving body the closing speed is
+                taken relative to the body's velocity.
+
         Returns:
             (unit directions toward each body or bound (k, dim), the largest net acceleration
             along each (k,) (m/s²); negative means the chaser must brake now).
@@ -304,7 +338,11 @@ class APFAgent(ClassicalAgent):
         toward = np.concatenate(dirs)
         lag = decel * dt
         limit = -lag + np.sqrt(lag * lag + 2.0 * decel * np.maximum(np.concatenate(room), 0.0))
-        return toward, (limit - toward @ vel) / dt
+        closing = toward @ vel
+        if self.body_vel is not None:  # a moving body: the closing speed is relative to it
+            k = int(near.sum())
+            closing[:k] -= np.einsum("kd,kd->k", toward[:k], self.body_vel[near])
+        return toward, (limit - closing) / dt
 
 
 def limit_closing(accel: np.ndarray, toward: np.ndarray, allowed: np.ndarray) -> np.ndarray:

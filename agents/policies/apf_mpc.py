@@ -76,16 +76,20 @@ class APFMPCAgent(MPCPathAgent):
         self._checker = SegmentChecker(scenario, self.geometry)
         self.stats.update(apf_stalls=0, astar_fallbacks=0)
 
+    def prepare_snapshot(self, snapshot: Scenario) -> None:
+        self._grid = None
+        self._checker = SegmentChecker(snapshot, self.plan_geometry)
+
     def plan_path(self, start: np.ndarray, goal: Goal) -> PlanResult:
         cfg = self.env.config
         ignore = () if goal.index is None else (goal.index,)
         result = apf_path(
-            self.env.scenario,
+            self.plan_scenario,
             start,
             goal.point,
             self._apf,
             inflate=cfg.chaser_radius,
-            geometry=self.geometry,
+            geometry=self.plan_geometry,
             ignore=ignore,
         )
         if not result.success:
@@ -106,7 +110,7 @@ class APFMPCAgent(MPCPathAgent):
 
     def _astar_completion(self, partial: PlanResult, start: np.ndarray, goal: Goal) -> PlanResult:
         """The APF path up to its stall, then A* from there to the goal (or A* from the start)."""
-        scen, cfg = self.env.scenario, self.env.config
+        scen, cfg = self.plan_scenario, self.env.config
         if self._grid is None:
             cell = self.fallback_cell or default_cell(scen)
             self._grid = GridMap(scen, cell)

@@ -32,6 +32,10 @@ class APFRRTAgent(APFAgent):
     APF then continues to the goal, the virtual point in force. Virtual points are cleared when
     the mission moves on.
 
+    In a moving field the RRT is grown on the field as it is at the stall, and the route and the
+    virtual point are kept in the goal's frame (like the APF itself), so they move with the
+    target.
+
     Args:
         env: the DebrisGym env.
         params, guidance, ordering: as :class:`APFAgent`.
@@ -63,8 +67,20 @@ class APFRRTAgent(APFAgent):
         self._checkers: dict[tuple, EdgeChecker] = {}
         self._reset_goal_state()
 
+    @property
+    def route(self) -> np.ndarray | None:
+        """The RRT waypoints being followed (m, where they are now), or None."""
+        if self._route is None:
+            return None
+        return self._route + self.frame_pos
+
+    @route.setter
+    def route(self, waypoints: np.ndarray | None) -> None:
+        # kept in the goal's frame (the frame's origin is zero in a frozen field)
+        self._route = None if waypoints is None else np.asarray(waypoints) - self.frame_pos
+
     def _reset_goal_state(self) -> None:
-        self.route: np.ndarray | None = None  # RRT waypoints being followed
+        self.route = None  # RRT waypoints being followed
         self.route_index = 0
         self.route_exit = 0
         self.route_history: list[float] = []
@@ -101,7 +117,7 @@ class APFRRTAgent(APFAgent):
 
     def active_virtual(self) -> list[VirtualPoint]:
         # on the RRT route the route leads out of the trap; the virtual points act after it
-        return self.virtual if self.route is None else []
+        return super().active_virtual() if self._route is None else []
 
     def _leave_route(self) -> None:
         """Past the exit waypoint (or stuck on the route): APF takes over."""
@@ -152,7 +168,7 @@ class APFRRTAgent(APFAgent):
             self.params,
             self.rrt,
             self.rng,
-            self._checkers,
+            self._checkers if self.motion is None else {},  # a moving field: this snapshot's
         )
         self.history = []
         if not found.success:
@@ -161,7 +177,7 @@ class APFRRTAgent(APFAgent):
         self.escapes += 1
         self.stall_points.append(pos.copy())
         vp = virtual_point(pos, goal.point, self.rrt)
-        self.virtual.append(vp)
+        self.virtual.append((vp[0] - self.frame_pos, vp[1]))
         self.route = found.waypoints
         self.route_index = 1
         self.route_exit = exit_index(

@@ -61,6 +61,9 @@ class AStarAgent(MPCPathAgent):
             self.grid = GridMap(scenario, cell)
         self.stats.update(exact_grid_retries=0)
 
+    def prepare_snapshot(self, snapshot: Scenario) -> None:
+        self.grid = GridMap(snapshot, self.grid.cell)
+
     def plan_path(self, start: np.ndarray, goal: Goal) -> PlanResult:
         cfg = self.env.config
         margin = self.margin if self.margin is not None else self.tracker.keepout_margin
@@ -70,7 +73,7 @@ class AStarAgent(MPCPathAgent):
         result = None
         for conservative in (True, False):
             result = astar_path(
-                self.env.scenario,
+                self.plan_scenario,
                 start,
                 goal.point,
                 cell=self.grid.cell,

@@ -5,10 +5,11 @@ Every policy — classical or learned — answers SB3's protocol::
     action, state = policy.predict(observation, state=None, episode_start=None, deterministic=True)
 
 for a single observation or a batch, in the same shape. Classical baselines are full-state
-feedback on a known, static field (the source papers' assumption): they are built with the env
-(:func:`agents.make_agent`) and read the field from ``env.unwrapped.scenario`` and the chaser's
-state and capture flags from the env's read-only properties. So they act for the env they were
-built with; SB3's ``evaluate_policy`` works on a one-env ``DummyVecEnv`` around that env.
+feedback on a known field (the source papers' assumption; in a moving field, the v1 world, they
+know the bodies' motion too: :class:`agents.planners.motion.FieldMotion`): they are built with
+the env (:func:`agents.make_agent`) and read the field from ``env.unwrapped.scenario`` and the
+chaser's state and capture flags from the env's read-only properties. So they act for the env
+they were built with; SB3's ``evaluate_policy`` works on a one-env ``DummyVecEnv`` around that env.
 """
 
 from __future__ import annotations

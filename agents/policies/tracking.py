@@ -2,6 +2,22 @@
 
 :class:`MPCPathAgent` is the shared base of "apf-mpc" and "astar": the only difference between
 them is the planner (:meth:`MPCPathAgent.plan_path`), so comparing them compares planners.
+
+In a moving field (the v1 world) the agent plans against the bodies' predicted motion
+(:class:`~agents.planners.motion.FieldMotion`):
+
+* the path to a target is planned on the field frozen as it is now (a snapshot) and kept in the
+  *target's frame*: the waypoints minus the target's position now. The chaser's motion relative
+  to the target obeys the same CWH law, so the tracker flies the path in that frame and the
+  reference handed to the MPC is the relative reference plus the target's predicted state at
+  every step of the horizon: near the target the reference is a point that moves with it, at its
+  velocity, which is what capture asks (low speed relative to the target, held);
+* the MPC's keep-out half-spaces come from the bodies where they will be at each step of the
+  horizon (:class:`~agents.control.mpc.MPCTracker` with ``motion``);
+* the path is re-planned every ``replan_every`` decisions on a fresh snapshot, as the field moves;
+* the targets' order is the tour of least estimated time, each met where it will be.
+
+A frozen field is flown exactly as before.
 """
 
 from __future__ import annotations
@@ -15,6 +31,7 @@ import numpy as np
 from agents.control.mpc import MPCParams, MPCTracker
 from agents.control.reference import PathReference, ReferenceParams
 from agents.planners.mission import Goal, MissionPlan
+from agents.planners.motion import FieldMotion
 from agents.planners.result import PlanResult
 from agents.policies.base import ClassicalAgent
 from debris_gym.geometry import FieldGeometry
@@ -45,6 +62,7 @@ class MPCPathAgent(ClassicalAgent):
             world size.
         stall_steps: re-plan when the chaser has not advanced along the path (short of its end)
             for this many steps.
+        replan_every: in a moving field, re-plan on a fresh snapshot after this many decisions.
 
     Attributes:
         tracker: the episode's :class:`MPCTracker` (its ``stats``: solves, QP fallbacks to
@@ -66,8 +84,12 @@ class MPCPathAgent(ClassicalAgent):
         ordering: str = "shortest",
         replan_distance: float | None = None,
         stall_steps: int = 60,
+        replan_every: int = 3,
     ) -> None:
         super().__init__(env)
+        if not (isinstance(replan_every, int) and replan_every >= 1):
+            raise ValueError(f"replan_every must be an integer >= 1, got {replan_every!r}")
+        self.replan_every = replan_every
         self.mpc_params = mpc or MPCParams()
         cfg = self.env.config
         reference = reference or ReferenceParams()
@@ -86,23 +108,33 @@ class MPCPathAgent(ClassicalAgent):
     def prepare(self, scenario: Scenario) -> None:
         """Per-scenario planner set-up (e.g. a grid); called by :meth:`plan`."""
 
+    def prepare_snapshot(self, snapshot: Scenario) -> None:
+        """Moving field: set up the planner on the field frozen as it is now (called before
+        every :meth:`plan_path`; :attr:`plan_scenario` and :attr:`plan_geometry` are set)."""
+
     def plan_path(self, start: np.ndarray, goal: Goal) -> PlanResult:
-        """A collision-free path (m) from ``start`` to ``goal.point``."""
+        """A collision-free path (m) from ``start`` to ``goal.point`` on :attr:`plan_scenario`
+        (the field, or in a moving field the field frozen as it is now)."""
         raise NotImplementedError
 
     # --- ClassicalAgent -----------------------------------------------------------------------
 
     def plan(self, scenario: Scenario) -> None:
         cfg = self.env.config
-        self.mission = MissionPlan(scenario, cfg, self.ordering)
+        self.motion = FieldMotion(scenario) if scenario.moving else None
+        self.mission = MissionPlan(scenario, cfg, self.ordering, motion=self.motion)
         self.geometry = FieldGeometry(scenario)
+        self.plan_scenario = scenario
+        self.plan_geometry = self.geometry
         self.tracker = MPCTracker(
             scenario,
             self.mpc_params,
             thrust_model=cfg.thrust_model,
             chaser_radius=cfg.chaser_radius,
             geometry=self.geometry,
+            motion=self.motion,
         )
+        self._since_plan = 0
         self._replan_distance = (
             self.replan_distance if self.replan_distance is not None else 0.02 * scenario.size
         )
@@ -125,16 +157,20 @@ class MPCPathAgent(ClassicalAgent):
         env, d = self.env, self.env.dim
         state = env.chaser_state
         pos = state[:d]
+        now = env.elapsed if self.motion is not None else None
         captured = env.captured
         key = tuple(bool(c) for c in captured)
         goal = None
+        self._since_plan += 1
         if self.mission.nearest:  # the env's goal can change without a capture
-            goal = self.mission.current_goal(captured, pos)
+            goal = self.mission.current_goal(captured, pos, now)
             key += (None if goal is None else goal.index,)
         if key != self._goal_key:
             self._goal_key = key
-            self._goal = goal or self.mission.current_goal(captured, pos)
+            self._goal = goal or self.mission.current_goal(captured, pos, now)
             self.tracker.reset()
+            self._new_path(pos)
+        elif self.motion is not None and self._since_plan >= self.replan_every:
             self._new_path(pos)
         elif self._ref is not None and self._ref.deviation > self._replan_distance:
             self.stats["replans"] += 1
@@ -144,9 +180,18 @@ class MPCPathAgent(ClassicalAgent):
             self._new_path(pos)
         if self._ref is None:  # nothing left to do: hold still
             accel = self.tracker.brake(state)
-        else:
+        elif self.motion is None:
             ref_pos, ref_vel = self._ref.horizon(state, self.tracker.N)
             accel = self.tracker.command(state, ref_pos, ref_vel, margins=self._margins)
+        else:  # the path lives in the goal's frame: add the goal's predicted motion back
+            frame = self._goal.index if self._goal.kind == "target" else None
+            rel = state - self.motion.body_state(frame, now)
+            rel_pos, rel_vel = self._ref.horizon(rel, self.tracker.N)
+            track = self.motion.body_track(frame, now, self.tracker.N)
+            accel = self.tracker.command(
+                state, rel_pos + track[:, :d], rel_vel + track[:, d:], margins=self._margins,
+                now=now,
+            )  # fmt: skip
         action = self.accel_to_action(accel)
         self.decision_times.append(time.perf_counter() - t0)
         return action
@@ -168,8 +213,18 @@ class MPCPathAgent(ClassicalAgent):
             self._ref = None
             return
         cfg, scen = self.env.config, self.env.scenario
-        self._margins = {goal.index: 0.25 * cfg.capture_radius} if goal.kind == "target" else {}
+        self._since_plan = 0
+        frame_pos = np.zeros(len(pos))
         t0 = time.perf_counter()
+        if self.motion is not None:  # plan on the field as it is now, in the goal's frame
+            now = self.env.elapsed
+            self.plan_scenario = self.motion.snapshot(now)
+            self.plan_geometry = self.motion.geometry(now)
+            goal = self._goal = self.mission.current_goal(self.env.captured, pos, now) or goal
+            if goal.kind == "target":
+                frame_pos = self.motion.body_state(goal.index, now)[: len(pos)]
+            self.prepare_snapshot(self.plan_scenario)
+        self._margins = {goal.index: 0.25 * cfg.capture_radius} if goal.kind == "target" else {}
         result = self.plan_path(pos, goal)
         self.stats["plan_time"] += time.perf_counter() - t0
         self.stats["plans"] += 1
@@ -183,7 +238,7 @@ class MPCPathAgent(ClassicalAgent):
         self._best_progress = 0
         self._since_progress = 0
         self._ref = PathReference(
-            waypoints,
+            np.asarray(waypoints) - frame_pos,
             max_accel=scen.max_accel,
             dt=scen.dt,
             params=self.reference_params,
