@@ -182,6 +182,11 @@ OPTIONS: dict[str, Option] = {
     "reward_out_of_bounds": Option("", 0.0, MAX_WEIGHT, doc="penalty for leaving the world bounds"),
     "reward_time": Option("", 0.0, MAX_WEIGHT, doc="penalty per step"),
     "shaping_gamma": Option("", 0.0, 1.0, doc="γ of the shaping term F = γΦ(s′) − Φ(s)"),
+    "shaping_potential": Option(
+        choices=("goal", "tour"),
+        doc="Φ: 'goal' = −(gap to the current goal / L + goals after it); 'tour' = −(the "
+        "shortest remaining mission through every uncaptured target (and home) / L)",
+    ),
     "shaping_terminal": Option(
         choices=("zero", "hold"),
         doc="Φ after termination: 'zero' (policy-invariant) or 'hold' (a failure forfeits the "
@@ -285,6 +290,7 @@ class EnvConfig:
     reward_out_of_bounds: float = 50.0
     reward_time: float = 0.01
     shaping_gamma: float = 0.99
+    shaping_potential: str = "goal"
     shaping_terminal: str = "zero"
     shaping_speed: float = 0.0
     shaping_speed_slope: float = 0.01

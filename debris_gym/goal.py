@@ -74,3 +74,115 @@ def current_goal(i, gaps, captured, queued, return_to_dock, chaser_radius):
     if left:
         return goal, gap - chaser_radius, left - 1 + (1 if return_to_dock else 0)
     return (DOCK_GOAL if return_to_dock else NO_GOAL), 0.0, 0
+
+
+EXACT_TOUR_TARGETS = 6
+"""Most uncaptured targets :func:`remaining_tour` orders exactly (every order: 720 for 6);
+beyond, it follows the nearest-neighbour order."""
+
+
+@inlined
+def _leg(i, a, b, centers, radii):
+    """Surface-to-surface distance (m, at least 0) between targets ``a`` and ``b`` of row ``i``."""
+    s = 0.0
+    for k in range(centers.shape[2]):
+        d = centers[i, a, k] - centers[i, b, k]
+        s += d * d
+    return max(math.sqrt(s) - radii[i, a] - radii[i, b], 0.0)
+
+
+@inlined
+def _home(i, j, centers, radii, dock):
+    """Distance (m, at least 0) from target ``j``'s surface to the dock."""
+    s = 0.0
+    for k in range(centers.shape[2]):
+        d = centers[i, j, k] - dock[i, k]
+        s += d * d
+    return max(math.sqrt(s) - radii[i, j], 0.0)
+
+
+@inlined
+def _order_length(i, order, m, start, return_to_dock, gaps, chaser_radius, centers, radii, dock):
+    """Length (m) of the tour chaser → targets ``order[:m]`` in turn (→ dock)."""
+    total = max(gaps[i, order[0]] - chaser_radius, 0.0) if start else 0.0
+    for k in range(1, m):
+        total += _leg(i, order[k - 1], order[k], centers, radii)
+    if return_to_dock:
+        total += _home(i, order[m - 1], centers, radii, dock)
+    return total
+
+
+@inlined
+def remaining_tour(
+    i, gaps, captured, queued, return_to_dock, chaser_radius, centers, radii, dock, state, order,
+    counters,
+):  # fmt: skip
+    """Length (m) of the shortest remaining mission of row ``i`` as it stands now: from the
+    chaser's surface through every uncaptured target (surface to surface) and, if a return is
+    required, on to the dock — in the queue's order for ``queued``, else in the best order
+    (every order for up to :data:`EXACT_TOUR_TARGETS` targets, nearest-neighbour beyond). With
+    every target captured it is the distance from the chaser's centre to the dock (or 0).
+
+    The shaping potential of the v1 world (``shaping_potential="tour"``) is minus this over L:
+    an agent following any shortest tour gains potential from its first step, whichever target
+    it heads for first. ``order`` and ``counters`` are (T,) int64 scratch.
+    """
+    m = 0
+    for j in range(captured.shape[1]):
+        if not captured[i, j]:
+            order[m] = j
+            m += 1
+    if m == 0:
+        if not return_to_dock:
+            return 0.0
+        s = 0.0
+        for k in range(dock.shape[1]):
+            d = state[i, k] - dock[i, k]
+            s += d * d
+        return math.sqrt(s)
+    if queued:
+        return _order_length(
+            i, order, m, True, return_to_dock, gaps, chaser_radius, centers, radii, dock
+        )
+    if m > EXACT_TOUR_TARGETS:  # nearest neighbour from the chaser, then from each target
+        for k in range(m):
+            best = k
+            for q in range(k + 1, m):
+                if k == 0:
+                    closer = gaps[i, order[q]] < gaps[i, order[best]]
+                else:
+                    closer = _leg(i, order[k - 1], order[q], centers, radii) < _leg(
+                        i, order[k - 1], order[best], centers, radii
+                    )
+                if closer:
+                    best = q
+            order[k], order[best] = order[best], order[k]
+        return _order_length(
+            i, order, m, True, return_to_dock, gaps, chaser_radius, centers, radii, dock
+        )
+    # every order, by Heap's algorithm (iterative)
+    best = _order_length(
+        i, order, m, True, return_to_dock, gaps, chaser_radius, centers, radii, dock
+    )
+    for k in range(m):
+        counters[k] = 0
+    k = 1
+    while k < m:
+        if counters[k] < k:
+            if k % 2 == 0:
+                order[0], order[k] = order[k], order[0]
+            else:
+                c = counters[k]
+                order[c], order[k] = order[k], order[c]
+            best = min(
+                best,
+                _order_length(
+                    i, order, m, True, return_to_dock, gaps, chaser_radius, centers, radii, dock
+                ),
+            )
+            counters[k] += 1
+            k = 1
+        else:
+            counters[k] = 0
+            k += 1
+    return best

@@ -70,6 +70,8 @@ class Rules(NamedTuple):
     """Truncation limit (steps); −1 for none."""
     gamma: float
     """Discount of the potential-based shaping."""
+    tour_potential: bool
+    """``shaping_potential == "tour"``: Φ = −(shortest remaining mission) / L."""
     terminal_zero: bool
     """``shaping_terminal == "zero"``: Φ = 0 after termination."""
     # the reward weights, named like their config keys (penalties as positive magnitudes);
@@ -218,6 +220,7 @@ def make_rules(
         return_to_dock=bool(cfg.return_to_dock),
         max_steps=-1 if max_episode_steps is None else int(max_episode_steps),
         gamma=float(cfg.shaping_gamma),
+        tour_potential=cfg.shaping_potential == "tour",
         terminal_zero=cfg.shaping_terminal == "zero",
         **{f"reward_{k}": float(getattr(cfg, f"reward_{k}")) for k in REWARD_TERMS},
     )

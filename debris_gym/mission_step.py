@@ -32,7 +32,7 @@ import numba
 import numpy as np
 
 from debris_gym.batch_geometry import field_gaps, moving_path_touches, path_touches
-from debris_gym.goal import DOCK_GOAL, NO_GOAL, current_goal
+from debris_gym.goal import DOCK_GOAL, NO_GOAL, current_goal, remaining_tour
 from debris_gym.jit import inlined, kernel, threaded
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.thrust import delta_v_rate_row, thrust_row
@@ -306,6 +306,29 @@ def potential(i, rules, shaping, state, gaps, captured, centers, dock, length_sc
     return phi
 
 
+@kernel  # not inlined: the v0 world's step does not carry it
+def tour_potential(
+    i, rules, shaping, state, gaps, captured, centers, radii, dock, length_scale, speed_scale,
+    order, counters,
+):  # fmt: skip
+    """Φ of mission ``i`` with ``shaping_potential="tour"`` (the v1 world): −(the shortest
+    remaining mission / L) (:func:`debris_gym.goal.remaining_tour`), less the optional terms of
+    ``shaping`` as :func:`potential` applies them. ``order`` and ``counters`` are (T,) scratch."""
+    tour = remaining_tour(
+        i, gaps, captured, rules.queued, rules.return_to_dock, rules.chaser_radius, centers,
+        radii, dock, state, order, counters,
+    )  # fmt: skip
+    phi = -tour / length_scale[i]
+    if shaping is not None:
+        goal, gap, _ = current_goal(
+            i, gaps, captured, rules.queued, rules.return_to_dock, rules.chaser_radius
+        )
+        phi = shaping_terms(
+            phi, goal, max(gap, 0.0), i, rules, shaping, state, gaps, centers, speed_scale[i]
+        )
+    return phi
+
+
 @kernel  # not inlined: off by default (see potential's ``shaping``)
 def shaping_terms(phi, goal, goal_gap, i, rules, shaping, state, gaps, centers, speed_scale):
     """Φ less the optional approach-speed, clearance and closing terms: ``shaping.speed`` ·
@@ -380,6 +403,8 @@ def begin_rows(rows, states, rules, shaping, missions, field):
      _turns, dock, _low, _high, length_scale, speed_scale) = field  # fmt: skip
     dim = dock.shape[1]
     n_targets = rules.n_targets
+    order = np.empty(n_targets, dtype=np.int64)  # scratch of the tour potential
+    counters = np.empty(n_targets, dtype=np.int64)
     for r in range(rows.shape[0]):
         i = rows[r]
         for k in range(nearest.shape[1]):  # a new field: sort from index order
@@ -407,9 +432,15 @@ def begin_rows(rows, states, rules, shaping, missions, field):
             attitude,
         )  # fmt: skip
         min_clearance[i] = nearest_obstacle(i, n_targets, gaps, math.inf)
-        potentials[i] = potential(
-            i, rules, shaping, state, gaps, captured, centers, dock, length_scale, speed_scale
-        )
+        if rules.tour_potential:
+            potentials[i] = tour_potential(
+                i, rules, shaping, state, gaps, captured, centers, radii, dock, length_scale,
+                speed_scale, order, counters,
+            )  # fmt: skip
+        else:
+            potentials[i] = potential(
+                i, rules, shaping, state, gaps, captured, centers, dock, length_scale, speed_scale
+            )
 
 
 @kernel
@@ -444,6 +475,8 @@ def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out):
     accel = np.empty(dim)
     touched = np.empty(centers.shape[1], dtype=np.bool_)
     rel = np.empty_like(path)  # the path relative to one moving body
+    order = np.empty(n_targets, dtype=np.int64)  # scratch of the tour potential
+    counters = np.empty(n_targets, dtype=np.int64)
     for i in range(lo, hi):
         if not live[i]:
             for k in range(terms.shape[1]):
@@ -488,9 +521,15 @@ def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out):
         terminated[i] = ended
         truncated[i] = rules.max_steps > 0 and steps[i] >= rules.max_steps
         # reward
-        phi = potential(
-            i, rules, shaping, state, gaps, captured, centers, dock, length_scale, speed_scale
-        )
+        if rules.tour_potential:
+            phi = tour_potential(
+                i, rules, shaping, state, gaps, captured, centers, radii, dock, length_scale,
+                speed_scale, order, counters,
+            )  # fmt: skip
+        else:
+            phi = potential(
+                i, rules, shaping, state, gaps, captured, centers, dock, length_scale, speed_scale
+            )
         before = potentials[i]
         potentials[i] = phi
         rewards[i] = reward(

@@ -18,11 +18,13 @@ PHYSICAL_WORLD: dict[str, object] = {
     "fine_thrust": 0.1,
     "shaping_gamma": 1.0,
     "shaping_terminal": "hold",
+    "shaping_potential": "tour",
 }
 """The options that make the v1 world (docs/environments.md, "What v1 changes"): bodies on
 natural CWH relative orbits, solid targets, capture held for 30 s at ≤ 0.2 m/s relative to the
-target, fine discrete thrust, and undiscounted shaping that never refunds (so the return ranks
-a success above idling, crashing, fleeing and burning the budget)."""
+target, fine discrete thrust, and undiscounted shaping on the shortest remaining mission that
+never refunds (so the return ranks a success above idling, crashing, fleeing and burning the
+budget, whichever target a tour starts with)."""
 
 ENV_SPECS: dict[str, dict] = {
     "DebrisGym/Rendezvous2D-v1": {

@@ -26,6 +26,16 @@ AGENT_COLOURS = (
 """One colour per agent (targets keep the renderer's orange, debris its grey)."""
 
 
+def _body_tracks(scenario: Any, recs: list) -> list[tuple[np.ndarray, bool]]:
+    """Every body's path (m), from t = 0 to the end of the longest of these missions, as
+    (samples, dim) arrays, each with whether it is a target."""
+    end = max((r.time for r in recs), default=0.0)
+    times = np.linspace(0.0, max(end, 0.0), 200)
+    positions = np.stack([scenario.body_positions(float(t)) for t in times])  # (S, B, dim)
+    n_targets = len(scenario.targets)
+    return [(positions[:, b], b < n_targets) for b in range(positions.shape[1])]
+
+
 def plot_episode(results: EvaluationResults, episode: int) -> bytes:
     """PNG bytes: every agent's trajectory of ``episode`` over its field.
 
@@ -93,6 +103,12 @@ def plot_episode(results: EvaluationResults, episode: int) -> bytes:
                 textcoords="offset points", fontsize=8, color=TARGET_EDGE, fontweight="bold",
                 zorder=4,
             )  # fmt: skip
+        if scenario.moving:  # the bodies are drawn at t = 0; their paths over the missions
+            for track, is_target in _body_tracks(scenario, recs):
+                ax.plot(
+                    track[:, h], track[:, v], color=TARGET_EDGE if is_target else DEBRIS_EDGE,
+                    linewidth=0.6, alpha=0.6, linestyle=":", zorder=1.5,
+                )  # fmt: skip
         ax.plot(
             [scenario.dock[h]], [scenario.dock[v]], marker="s", markersize=11,
             markerfacecolor="white", markeredgecolor=DOCK, markeredgewidth=1.8,
@@ -144,6 +160,11 @@ def plot_episode(results: EvaluationResults, episode: int) -> bytes:
         Patch(facecolor=DEBRIS_FACE, edgecolor=DEBRIS_EDGE, label="debris"),
         marker("collision", marker="x", markersize=8, markeredgewidth=2.0, color="#333333"),
     ]  # fmt: skip
+    if scenario.moving:
+        handles.append(
+            Line2D([], [], color=DEBRIS_EDGE, linewidth=0.8, linestyle=":",
+                   label="bodies drawn at t = 0; dotted: their paths")
+        )  # fmt: skip
     name = scenario.name or "debris field"
     fig.suptitle(
         f"{results.env_id} — episode {episode} (reset seed {results.seed + episode}, {name})",
