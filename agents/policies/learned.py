@@ -445,7 +445,7 @@ def pretrained_path(env: Any) -> tuple[str, Path]:
         known = ", ".join(PRETRAINED_POLICIES)
         why = ""
         if env_id and env_id.endswith("-v1"):
-            why = "; no policy trained in the v1 world (moving debris) ships yet, "
+            why = ": no policy trained in the v1 world (moving debris) ships yet"
         raise ValueError(
             f"no pretrained policy for {env_id or 'this env'}{why} (there is one for {known})"
         )

@@ -210,7 +210,7 @@ def _default_agents(
     try:
         agents.load_agent(PRETRAINED, env)
     except (FileNotFoundError, NotImplementedError, ValueError, KeyError) as exc:
-        reason = f"no pretrained policy for {env_id} ({exc})"
+        reason = str(exc)  # it names the env and why
     else:
         return [*names, PRETRAINED], {}
     finally:
