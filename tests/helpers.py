@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import importlib.util
+import math
 from pathlib import Path
 from types import ModuleType
+
+import numpy as np
 
 from debris_gym.scenario import Body, Scenario
 
@@ -41,3 +44,38 @@ def load_script(file_name: str, module_name: str | None = None) -> ModuleType:
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+LEO_MEAN_MOTION = 1.1314e-3
+"""n (rad/s) of about 400 km LEO, the tests' moving-world orbit."""
+
+MOVING_DT = 10.0
+"""Step length (s) of the tests' moving-world envs."""
+
+MOVING_WORLD = {
+    "debris_motion": "bounded",
+    "solid_targets": True,
+    "capture_hold": 30.0,
+    "capture_speed": 0.2,
+    "mean_motion": LEO_MEAN_MOTION,
+    "dt": MOVING_DT,
+    "max_accel": 0.05,
+}
+"""Env options of the moving world (the v1 rules) with the tests' orbit, for pinned
+``motion="cwh"`` scenarios."""
+
+
+def cw_closed_form(state0: np.ndarray, t: float, n: float = LEO_MEAN_MOTION) -> np.ndarray:
+    """The textbook closed-form CW solution ([Curtis14] eq. 7.53), typed in here for the tests
+    (unforced, 2D or 3D): independent of the library's matrix exponential."""
+    dim = len(state0) // 2
+    x0, y0, vx0, vy0 = state0[0], state0[1], state0[dim], state0[dim + 1]
+    s, c = math.sin(n * t), math.cos(n * t)
+    x = (4 - 3 * c) * x0 + s / n * vx0 + 2 / n * (1 - c) * vy0
+    y = 6 * (s - n * t) * x0 + y0 - 2 / n * (1 - c) * vx0 + (4 * s - 3 * n * t) / n * vy0
+    vx = 3 * n * s * x0 + c * vx0 + 2 * s * vy0
+    vy = -6 * n * (1 - c) * x0 - 2 * s * vx0 + (4 * c - 3) * vy0
+    if dim == 2:
+        return np.array([x, y, vx, vy])
+    z0, vz0 = state0[2], state0[5]
+    return np.array([x, y, c * z0 + s / n * vz0, vx, vy, -n * s * z0 + c * vz0])

@@ -16,33 +16,12 @@ import pytest
 from debris_gym.envs import DebrisFieldEnv
 from debris_gym.envs.vector import DebrisFieldVectorEnv
 from debris_gym.scenario import Body, Scenario
+from tests.helpers import LEO_MEAN_MOTION, MOVING_DT, MOVING_WORLD, cw_closed_form
 
-N = 1.1314e-3  # rad/s, about 400 km LEO
-DT = 10.0
-MOVING = {
-    "debris_motion": "bounded",
-    "solid_targets": True,
-    "capture_hold": 30.0,
-    "capture_speed": 0.2,
-    "mean_motion": N,
-    "dt": DT,
-    "max_accel": 0.05,
-}
-
-
-def cw(state0: np.ndarray, t: float, n: float = N) -> np.ndarray:
-    """The textbook closed-form CW solution, written out here (unforced, 2D or 3D)."""
-    dim = len(state0) // 2
-    x0, y0, vx0, vy0 = state0[0], state0[1], state0[dim], state0[dim + 1]
-    s, c = math.sin(n * t), math.cos(n * t)
-    x = (4 - 3 * c) * x0 + s / n * vx0 + 2 / n * (1 - c) * vy0
-    y = 6 * (s - n * t) * x0 + y0 - 2 / n * (1 - c) * vx0 + (4 * s - 3 * n * t) / n * vy0
-    vx = 3 * n * s * x0 + c * vx0 + 2 * s * vy0
-    vy = -6 * n * (1 - c) * x0 - 2 * s * vx0 + (4 * c - 3) * vy0
-    if dim == 2:
-        return np.array([x, y, vx, vy])
-    z0, vz0 = state0[2], state0[5]
-    return np.array([x, y, c * z0 + s / n * vz0, vx, vy, -n * s * z0 + c * vz0])
+N = LEO_MEAN_MOTION
+DT = MOVING_DT
+MOVING = MOVING_WORLD
+cw = cw_closed_form
 
 
 def drift_free(x0: float, y0: float, vx0: float, dim: int = 2, z0: float = 0.0) -> tuple:
