@@ -10,8 +10,11 @@ intercept times (bisection on the typed-in motion), and the env's own judgement 
 from __future__ import annotations
 
 import itertools
+import json
 import math
+from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -270,3 +273,51 @@ def test_baselines_capture_moving_targets_without_collision(name, dim):
             break
     assert not info["collision"]
     assert info["is_success"], info
+
+
+DEPARTURES = Path(__file__).parent / "data" / "v1_astar_departures.json"
+
+
+@pytest.mark.parametrize("seed", ["7", "12"])
+def test_astar_leaves_a_captured_target_without_touching_it(seed):
+    """Rendezvous2D-v1's fields of reset seeds 7 and 12, pinned: just after its second capture
+    the chaser sits ~2 m from that target's surface, which is now an obstacle, and a new path
+    leads past it. A cold-started MPC once linearised the keep-out around that path's leading
+    reference points, which made the chaser's own neighbourhood infeasible; the slack then
+    bought a cut straight through the target (a collision at 0.5 m/s). Truth: the env's own
+    swept-contact judgement over the whole mission."""
+    env = gym.make("DebrisGym/Rendezvous2D-v1")
+    field = Scenario.from_dict(json.loads(DEPARTURES.read_text())[seed])
+    obs, info = env.reset(seed=int(seed), options={"scenario": field})
+    agent = make_agent("astar", env.unwrapped)
+    done = False
+    while not done:
+        action, _ = agent.predict(obs)
+        obs, _, terminated, truncated, info = env.step(action)
+        done = terminated or truncated
+    assert not info["collision"], info
+    assert info["is_success"], info
+    assert info["targets_captured"] == 3
+
+
+def test_keepout_never_asks_for_more_clearance_than_the_chaser_has():
+    """A body closer than the keep-out gets the chaser's present clearance (distance to a
+    circle's centre minus its radius and the chaser's, by hand); the others keep their own."""
+    env = DebrisFieldEnv(dim=2, **V1)
+    field = moving_field(2)
+    obs, _ = env.reset(seed=0, options={"scenario": field})
+    agent = make_agent("astar", env)
+    agent.predict(obs)  # plans the episode
+    t = 250.0
+    centres = FieldMotion(field).positions(t)
+    body = 2  # the first obstacle, a circle of radius 12
+    radius = field.bodies[body].radius
+    full = agent.tracker.keepout_margin
+    for clearance in (0.0, 0.4, 1.3, 0.99 * full):
+        pos = centres[body] + np.array([0.6, 0.8]) * (radius + env.config.chaser_radius + clearance)
+        margins = agent._reachable_margins(pos, t)
+        assert margins[body] == pytest.approx(clearance, abs=1e-6)
+        others = {i: m for i, m in margins.items() if i != body}
+        assert others == {i: m for i, m in agent._margins.items() if i != body}
+    far = centres[body] + np.array([0.0, radius + env.config.chaser_radius + 2.0 * full])
+    assert body not in agent._reachable_margins(far, t)

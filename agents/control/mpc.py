@@ -511,8 +511,15 @@ class MPCTracker:
         lower, upper = self._l, self._u
         guess_n = None if guess is None else np.asarray(guess, float).reshape(N, d) / a
         if self.M:
-            if guess_n is None:
+            if guess_n is None and self.motion is None:
                 lin = ref[:, :d]
+            elif guess_n is None:
+                # Cold start in a moving field (a new goal): linearise around the coasting
+                # prediction, which starts where the chaser is. The reference can leap ahead
+                # along a new path, and half-spaces taken around it can exclude the chaser's own
+                # neighbourhood when it sits beside a body (just after a capture), so no step
+                # is feasible and the slack then buys a cut through that body.
+                lin = free[:, :d]
             else:
                 lin = free[:, :d] + np.einsum(
                     "kdc,c->kd", self._su[:, :d, :], guess_n.reshape(-1) * a
