@@ -4,8 +4,9 @@
 obstacles, as :attr:`Scenario.bodies`) in flat numpy arrays. Its queries take one point or one
 path per field and answer for every body of every field in one call of a numba-compiled loop
 over fields and bodies (no Python loop, no temporaries the size of the batch); the per-field
-functions (:func:`field_gaps`, :func:`polygon_gap`, :func:`path_touches`, :func:`ray_ranges`)
-are what :mod:`debris_gym.mission_batch` calls inside its step. Planners see one field through
+functions (:func:`field_gaps`, :func:`polygon_gap`, :func:`ray_ranges`, and the swept checks
+of :mod:`debris_gym.swept_contacts`) are what :mod:`debris_gym.mission_batch` calls inside its
+step. Planners see one field through
 the same loops: :class:`debris_gym.geometry.FieldGeometry` is a batch of one. The tests hold the
 answers to an independent oracle (``tests/geometry_oracle.py``: pymunk in 2D).
 
@@ -27,6 +28,7 @@ import numpy as np
 
 from debris_gym.jit import inlined, kernel
 from debris_gym.scenario import Scenario
+from debris_gym.swept_contacts import _edge, _touched
 
 _VERTEX_FIELDS = 4
 """Numbers stored per polygon vertex: relative x, y (m), edge to the next vertex x, y (m)."""
@@ -398,12 +400,6 @@ def polygon_turns(rows, spins, n, step, sub, out):
 
 
 @inlined
-def _edge(verts, v, cx, cy):
-    """Edge v of a polygon: absolute start (x0, y0) and the stored edge vector (ex, ey)."""
-    return verts[v, 0] + cx, verts[v, 1] + cy, verts[v, 2], verts[v, 3]
-
-
-@inlined
 def _inv_len2(ex, ey):
     """1 / |e|² (1/m²), computed as :class:`~debris_gym.geometry.FieldGeometry` computes it."""
     return 1.0 / (ex * ex + ey * ey)
@@ -493,220 +489,6 @@ def _gaps(
         field_gaps(
             points[r], rows[r], centers, radii, polygon_start, polygons, n_vertices, vertices,
             attitude, out[r],
-        )  # fmt: skip
-
-
-@inlined
-def _point_segment_distance(p, a, b, dim):
-    """Distance from point p to segment a→b (1-D arrays of length ``dim``)."""
-    len2 = 0.0
-    dot = 0.0
-    for k in range(dim):
-        ab = b[k] - a[k]
-        len2 += ab * ab
-        dot += (p[k] - a[k]) * ab
-    t = dot / len2 if len2 > 0.0 else 0.0
-    t = min(max(t, 0.0), 1.0)
-    s = 0.0
-    for k in range(dim):
-        g = (p[k] - a[k]) - t * (b[k] - a[k])
-        s += g * g
-    return math.sqrt(s)
-
-
-@inlined
-def _segment_distance_2d(px, py, ax, ay, bx, by):
-    """Distance from (px, py) to the segment (ax, ay) → (bx, by)."""
-    abx = bx - ax
-    aby = by - ay
-    apx = px - ax
-    apy = py - ay
-    len2 = abx * abx + aby * aby
-    t = (apx * abx + apy * aby) / len2 if len2 > 0.0 else 0.0
-    t = min(max(t, 0.0), 1.0)
-    gx = apx - t * abx
-    gy = apy - t * aby
-    return math.sqrt(gx * gx + gy * gy)
-
-
-@inlined
-def _segment_touches_polygon(ax, ay, bx, by, cx, cy, verts, m, inflate):
-    """Does the segment a→b come within ``inflate`` of the convex polygon (see
-    :func:`polygon_gap` for ``cx, cy, verts, m``)?"""
-    inside_a = -math.inf
-    inside_b = -math.inf
-    sx_ = bx - ax
-    sy_ = by - ay
-    for v in range(m):
-        x0, y0, ex, ey = _edge(verts, v, cx, cy)
-        # end points on the inner side of every edge: inside
-        inside_a = max(inside_a, (ax - x0) * ey - (ay - y0) * ex)
-        inside_b = max(inside_b, (bx - x0) * ey - (by - y0) * ex)
-        # the segment crosses this edge (proper or touching intersection)
-        x1 = x0 + ex
-        y1 = y0 + ey
-        d1 = sx_ * (y0 - ay) - sy_ * (x0 - ax)
-        d2 = sx_ * (y1 - ay) - sy_ * (x1 - ax)
-        d3 = ex * (ay - y0) - ey * (ax - x0)
-        d4 = ex * (by - y0) - ey * (bx - x0)
-        if d1 * d2 <= 0.0 and d3 * d4 <= 0.0:
-            return True
-        if inflate > 0.0:
-            # segment-to-edge distance: end points to the edge, the edge's start to the segment
-            if (
-                _segment_distance_2d(ax, ay, x0, y0, x1, y1) <= inflate
-                or _segment_distance_2d(bx, by, x0, y0, x1, y1) <= inflate
-                or _segment_distance_2d(x0, y0, ax, ay, bx, by) <= inflate
-            ):
-                return True
-    return inside_a <= 0.0 or inside_b <= 0.0
-
-
-@inlined
-def path_reach(path):
-    """Largest distance (m) from ``path[0]`` to a later point of the polyline ``path`` (K+1,
-    dim): the path lies in that ball around its start (the broad phase of the swept checks)."""
-    reach2 = 0.0
-    for k in range(1, path.shape[0]):
-        s = 0.0
-        for a in range(path.shape[1]):
-            d = path[k, a] - path[0, a]
-            s += d * d
-        reach2 = max(reach2, s)
-    return math.sqrt(reach2)
-
-
-@inlined
-def path_touches(
-    path, start_gaps, inflate, i, centers, radii, polygon_start, n_vertices, vertices, out
-):
-    """Which bodies of field ``i`` the polyline ``path`` (K+1, dim) touches, into ``out`` (B,).
-
-    ``start_gaps`` (B,) are the gaps at ``path[0]`` (the broad phase); bodies are inflated by
-    ``inflate`` (m).
-    """
-    n_points, dim = path.shape
-    reach = path_reach(path) + inflate
-    for b in range(centers.shape[1]):
-        out[b] = False
-        if not start_gaps[b] <= reach:  # broad phase
-            continue
-        j = b - polygon_start
-        m = n_vertices[i, j] if dim == 2 and j >= 0 else 0
-        if m:
-            cx, cy = centers[i, b, 0], centers[i, b, 1]
-            for k in range(n_points - 1):
-                if _segment_touches_polygon(
-                    path[k, 0], path[k, 1], path[k + 1, 0], path[k + 1, 1],
-                    cx, cy, vertices[i, j], m, inflate,
-                ):  # fmt: skip
-                    out[b] = True
-                    break
-        else:
-            limit = radii[i, b] + inflate
-            for k in range(n_points - 1):
-                if _point_segment_distance(centers[i, b], path[k], path[k + 1], dim) <= limit:
-                    out[b] = True
-                    break
-
-
-@inlined
-def _origin_segment_distance(rel, k, dim):
-    """Distance (m) from the origin to the segment ``rel[k]`` → ``rel[k + 1]``."""
-    len2 = 0.0
-    dot = 0.0
-    for a in range(dim):
-        ab = rel[k + 1, a] - rel[k, a]
-        len2 += ab * ab
-        dot -= rel[k, a] * ab
-    t = dot / len2 if len2 > 0.0 else 0.0
-    t = min(max(t, 0.0), 1.0)
-    s = 0.0
-    for a in range(dim):
-        g = rel[k, a] + t * (rel[k + 1, a] - rel[k, a])
-        s += g * g
-    return math.sqrt(s)
-
-
-@inlined
-def moving_path_touches(
-    path, matrix_t, reach_position, reach_velocity, start_gaps, inflate, i, centers, velocities,
-    radii, polygon_start, n_vertices, vertices, attitude, turns, rel, out,
-):  # fmt: skip
-    """Which moving bodies of field ``i`` the chaser touches during a step, into ``out`` (B,).
-
-    Relative coordinates: a free body's state obeys CW as the chaser's does, so the chaser's
-    position relative to body b at every sub-step is its sampled position ``path`` (K+1, dim)
-    minus the body's, the body's coming from the same exact sub-step matrix ``matrix_t``
-    (its first 2·dim rows, see :attr:`~debris_gym.mission_data.Rules.step_matrix_t`) applied to
-    the body's state at the step's start (``centers``, ``velocities``). Consecutive relative
-    positions are swept as chords against the body at the origin: a circle / sphere of its
-    radius, or a polygon in its own frame (the relative positions turned back by the angle the
-    polygon turns through by each sub-step: ``attitude`` at the start, ``turns[i, j, 2:4]`` the
-    cos and sin of one sub-step's turn). Bodies are inflated by ``inflate`` (m).
-
-    Broad phase: the relative path stays within ``reach(chaser) + reach(body)`` of its start,
-    where a body's reach over the step is at most ``reach_position`` · |position| +
-    ``reach_velocity`` · |velocity| (the largest 2-norms of the position blocks of Φ(t) − I and
-    Φ(t) at the sub-steps; the vectors' 1-norms, which are no smaller, stand in for theirs);
-    bodies whose gap at the start (``start_gaps``) is larger are skipped. ``rel`` is (K+1, dim)
-    scratch.
-    """
-    n_points, dim = path.shape
-    reach = path_reach(path) + inflate
-    for b in range(centers.shape[1]):
-        out[b] = False
-        # 1-norms bound the 2-norms from above: a looser bound that needs no square root
-        pos1 = 0.0
-        vel1 = 0.0
-        for a in range(dim):
-            pos1 += abs(centers[i, b, a])
-            vel1 += abs(velocities[i, b, a])
-        bound = reach_position * pos1 + reach_velocity * vel1
-        if not start_gaps[b] <= reach + bound:  # broad phase
-            continue
-        for a in range(dim):
-            rel[0, a] = path[0, a] - centers[i, b, a]
-        for k in range(1, n_points):
-            for a in range(dim):
-                col = (k - 1) * dim + a
-                p = 0.0
-                for q in range(dim):
-                    p += centers[i, b, q] * matrix_t[q, col]
-                    p += velocities[i, b, q] * matrix_t[dim + q, col]
-                rel[k, a] = path[k, a] - p
-        j = b - polygon_start
-        m = n_vertices[i, j] if dim == 2 and j >= 0 else 0
-        if m:
-            # turn every relative position back into the polygon's loaded frame
-            c, s = attitude[i, j, 0], attitude[i, j, 1]
-            ch, sh = turns[i, j, 2], turns[i, j, 3]
-            for k in range(n_points):
-                x, y = rel[k, 0], rel[k, 1]
-                rel[k, 0] = c * x + s * y
-                rel[k, 1] = c * y - s * x
-                c, s = c * ch - s * sh, s * ch + c * sh
-            for k in range(n_points - 1):
-                if _segment_touches_polygon(
-                    rel[k, 0], rel[k, 1], rel[k + 1, 0], rel[k + 1, 1], 0.0, 0.0,
-                    vertices[i, j], m, inflate,
-                ):  # fmt: skip
-                    out[b] = True
-                    break
-        else:
-            limit = radii[i, b] + inflate
-            for k in range(n_points - 1):
-                if _origin_segment_distance(rel, k, dim) <= limit:
-                    out[b] = True
-                    break
-
-
-@kernel
-def _touched(paths, start_gaps, inflate, centers, radii, polygon_start, n_vertices, vertices, out):
-    for i in range(paths.shape[0]):
-        path_touches(
-            paths[i], start_gaps[i], inflate, i, centers, radii, polygon_start, n_vertices,
-            vertices, out[i],
         )  # fmt: skip
 
 

@@ -26,8 +26,8 @@ from __future__ import annotations
 
 import math
 
-from debris_gym.batch_geometry import path_reach
 from debris_gym.jit import inlined, kernel
+from debris_gym.swept_contacts import path_reach
 
 GRADIENT_EPSILON = 1e-5
 """Distance (m) below which the direction from the surface point is too short to normalise: the

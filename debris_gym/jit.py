@@ -25,6 +25,7 @@ import numba
 
 COMPILED_MODULES = (
     "batch_geometry",
+    "swept_contacts",
     "generators",
     "orbit_fields",
     "geometry_kernels",

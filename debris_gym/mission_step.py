@@ -31,10 +31,11 @@ import math
 import numba
 import numpy as np
 
-from debris_gym.batch_geometry import field_gaps, moving_path_touches, path_touches
+from debris_gym.batch_geometry import field_gaps
 from debris_gym.goal import DOCK_GOAL, NO_GOAL, current_goal, remaining_tour
 from debris_gym.jit import inlined, kernel, threaded
 from debris_gym.rewards import REWARD_TERMS
+from debris_gym.swept_contacts import moving_path_touches, path_touches
 from debris_gym.thrust import delta_v_rate_row, thrust_row
 
 # reward term columns, in REWARD_TERMS order
