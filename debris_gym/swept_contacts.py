@@ -91,6 +91,19 @@ def _segment_touches_polygon(ax, ay, bx, by, cx, cy, verts, m, inflate):
 
 
 @inlined
+def _chords_touch_polygon(points, cx, cy, verts, m, inflate):
+    """Does the polyline ``points`` (K+1, 2) come within ``inflate`` of the convex polygon (see
+    :func:`_segment_touches_polygon`) along any of its chords?"""
+    for k in range(points.shape[0] - 1):
+        if _segment_touches_polygon(
+            points[k, 0], points[k, 1], points[k + 1, 0], points[k + 1, 1], cx, cy, verts, m,
+            inflate,
+        ):  # fmt: skip
+            return True
+    return False
+
+
+@inlined
 def path_reach(path):
     """Largest distance (m) from ``path[0]`` to a later point of the polyline ``path`` (K+1,
     dim): the path lies in that ball around its start (the broad phase of the swept checks)."""
@@ -122,14 +135,9 @@ def path_touches(
         j = b - polygon_start
         m = n_vertices[i, j] if dim == 2 and j >= 0 else 0
         if m:
-            cx, cy = centers[i, b, 0], centers[i, b, 1]
-            for k in range(n_points - 1):
-                if _segment_touches_polygon(
-                    path[k, 0], path[k, 1], path[k + 1, 0], path[k + 1, 1],
-                    cx, cy, vertices[i, j], m, inflate,
-                ):  # fmt: skip
-                    out[b] = True
-                    break
+            out[b] = _chords_touch_polygon(
+                path, centers[i, b, 0], centers[i, b, 1], vertices[i, j], m, inflate
+            )
         else:
             limit = radii[i, b] + inflate
             for k in range(n_points - 1):
@@ -214,13 +222,7 @@ def moving_path_touches(
                 rel[k, 0] = c * x + s * y
                 rel[k, 1] = c * y - s * x
                 c, s = c * ch - s * sh, s * ch + c * sh
-            for k in range(n_points - 1):
-                if _segment_touches_polygon(
-                    rel[k, 0], rel[k, 1], rel[k + 1, 0], rel[k + 1, 1], 0.0, 0.0,
-                    vertices[i, j], m, inflate,
-                ):  # fmt: skip
-                    out[b] = True
-                    break
+            out[b] = _chords_touch_polygon(rel, 0.0, 0.0, vertices[i, j], m, inflate)
         else:
             limit = radii[i, b] + inflate
             for k in range(n_points - 1):

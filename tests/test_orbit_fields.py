@@ -601,40 +601,39 @@ def test_the_search_follows_the_bodies_in_time():
         assert not ok.any()
 
 
-@pytest.mark.parametrize("seed", range(6))
-def test_every_accepted_2d_field_is_solvable_by_the_independent_search(seed):
-    spec = spec_of(2)
+def assert_solvable_by_the_independent_search(dim: int, seed: int, cell: float) -> None:
+    """The search finds a route dock → every target → dock over two orbits in the field the
+    generator accepts for ``seed`` (cells of ``cell`` m)."""
+    spec = spec_of(dim)
     fields = draw(spec, [seed])
     ok, goal = space_time_route(
-        states_of(fields, 0), fields.radii[0], spec.n_targets, spec.field_size, N, 5.0,
+        states_of(fields, 0), fields.radii[0], spec.n_targets, spec.field_size, N, cell,
         2.0 * PERIOD,
     )  # fmt: skip
     assert goal + 2.0 * CHASER < spec.min_gap + spec.target_clearance
     assert ok.all(), f"seed {seed}: targets {np.flatnonzero(~ok)} not reachable and back"
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_every_accepted_2d_field_is_solvable_by_the_independent_search(seed):
+    assert_solvable_by_the_independent_search(2, seed, 5.0)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", range(30))
 def test_many_accepted_2d_fields_are_solvable_by_the_independent_search(seed):
-    test_every_accepted_2d_field_is_solvable_by_the_independent_search(100 + seed)
+    assert_solvable_by_the_independent_search(2, 100 + seed, 5.0)
 
 
 @pytest.mark.parametrize("seed", range(2))
 def test_every_accepted_3d_field_is_solvable_by_the_independent_search(seed):
-    spec = spec_of(3)
-    fields = draw(spec, [seed])
-    ok, goal = space_time_route(
-        states_of(fields, 0), fields.radii[0], spec.n_targets, spec.field_size, N, 12.5,
-        2.0 * PERIOD,
-    )  # fmt: skip
-    assert goal + 2.0 * CHASER < spec.min_gap + spec.target_clearance
-    assert ok.all(), f"seed {seed}: targets {np.flatnonzero(~ok)} not reachable and back"
+    assert_solvable_by_the_independent_search(3, seed, 12.5)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", range(8))
 def test_more_accepted_3d_fields_are_solvable_by_the_independent_search(seed):
-    test_every_accepted_3d_field_is_solvable_by_the_independent_search(100 + seed)
+    assert_solvable_by_the_independent_search(3, 100 + seed, 12.5)
 
 
 @pytest.mark.parametrize("seed", range(2))

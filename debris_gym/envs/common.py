@@ -133,7 +133,7 @@ def _field_spec(cfg: EnvConfig) -> FieldSpec:
         min_target_distance=0.15 * cfg.field_size,
         chaser_radius=cfg.chaser_radius,
         motion=cfg.debris_motion,
-        mean_motion=cfg.n if cfg.debris_motion != "frozen" else FieldSpec.mean_motion,
+        mean_motion=cfg.n,
         horizon=FIELD_HORIZON_STEPS * cfg.dt,
         drift_offset=(cfg.drift_offset_min, cfg.drift_offset_max),
         rho_max=cfg.field_size / 4.0,
