@@ -37,7 +37,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="run directory (created; one run at a time; refused if it holds a model)",
     )
     parser.add_argument(
-        "--env", metavar="ID", default="DebrisGym/Rendezvous2D-v1", help="environment ID"
+        "--env",
+        metavar="ID",
+        default="DebrisGym/Rendezvous2D-v1",
+        help="environment ID (default: DebrisGym/Rendezvous2D-v1)",
     )
     cli.add_config_options(parser, "agents/configs/<env>_imitation.yaml", "--set dagger_rounds=2")
     parser.add_argument("--seed", type=int, metavar="S", help="base seed (default: the config's)")

@@ -21,7 +21,7 @@ Your own policy, from Python::
     from agents.experiments.evaluation import evaluate_agents, summarize, summary_markdown
 
     results = evaluate_agents(
-        "DebrisGym/Rendezvous2D-v0",
+        "DebrisGym/Rendezvous2D-v1",
         {"apf": "apf", "mine": MyPolicy()},  # or a factory: {"mine": lambda env: MyPolicy(env)}
         episodes=20,
         seed=0,
