@@ -1,19 +1,27 @@
 """Evaluate guidance agents on the same seeded debris fields; write tables and trajectory plots.
 
 Every agent flies the same episodes: episode i starts with env.reset(seed=SEED + i), and the
-debris field comes from that seed. Outputs in --out DIR:
+debris field comes from that seed. With --suite NAME every agent flies the frozen suite's
+missions instead (shipped with the package, evaluation-only; suites: standard-2d-v1,
+standard-3d-v1, ...): episode i pins mission i's field, and --episodes N flies the first N.
+Outputs in --out DIR:
 
   episodes.csv              one row per agent x episode
   summary.json              per agent: success_rate, targets_captured_mean, delta_v_mean,
                             time_mean, path_length_mean, collision_rate, min_clearance_min,
-                            decision_ms_p50/p95, with 95 % confidence intervals; and
-                            paired_delta_v: each agent's Δv minus apf-mpc's (or the
-                            first agent's, or --reference's) on the episodes both
-                            complete, paired by seed
-  summary.md                the Markdown table also printed to stdout
+                            decision_ms_p50/p95, with 95 % confidence intervals inside
+                            each metric's range (Wilson for rates, seeded percentile
+                            bootstrap for means) and constant_columns; paired_success:
+                            each agent against apf-mpc (or the first agent, or
+                            --reference) on the same seeds, exact McNemar test (b, c,
+                            p_value); paired_delta_v: Δv and time of flight minus the
+                            reference's on the episodes both complete; suite: name and
+                            content hash, with --suite
+  summary.md                the Markdown tables also printed to stdout
   trajectories_epNNN.png    all agents' trajectories over the field, first --plots episodes
-  paper_table.md/.json      with --paper: [APF-MPC] Table I beside our measurements
-  manifest.json             the files of the set and the run's options
+  paper_table.md/.json      with --paper: [APF-MPC] Table I side by side with ours (not a
+                            reproduction; the reasons are in the table)
+  manifest.json             the files of the set and the run's options (suite and hash)
 
 The files land together or not at all: they are written aside and moved into place at the end,
 and files of an earlier evaluation that this one does not write (trajectory plots of episodes no
@@ -54,7 +62,8 @@ examples:
   python evaluate.py --env DebrisGym/Rendezvous3D-v0 --env-kwargs '{"n_obstacles": 40}'
   python evaluate.py --agents apf,ppo=runs/ppo/model.zip
   python evaluate.py --agents apf,mine=my_pkg.my_mod:make_policy   # your own policy
-  python evaluate.py --paper --out runs/paper          # [APF-MPC] Table I, ours beside theirs
+  python evaluate.py --suite standard-2d-v1 --agents apf-mpc,astar --episodes 10
+  python evaluate.py --paper --out runs/paper          # [APF-MPC] Table I side by side
   python evaluate.py --resume runs/cmp                 # finish a run stopped by Ctrl-C
 """
 
@@ -111,6 +120,12 @@ def _json_object(text: str) -> dict[str, Any]:
     return value
 
 
+def _suite_names() -> list[str]:
+    from debris_gym.suites import list_suites
+
+    return list_suites()
+
+
 def build_parser() -> argparse.ArgumentParser:
     from agents import BASELINES
     from agents.experiments.evaluation.command import DEFAULT_ENV, DEFAULT_EPISODES, DEFAULT_OUT
@@ -144,6 +159,15 @@ def build_parser() -> argparse.ArgumentParser:
         type=_non_negative_int,
         default=None,
         help="reset seed of episode 0, >= 0; episode i uses SEED + i (default: 0)",
+    )
+    parser.add_argument(
+        "--suite",
+        default=None,
+        metavar="NAME",
+        help="fly the frozen evaluation suite NAME shipped with the package ("
+        + ", ".join(_suite_names())
+        + "): its env, options and missions; --episodes N flies its first N (default: all). "
+        "Not combinable with --env, --seed, --env-kwargs, --paper",
     )
     parser.add_argument(
         "--out",
@@ -188,8 +212,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--reference",
         default=None,
         metavar="AGENT",
-        help="agent the others' Δv is paired with on the episodes both complete (default: "
-        "apf-mpc if evaluated, else the first agent)",
+        help="agent the others are paired with by seed — success (exact McNemar test), and "
+        "Δv and time on the episodes both complete (default: apf-mpc if evaluated, else the "
+        "first agent)",
     )
     parser.add_argument(
         "--no-progress",
@@ -200,10 +225,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--paper",
         action="store_true",
-        help="reproduction of the APF-MPC paper [APF-MPC]: one episode of "
-        "DebrisGym/PaperField2D-v0 (its world is "
-        "fixed) with apf, apf-mpc and astar; prints Table I beside our measurements and writes "
-        "DIR/paper_table.md and .json. Not combinable with --env, --agents, --episodes",
+        help="a side-by-side with seed 000's Table I [APF-MPC], NOT a reproduction: one "
+        "episode of DebrisGym/PaperField2D-v0 (our reconstruction of the paper's world) with "
+        "apf, apf-mpc and astar; prints Table I beside our measurements and writes "
+        "DIR/paper_table.md and .json, with the reasons the numbers are not comparable (the "
+        "world is reconstructed; units, time step and metric definitions differ). Not "
+        "combinable with --env, --agents, --episodes, --suite",
     )
     return parser
 

@@ -138,7 +138,9 @@ def list_suites() -> list[str]:
 def _suite_path(name: str) -> Path:
     names = list_suites()
     if not isinstance(name, str) or name not in names:
-        raise ValueError(f"suite must be one of {', '.join(names) or '(none shipped)'}; got {name!r}")
+        raise ValueError(
+            f"suite must be one of {', '.join(names) or '(none shipped)'}; got {name!r}"
+        )
     return _suite_dir() / f"{name}{_SUFFIX}"
 
 
@@ -206,7 +208,7 @@ def read_suite(path: str | os.PathLike[str]) -> Suite:
     )
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def load_suite(name: str) -> Suite:
     """The shipped suite ``name`` (one of :func:`list_suites`), read once per process.
 
@@ -219,7 +221,7 @@ def load_suite(name: str) -> Suite:
     return suite
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def suite_seeds(name: str) -> frozenset[int]:
     """The reset seeds of shipped suite ``name``, read without building its scenarios."""
     data = _read_json(_suite_path(name))

@@ -139,7 +139,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"unknown suite(s) {unknown}; standard suites: {', '.join(STANDARD_SUITES)}")
     args.out.mkdir(parents=True, exist_ok=True)
     for name in names:
-        suite = build_suite(name, STANDARD_SUITES[name], f"python -m debris_gym.suites.build {name}")
+        suite = build_suite(
+            name, STANDARD_SUITES[name], f"python -m debris_gym.suites.build {name}"
+        )
         path = args.out / f"{name}.json.gz"
         write_suite(suite, path)
         print(f"{path}: {len(suite)} missions of {suite.env_id}, hash {suite.content_hash}")

@@ -8,11 +8,12 @@ specs         what to evaluate: baseline names, ``ppo=PATH``, ``pretrained``, yo
 runner        flying every agent on the same seeded episodes (:func:`evaluate_agents`)
 records       what a run produced (episode records, trajectories, the whole run)
 metrics       [APF-MPC] Table I metrics of a trajectory
-statistics    Wilson and t intervals, per-agent summaries, Δv paired by seed
+statistics    intervals inside each metric's range (Wilson, seeded bootstrap), per-agent
+              summaries, success (exact McNemar), Δv and time paired by seed
 report        the Markdown table, strict JSON, episodes.csv, writing the files as one set
 journal       an unfinished run's options and finished episodes (Ctrl-C, ``--resume``)
 plots         trajectory plots
-paper         [APF-MPC] Table I beside ours (``--paper``)
+paper         [APF-MPC] Table I side by side with ours, not a reproduction (``--paper``)
 command       ``evaluate.py`` once its arguments are parsed
 ============  ======================================================================
 
@@ -59,7 +60,11 @@ from agents.experiments.evaluation.specs import (
 )
 from agents.experiments.evaluation.statistics import (
     CONFIDENCE,
+    bootstrap_interval,
+    is_constant,
+    mcnemar_exact,
     paired_delta_v,
+    paired_success,
     summarize,
     t_interval,
     wilson_interval,
@@ -76,12 +81,16 @@ __all__ = [
     "EvaluationResults",
     "Trajectory",
     "agent_env_options",
+    "bootstrap_interval",
     "build_agent",
     "check_agent_available",
     "episodes_csv",
     "evaluate_agents",
+    "is_constant",
     "make_env",
+    "mcnemar_exact",
     "paired_delta_v",
+    "paired_success",
     "parse_agent_spec",
     "parse_agent_specs",
     "run_episode",

@@ -33,6 +33,7 @@ from agents.experiments.evaluation.journal import EvaluationJournal, JournalErro
 from agents.experiments.evaluation.paper import (
     PAPER_AGENTS,
     PAPER_ENV_ID,
+    PAPER_TITLE,
     paper_table,
     paper_table_markdown,
 )
@@ -50,6 +51,7 @@ from agents.experiments.evaluation.specs import (
 )
 from agents.experiments.evaluation.statistics import summarize
 from agents.experiments.run_directory import OutputDirError, RunDirectoryLock
+from debris_gym.suites import Suite, load_suite
 
 __all__ = [
     "DEFAULT_ENV",
@@ -103,6 +105,7 @@ class EvaluateOptions:
     progress: bool = True
     paper: bool = False
     resume: Path | None = None
+    suite: str | None = None
 
 
 @dataclass(frozen=True)
@@ -114,7 +117,8 @@ class EvaluationPlan:
         out: output directory.
         env_id: the env every agent flies; ``env_kwargs`` its ``gym.make`` options.
         agents: ``(spec text, label)`` of every agent to run, in order.
-        episodes: episodes per agent; episode i is reset with seed ``seed + i``.
+        episodes: episodes per agent; episode i is reset with seed ``seed + i`` — or, with
+            ``suite``, is the suite's mission i.
         max_steps: time-limit override (steps), or None for the registered one.
         plots: trajectory plots of the first ``plots`` episodes.
         reference: the agent others' Δv is paired with, or None for the default.
@@ -122,6 +126,9 @@ class EvaluationPlan:
         skipped: agents left out of a default list, {label: reason}.
         warnings: what building an agent warned about, {label: message} (shown in the
             summary).
+        suite: the frozen suite flown (:mod:`debris_gym.suites`), else None.
+        suite_hash: its content hash when the run started (a resumed run refuses a suite
+            whose content has changed since).
     """
 
     out: Path
@@ -136,6 +143,8 @@ class EvaluationPlan:
     paper: bool = False
     skipped: dict[str, str] = field(default_factory=dict)
     warnings: dict[str, str] = field(default_factory=dict)
+    suite: str | None = None
+    suite_hash: str | None = None
 
     @property
     def specs(self) -> list[AgentSpec]:
@@ -283,6 +292,40 @@ def _who_can_act(env: gym.Env) -> str:
     return f"no baseline can act in this env; {others} can"
 
 
+def _load_suite(name: str, flag: str = "--suite") -> Suite:
+    try:
+        return load_suite(name)
+    except ValueError as exc:
+        raise UsageError(flag, str(exc)) from exc
+
+
+def _resolve_suite(options: EvaluateOptions) -> tuple[Suite, int]:
+    """The suite of ``--suite`` and the missions to fly (``--episodes``: its first N)."""
+    assert options.suite is not None
+    for flag, value in (
+        ("--env", options.env),
+        ("--seed", options.seed),
+        ("--env-kwargs", options.env_kwargs),
+    ):
+        if value is not None:
+            raise UsageError(
+                flag, "not allowed with --suite (the suite fixes the env, its options and seeds)"
+            )
+    if options.paper:
+        raise UsageError("--paper", "not allowed with --suite (--paper flies its own world)")
+    suite = _load_suite(options.suite)
+    episodes = len(suite) if options.episodes is None else options.episodes
+    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
+        raise UsageError("--episodes", f"must be an integer >= 1, got {episodes!r}")
+    if episodes > len(suite):
+        raise UsageError(
+            "--episodes",
+            f"must be <= {len(suite)}: suite {suite.name!r} has {len(suite)} missions, got "
+            f"{episodes}",
+        )
+    return suite, episodes
+
+
 def _resolve_env(options: EvaluateOptions) -> tuple[str, int]:
     if not options.paper:
         episodes = DEFAULT_EPISODES if options.episodes is None else options.episodes
@@ -342,9 +385,15 @@ def _debris_env_ids() -> list[str]:
     return sorted(k for k in gym.registry if k.startswith("DebrisGym/"))
 
 
-def _check_env(env_id: str, env_kwargs: dict[str, Any], max_steps: int | None, seed: int) -> None:
-    """Make the env and reset it once with the first episode's seed: a bad ID or option fails
-    here, before any agent is built."""
+def _check_env(
+    env_id: str,
+    env_kwargs: dict[str, Any],
+    max_steps: int | None,
+    seed: int,
+    suite: Suite | None = None,
+) -> None:
+    """Make the env and reset it once with the first episode's seed (and, for a suite, its
+    first mission's field): a bad ID or option fails here, before any agent is built."""
     from debris_gym.envs import DebrisFieldEnv
 
     ids = ", ".join(_debris_env_ids())
@@ -359,6 +408,14 @@ def _check_env(env_id: str, env_kwargs: dict[str, Any], max_steps: int | None, s
     try:
         if not isinstance(env.unwrapped, DebrisFieldEnv):
             raise UsageError("--env", f"{env_id!r} is not a DebrisGym env; DebrisGym IDs: {ids}")
+        if suite is not None:
+            try:
+                env.reset(
+                    seed=suite.missions[0].seed, options={"scenario": suite.missions[0].scenario}
+                )
+            except ValueError as exc:
+                raise UsageError("--suite", f"{suite.name}: {exc}") from exc
+            return
         try:
             env.reset(seed=seed)
         except (TypeError, ValueError, OverflowError) as exc:
@@ -371,15 +428,20 @@ def _check_env(env_id: str, env_kwargs: dict[str, Any], max_steps: int | None, s
 
 def _fresh_plan(options: EvaluateOptions) -> EvaluationPlan:
     """Check every argument and choose the agents (nothing runs, nothing is written)."""
-    env_id, episodes = _resolve_env(options)
-    seed = 0 if options.seed is None else options.seed
+    suite = None
+    if options.suite is not None:
+        suite, episodes = _resolve_suite(options)
+        env_id, env_kwargs, seed = suite.env_id, dict(suite.env_kwargs), suite.missions[0].seed
+    else:
+        env_id, episodes = _resolve_env(options)
+        seed = 0 if options.seed is None else options.seed
+        env_kwargs = dict(options.env_kwargs or {})
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise UsageError("--seed", f"must be an integer >= 0 (a reset seed), got {seed!r}")
     plots = 3 if options.plots is None else options.plots
     if isinstance(plots, bool) or not isinstance(plots, int) or plots < 0:
         raise UsageError("--plots", f"must be an integer >= 0, got {plots!r}")
-    env_kwargs = dict(options.env_kwargs or {})
-    _check_env(env_id, env_kwargs, options.max_steps, seed)
+    _check_env(env_id, env_kwargs, options.max_steps, seed, suite)
     specs, skipped, warned = _choose_agents(options, env_id, env_kwargs)
     return EvaluationPlan(
         out=Path(options.out if options.out is not None else DEFAULT_OUT),
@@ -394,6 +456,8 @@ def _fresh_plan(options: EvaluateOptions) -> EvaluationPlan:
         paper=options.paper,
         skipped=skipped,
         warnings=warned,
+        suite=None if suite is None else suite.name,
+        suite_hash=None if suite is None else suite.content_hash,
     )
 
 
@@ -403,7 +467,7 @@ def _resume_plan(options: EvaluateOptions) -> EvaluationPlan:
     assert options.resume is not None
     defaults = EvaluateOptions(progress=options.progress, resume=options.resume)
     for name in ("out", "env", "agents", "episodes", "seed", "plots", "env_kwargs", "max_steps",
-                 "reference", "paper"):  # fmt: skip
+                 "reference", "paper", "suite"):  # fmt: skip
         if getattr(options, name) != getattr(defaults, name):
             flag = "--" + name.replace("_", "-")
             raise UsageError(
@@ -419,7 +483,8 @@ def _resume_plan(options: EvaluateOptions) -> EvaluationPlan:
         raise UsageError(
             "--resume", f"{journal.options_path}: not an evaluation's options ({exc!r})"
         ) from exc
-    _check_env(plan.env_id, plan.env_kwargs, plan.max_steps, plan.seed)
+    suite = _plan_suite(plan)
+    _check_env(plan.env_id, plan.env_kwargs, plan.max_steps, plan.seed, suite)
 
     def env_for(spec: AgentSpec) -> gym.Env:
         kwargs = {**plan.env_kwargs, **agent_env_options(spec, plan.env_id)}
@@ -427,6 +492,20 @@ def _resume_plan(options: EvaluateOptions) -> EvaluationPlan:
 
     _, _, warned = _usable(plan.specs, True, "--resume", env_for)
     return dataclasses.replace(plan, warnings=warned)
+
+
+def _plan_suite(plan: EvaluationPlan) -> Suite | None:
+    """The suite of a journaled plan, checked to be the one the run started with."""
+    if plan.suite is None:
+        return None
+    suite = _load_suite(plan.suite, "--resume")
+    if suite.content_hash != plan.suite_hash:
+        raise UsageError(
+            "--resume",
+            f"suite {plan.suite!r} has changed since the run started (content hash "
+            f"{plan.suite_hash}, now {suite.content_hash}); start a new evaluation",
+        )
+    return suite
 
 
 def _lock(plan: EvaluationPlan, flag: str) -> RunDirectoryLock:
@@ -462,6 +541,14 @@ def run_evaluation(options: EvaluateOptions) -> str:
         lock.release()
 
 
+def _plan_seeds(plan: EvaluationPlan) -> list[int]:
+    """The reset seed of each episode of ``plan``."""
+    suite = _plan_suite(plan)
+    if suite is None:
+        return [plan.seed + i for i in range(plan.episodes)]
+    return list(suite.seeds[: plan.episodes])
+
+
 def _run_locked(plan: EvaluationPlan, resuming: bool, progress: bool) -> str:
     """Run ``plan`` in its directory (whose lock the caller holds)."""
     journal = EvaluationJournal(plan.out)
@@ -472,7 +559,7 @@ def _run_locked(plan: EvaluationPlan, resuming: bool, progress: bool) -> str:
         except JournalError as exc:
             raise UsageError("--resume", str(exc)) from exc
         try:
-            index_finished(finished, plan.specs, plan.episodes, plan.seed)
+            index_finished(finished, plan.specs, plan.episodes, _plan_seeds(plan))
         except ValueError as exc:
             raise UsageError("--resume", f"{journal.episodes_path}: {exc}") from exc
         journal.drop_partial_line()
@@ -498,6 +585,7 @@ def _run_locked(plan: EvaluationPlan, resuming: bool, progress: bool) -> str:
                 max_episode_steps=plan.max_steps,
                 finished=finished,
                 on_episode=journal.append,
+                suite=_plan_suite(plan),
             )
         summary = summarize(results, reference=plan.reference)
         if plan.skipped:
@@ -510,7 +598,7 @@ def _run_locked(plan: EvaluationPlan, resuming: bool, progress: bool) -> str:
             table = paper_table(results, plan.skipped)
             table_text = paper_table_markdown(table)
             extra = {"paper_table.md": table_text, "paper_table.json": to_json(table)}
-            text += "\n[APF-MPC] Table I, paper vs ours:\n\n" + table_text
+            text += f"\n{PAPER_TITLE}:\n\n" + table_text
         written = write_outputs(
             results,
             plan.out,

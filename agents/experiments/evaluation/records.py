@@ -132,6 +132,10 @@ class EvaluationResults:
         records: one per agent × episode, agent-major.
         scenarios: the field of each episode (index = episode).
         elapsed: wall-clock duration of the run (s).
+        suite: name of the frozen suite flown (``evaluate.py --suite``), else None.
+        suite_hash: the suite's content hash (:attr:`debris_gym.suites.Suite.content_hash`).
+        suite_size: missions in the whole suite (``episodes`` flies its first ones).
+        seeds: reset seed of each episode when they are not ``seed + i`` (a suite's), else None.
     """
 
     env_id: str
@@ -143,6 +147,17 @@ class EvaluationResults:
     records: list[EpisodeRecord]
     scenarios: list[Scenario]
     elapsed: float = 0.0
+    suite: str | None = None
+    suite_hash: str | None = None
+    suite_size: int | None = None
+    seeds: list[int] | None = None
+
+    @property
+    def reset_seeds(self) -> list[int]:
+        """The reset seed of each episode, episode order."""
+        if self.seeds is not None:
+            return list(self.seeds)
+        return [self.seed + i for i in range(self.episodes)]
 
     def for_agent(self, label: str) -> list[EpisodeRecord]:
         """The records of one agent, in episode order."""

@@ -44,31 +44,103 @@ def format_number(value: Any, digits: int = 3) -> str:
     return str(value)
 
 
+_COLUMN_TITLES = {
+    "targets_captured_mean": "targets captured",
+    "delta_v_mean": "Δv",
+    "time_mean": "time",
+    "path_length_mean": "path",
+    "task_score_mean": "task score",
+}
+
+
 def _with_ci(entry: dict[str, Any], key: str, digits: int = 3) -> str:
-    lo, hi = entry.get(f"{key}_ci95", (None, None))
+    """``value [low, high]``; ``value (constant)`` for a column equal in every episode."""
     text = format_number(entry[key], digits)
+    if key in (entry.get("constant_columns") or ()):
+        return f"{text} (constant)"
+    lo, hi = entry.get(f"{key}_ci95", (None, None))
     if lo is None or hi is None:
         return text
     return f"{text} [{format_number(lo, digits)}, {format_number(hi, digits)}]"
 
 
+def _title(summary: dict[str, Any]) -> str:
+    """The table's first line: what was flown (suite, env, options, episodes, seeds)."""
+    n = summary["episodes"]
+    suite = summary.get("suite")
+    env = f"env `{summary['env_id']}`" + (
+        f" with `{json.dumps(summary['env_kwargs'])}`" if summary["env_kwargs"] else ""
+    )
+    limit = (
+        f", time limit {summary['max_episode_steps']} steps"
+        if summary.get("max_episode_steps")
+        else ""
+    )
+    if suite is not None:
+        size = suite["missions_in_suite"]
+        which = f"all {size} missions" if n == size else f"its first {n} of {size} missions"
+        return (
+            f"Suite `{suite['name']}` (content hash {suite['hash']}): {which}, {env}{limit}; "
+            f"every agent flies the same pinned fields."
+        )
+    seeds = (
+        f"reset seeds {summary['seed']}…{summary['seed'] + n - 1}."
+        if n > 1
+        else f"reset seed {summary['seed']}."
+    )
+    return (
+        f"{env[0].upper()}{env[1:]}{limit}; {n} episode{'s' if n != 1 else ''} per agent, {seeds}"
+    )
+
+
+def _paired_tables(summary: dict[str, Any], n: int) -> list[str]:
+    """The paired comparisons: success (McNemar) and Δv / time on the missions both complete."""
+    lines: list[str] = []
+    success = summary.get("paired_success") or {}
+    if success.get("agents"):
+        ref = success["reference"]
+        lines += [
+            "",
+            f"Success paired with {ref} by seed ({success['test']} test, two-sided): b = "
+            f"episodes only the agent completes, c = episodes only {ref} completes.",
+            "",
+            f"| agent | pairs | both complete | b (agent only) | c ({ref} only) | p-value |",
+            "|---|---|---|---|---|---|",
+        ]
+        for label, e in success["agents"].items():
+            lines.append(
+                f"| {label} | {e['pairs']} | {e['both_succeeded']} | {e['b']} | {e['c']} "
+                f"| {format_number(e['p_value'])} |"
+            )
+    paired = summary.get("paired_delta_v") or {}
+    if paired.get("agents"):
+        ref = paired["reference"]
+        lines += [
+            "",
+            f"Δv and time of flight on the missions both complete, paired with {ref} by seed "
+            "(differences with Student t 95 % intervals):",
+            "",
+            f"| agent | both complete | agent Δv [m/s] | {ref} Δv [m/s] | agent − {ref} Δv [m/s] "
+            f"| agent time [s] | {ref} time [s] | agent − {ref} time [s] |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
+        for label, e in paired["agents"].items():
+            lines.append(
+                f"| {label} | {e['both_succeeded']} / {n} | {format_number(e['delta_v_mean'])} "
+                f"| {format_number(e['reference_delta_v_mean'])} "
+                f"| {_with_ci(e, 'difference_mean')} | {format_number(e.get('time_mean'))} "
+                f"| {format_number(e.get('reference_time_mean'))} "
+                f"| {_with_ci(e, 'time_difference_mean') if 'time_difference_mean' in e else '—'} |"
+            )
+    return lines
+
+
 def summary_markdown(summary: dict[str, Any]) -> str:
-    """The summary as a Markdown table, one row per agent, 95 % intervals in brackets."""
+    """The summary as Markdown: one row per agent with 95 % intervals in brackets, then the
+    paired comparisons with the reference agent."""
     n = summary["episodes"]
     lines = [
-        f"Env `{summary['env_id']}`"
-        + (f" with `{json.dumps(summary['env_kwargs'])}`" if summary["env_kwargs"] else "")
-        + (
-            f", time limit {summary['max_episode_steps']} steps"
-            if summary.get("max_episode_steps")
-            else ""
-        )
-        + f"; {n} episode{'s' if n != 1 else ''} per agent, "
-        + (
-            f"reset seeds {summary['seed']}…{summary['seed'] + n - 1}."
-            if n > 1
-            else f"reset seed {summary['seed']}."
-        ),
+        _title(summary),
         "",
         "| agent | success | targets captured | task score | Δv [m/s] | time [s] | path [m] "
         "| collision | min clearance [m] | decision p50 / p95 [ms] |",
@@ -88,27 +160,25 @@ def summary_markdown(summary: dict[str, Any]) -> str:
         )
     lines += [
         "",
-        "Brackets: 95 % confidence intervals — Wilson score for rates, Student t for means "
-        "(means are over all episodes, failed ones included). Task score: the env's unshaped "
-        "score per episode (captures and success minus Δv, collision, bounds and time "
-        "penalties; the shaping left out).",
+        "Brackets: 95 % confidence intervals — Wilson score for rates; for means a percentile "
+        "bootstrap over episodes (seeded), which stays inside the metric's range (means are "
+        "over all episodes, failed ones included). Task score: the env's unshaped score per "
+        "episode (captures and success minus Δv, collision, bounds and time penalties; the "
+        "shaping left out).",
     ]
-    paired = summary.get("paired_delta_v") or {}
-    if paired.get("agents"):
-        ref = paired["reference"]
+    constant = {
+        label: [_COLUMN_TITLES.get(k, k) for k in e.get("constant_columns") or ()]
+        for label, e in summary["agents"].items()
+    }
+    constant = {label: cols for label, cols in constant.items() if cols}
+    if constant:
         lines += [
             "",
-            f"Δv on the missions both complete, paired with {ref} by seed:",
-            "",
-            f"| agent | both complete | agent Δv [m/s] | {ref} Δv [m/s] | agent − {ref} [m/s] |",
-            "|---|---|---|---|---|",
+            "Constant across episodes (the same value every episode: no interval to speak of): "
+            + "; ".join(f"{label}: {', '.join(cols)}" for label, cols in constant.items())
+            + ".",
         ]
-        for label, e in paired["agents"].items():
-            lines.append(
-                f"| {label} | {e['both_succeeded']} / {n} | {format_number(e['delta_v_mean'])} "
-                f"| {format_number(e['reference_delta_v_mean'])} "
-                f"| {_with_ci(e, 'difference_mean')} |"
-            )
+    lines += _paired_tables(summary, n)
     for label, message in (summary.get("warnings") or {}).items():
         lines += ["", f"Warning — {label}: {message}"]
     return "\n".join(lines) + "\n"

@@ -2,7 +2,9 @@
 
 Every agent flies the same episodes: episode ``i`` starts with ``env.reset(seed=seed + i)``, and
 the field comes from the reset seed, so all agents meet the same debris fields (checked after
-every run through a fingerprint of each scenario).
+every run through a fingerprint of each scenario). A frozen suite
+(:mod:`debris_gym.suites`) instead pins episode ``i``'s field: ``env.reset(seed=missions[i].seed,
+options={"scenario": missions[i].scenario})``.
 
 Decision time is measured with :func:`time.perf_counter` around each ``predict`` call (ms). A
 classical agent plans inside its first ``predict`` of an episode, so that call includes planning.
@@ -39,8 +41,9 @@ from agents.experiments.evaluation.specs import (
     parse_agent_specs,
 )
 from debris_gym.scenario import Scenario
+from debris_gym.suites import Suite
 
-__all__ = ["evaluate_agents", "index_finished", "make_env", "run_episode"]
+__all__ = ["episode_resets", "evaluate_agents", "index_finished", "make_env", "run_episode"]
 
 
 def _outcome(info: dict[str, Any], truncated: bool) -> str:
@@ -55,10 +58,19 @@ def _outcome(info: dict[str, Any], truncated: bool) -> str:
     return "delta_v_budget"
 
 
-def run_episode(env: gym.Env, agent: Any, label: str, episode: int, seed: int) -> EpisodeRecord:
-    """Fly one episode of ``agent`` from ``env.reset(seed=seed)``; return its record."""
+def run_episode(
+    env: gym.Env,
+    agent: Any,
+    label: str,
+    episode: int,
+    seed: int,
+    scenario: Scenario | None = None,
+) -> EpisodeRecord:
+    """Fly one episode of ``agent`` from ``env.reset(seed=seed)``, with ``scenario`` pinned if
+    given (a suite's mission); return its record."""
     base = env.unwrapped
-    obs, info = env.reset(seed=seed)
+    options = None if scenario is None else {"scenario": scenario}
+    obs, info = env.reset(seed=seed, options=options)
     scenario = base.scenario
     d = base.dim
     states = [np.asarray(info["chaser_state"], dtype=float)]
@@ -151,10 +163,12 @@ def evaluate_agents(
     max_episode_steps: int | None = None,
     finished: Sequence[EpisodeRecord] = (),
     on_episode: Callable[[EpisodeRecord], None] | None = None,
+    suite: Suite | None = None,
 ) -> EvaluationResults:
     """Fly every agent on the same ``episodes`` seeded scenarios.
 
-    Episode ``i`` of every agent starts with ``env.reset(seed=seed + i)``. Each agent gets its own
+    Episode ``i`` of every agent starts with ``env.reset(seed=seed + i)`` — or, with ``suite``,
+    with the suite's mission ``i`` (its seed, its field pinned). Each agent gets its own
     env (``gym.make(env_id, **env_kwargs)``), built once and reset per episode; a learned agent's
     env also gets the observation options it was trained with (:func:`agent_env_options`).
 
@@ -177,9 +191,12 @@ def evaluate_agents(
             last unfinished one: the resumed run then equals an uninterrupted one.
         on_episode: called with each newly flown episode's record as soon as it finishes (to
             journal it; see :mod:`agents.experiments.evaluation.journal`).
+        suite: a frozen suite whose first ``episodes`` missions are flown; ``env_id`` and
+            ``env_kwargs`` must be the suite's, and ``seed`` is ignored.
 
     Raises:
-        ValueError: bad arguments.
+        ValueError: bad arguments (also: ``episodes`` beyond the suite's size, an env other
+            than the suite's).
         RuntimeError: two agents met different scenarios in the same episode (a bug).
     """
     from tqdm import tqdm
@@ -188,7 +205,9 @@ def evaluate_agents(
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
     specs = parse_agent_specs(agent_specs)
     env_kwargs = dict(env_kwargs or {})
-    done = index_finished(finished, specs, episodes, seed)
+    resets = episode_resets(episodes, seed, suite, env_id, env_kwargs)
+    seeds = [s for s, _ in resets]
+    done = index_finished(finished, specs, episodes, seeds)
     records: list[EpisodeRecord] = []
     time_limit = max_episode_steps
     start = time.perf_counter()
@@ -215,11 +234,12 @@ def evaluate_agents(
                     if saved is not None:
                         if todo and i < todo[-1]:  # bring the agent to the state it had
                             bar.set_postfix_str(f"{spec.label} ep {i} (replay)", refresh=False)
-                            _check_replay(saved, run_episode(env, agent, spec.label, i, seed + i))
+                            replay = run_episode(env, agent, spec.label, i, *resets[i])
+                            _check_replay(saved, replay)
                         records.append(saved)
                         continue
                     bar.set_postfix_str(f"{spec.label} ep {i}", refresh=False)
-                    record = run_episode(env, agent, spec.label, i, seed + i)
+                    record = run_episode(env, agent, spec.label, i, *resets[i])
                     records.append(record)
                     if on_episode is not None:
                         on_episode(record)
@@ -233,37 +253,79 @@ def evaluate_agents(
         env_id=env_id,
         env_kwargs=env_kwargs,
         episodes=int(episodes),
-        seed=int(seed),
+        seed=int(seeds[0]),
         max_episode_steps=time_limit,
         agents=specs,
         records=records,
         scenarios=scenarios,
         elapsed=time.perf_counter() - start,
+        suite=None if suite is None else suite.name,
+        suite_hash=None if suite is None else suite.content_hash,
+        suite_size=None if suite is None else len(suite),
+        seeds=None if suite is None else seeds,
     )
 
 
+def episode_resets(
+    episodes: int,
+    seed: int,
+    suite: Suite | None = None,
+    env_id: str | None = None,
+    env_kwargs: dict[str, Any] | None = None,
+) -> list[tuple[int, Scenario | None]]:
+    """``(reset seed, pinned scenario or None)`` of each episode: ``(seed + i, None)``, or a
+    suite's first ``episodes`` missions.
+
+    Raises:
+        ValueError: ``episodes`` beyond the suite's size; ``env_id`` / ``env_kwargs`` (when
+            given) other than the suite's.
+    """
+    if suite is None:
+        return [(int(seed) + i, None) for i in range(episodes)]
+    if episodes > len(suite):
+        raise ValueError(
+            f"episodes must be <= {len(suite)} (suite {suite.name!r} has {len(suite)} missions), "
+            f"got {episodes}"
+        )
+    if env_id is not None and env_id != suite.env_id:
+        raise ValueError(f"suite {suite.name!r} is flown in {suite.env_id}, not {env_id}")
+    if env_kwargs is not None and dict(env_kwargs) != dict(suite.env_kwargs):
+        raise ValueError(
+            f"suite {suite.name!r} is flown with env_kwargs {dict(suite.env_kwargs)}, not "
+            f"{dict(env_kwargs)}"
+        )
+    return [(m.seed, m.scenario) for m in suite.missions[:episodes]]
+
+
 def index_finished(
-    finished: Sequence[EpisodeRecord], specs: list[AgentSpec], episodes: int, seed: int
+    finished: Sequence[EpisodeRecord],
+    specs: list[AgentSpec],
+    episodes: int,
+    seed: int | Sequence[int],
 ) -> dict[tuple[str, int], EpisodeRecord]:
     """``finished`` by (agent label, episode), checked to belong to the evaluation of ``specs``
-    over ``episodes`` episodes from reset seed ``seed``.
+    over ``episodes`` episodes from reset seed ``seed`` (episode i: ``seed + i``), or with the
+    reset seeds listed in ``seed`` (a suite's).
 
     Raises:
         ValueError: a record of another agent, episode or seed, or one pair twice.
     """
     labels = {spec.label for spec in specs}
+    seeds = (
+        [int(seed) + i for i in range(episodes)] if isinstance(seed, (int, np.integer)) else seed
+    )
     done: dict[tuple[str, int], EpisodeRecord] = {}
     for record in finished:
         key = (record.agent, record.episode)
         if (
             record.agent not in labels
             or not 0 <= record.episode < episodes
-            or record.seed != seed + record.episode
+            or record.seed != seeds[record.episode]
         ):
             raise ValueError(
                 f"finished record of agent {record.agent!r}, episode {record.episode} (reset "
                 f"seed {record.seed}) is not part of this evaluation (agents {sorted(labels)}, "
-                f"episodes 0..{episodes - 1} with reset seeds {seed}…{seed + episodes - 1})"
+                f"episodes 0..{episodes - 1} with reset seeds {seeds[0]}…{seeds[-1]})"
             )
         if key in done:
             raise ValueError(f"agent {record.agent!r}, episode {record.episode} finished twice")
