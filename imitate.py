@@ -45,12 +45,14 @@ def build_parser() -> argparse.ArgumentParser:
     cli.add_config_options(parser, "agents/configs/<env>_imitation.yaml", "--set dagger_rounds=2")
     parser.add_argument("--seed", type=int, metavar="S", help="base seed (default: the config's)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+    cli.add_suite_refusal(parser)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    cli.refuse_suite(parser, args)
     cli.interrupt_on_signals()
     from agents.experiments.imitation.config import load_imitation_config
     from agents.experiments.imitation.run import imitate

@@ -86,6 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--no-progress", dest="progress", action="store_false", help="no progress bar"
     )
+    cli.add_suite_refusal(parser)
     parser.add_argument(
         "--threads",
         type=lambda t: _int(t, 1),
@@ -106,6 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    cli.refuse_suite(parser, args)
     if args.out is None and args.resume is None:
         parser.error("give --out DIR (a new run) or --resume DIR")
     cli.interrupt_on_signals()

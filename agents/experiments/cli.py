@@ -51,3 +51,26 @@ def interrupt_on_signals() -> None:
 def command_words(argv: Sequence[str] | None) -> list[str]:
     """The script's name and its arguments (``argv``, or the process's own when None)."""
     return [Path(sys.argv[0]).name, *(sys.argv[1:] if argv is None else argv)]
+
+
+def add_suite_refusal(parser: argparse.ArgumentParser) -> None:
+    """``--suite NAME``, accepted only to be refused by :func:`refuse_suite` with a clear
+    message (frozen suites are evaluation-only), rather than argparse's "unrecognized"."""
+    parser.add_argument(
+        "--suite",
+        metavar="NAME",
+        help="refused: frozen evaluation suites (evaluate.py --suite) are evaluation-only and "
+        "never used for training or model selection",
+    )
+
+
+def refuse_suite(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """Exit with a usage error if ``--suite`` was given; drop it from ``args`` otherwise."""
+    suite = vars(args).pop("suite", None)
+    if suite is not None:
+        from debris_gym.suites import EVALUATION_ONLY
+
+        parser.error(
+            f"argument --suite: {EVALUATION_ONLY}; evaluate on it with python evaluate.py "
+            f"--suite {suite} --agents ..."
+        )

@@ -36,6 +36,7 @@ from typing import Any, NamedTuple
 from debris_gym.scenario import Scenario
 
 __all__ = [
+    "EVALUATION_ONLY",
     "RESERVED_SEEDS",
     "SUITE_KEYS",
     "Mission",
@@ -43,6 +44,7 @@ __all__ = [
     "list_suites",
     "load_suite",
     "read_suite",
+    "refuse_suite_seeds",
     "seeds_in_suites",
     "suite_seeds",
     "write_suite",
@@ -242,6 +244,30 @@ def seeds_in_suites(seeds: Iterable[int]) -> dict[str, list[int]]:
         if hits:
             found[name] = hits
     return found
+
+
+EVALUATION_ONLY = "suites are evaluation-only (never for training or model selection)"
+"""What a refusal to train on a suite says."""
+
+
+def refuse_suite_seeds(seeds: range, what: str) -> None:
+    """Refuse reset seeds ``seeds`` for ``what`` (a training or model-selection use) when any
+    is a shipped suite's: training on a suite's fields would leak them into its evaluation.
+
+    Raises:
+        ValueError: naming ``what``, the seed range, the suite(s) and the seeds they share.
+    """
+    hits = seeds_in_suites(seeds)
+    if hits:
+        shared = "; ".join(
+            f"{name}: {', '.join(map(str, found[:3]))}{'…' if len(found) > 3 else ''}"
+            for name, found in hits.items()
+        )
+        raise ValueError(
+            f"{what} would use reset seeds {seeds.start}…{seeds.stop - 1}, which include the "
+            f"missions of evaluation suite(s) ({shared}); {EVALUATION_ONLY}. Choose seeds "
+            f"outside {RESERVED_SEEDS.start}…{RESERVED_SEEDS.stop - 1}"
+        )
 
 
 def write_suite(suite: Suite, path: str | os.PathLike[str]) -> None:

@@ -137,6 +137,19 @@ class ImitationConfig:
         for key in ("env_kwargs", "expert_kwargs"):
             if not isinstance(getattr(self, key), dict):
                 raise ValueError(f"{key} must be a mapping, got {getattr(self, key)!r}")
+        self._refuse_suite_seeds()
+
+    @property
+    def field_seeds(self) -> range:
+        """Reset seeds of every field the run flies (expert rollouts, then DAgger rounds)."""
+        first = TRAIN_SEED + self.seed * 100_000
+        return range(first, first + self.bc_episodes + self.dagger_rounds * self.dagger_episodes)
+
+    def _refuse_suite_seeds(self) -> None:
+        """Suites are evaluation-only: no imitation field may be a frozen suite's mission."""
+        from debris_gym.suites import refuse_suite_seeds
+
+        refuse_suite_seeds(self.field_seeds, "imitation (seed, bc_episodes, dagger_*)")
 
     def to_dict(self) -> dict[str, Any]:
         out = dataclasses.asdict(self)

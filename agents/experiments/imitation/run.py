@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from agents.experiments.imitation.collection import collect
-from agents.experiments.imitation.config import TRAIN_SEED, ImitationConfig
+from agents.experiments.imitation.config import ImitationConfig
 from agents.experiments.imitation.fitting import (
     CLIP_OBS,
     OBS_EPSILON,
@@ -83,7 +83,7 @@ def _imitate(
 
     rng = np.random.default_rng(config.seed)
     torch.manual_seed(config.seed)
-    next_seed = TRAIN_SEED + config.seed * 100_000
+    next_seed = config.field_seeds.start  # the seeds the config checked against the suites
     started = time.time()
     history: list[dict[str, Any]] = []
 

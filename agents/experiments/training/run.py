@@ -192,6 +192,24 @@ def _check_seed(seed: int, n_envs: int) -> None:
         )
 
 
+def _refuse_suite_seeds(seed: int, config: TrainConfig) -> None:
+    """Refuse a run whose training or periodic-evaluation envs would be reset with a frozen
+    suite's seeds: suites are evaluation-only (:mod:`debris_gym.suites`).
+
+    Training sub-env ``i`` of curriculum stage ``k`` is seeded with ``seed + k + i``; periodic
+    evaluation (model selection: ``best_model.zip``) with ``EVAL_SEED + i``.
+    """
+    from debris_gym.suites import refuse_suite_seeds
+
+    stages = len(config.curriculum) + 1
+    refuse_suite_seeds(range(seed, seed + stages - 1 + config.n_envs), "training (--seed)")
+    if config.eval.freq > 0:
+        refuse_suite_seeds(
+            range(EVAL_SEED, EVAL_SEED + config.eval.n_envs),
+            "periodic evaluation (model selection; eval.n_envs)",
+        )
+
+
 @dataclass
 class _Segment:
     """One segment of a run, validated and built, before anything is written.
@@ -365,6 +383,7 @@ def _prepare_fresh(options: TrainOptions, out: Path, device: str, command: str) 
     config, source = resolve_config(options)
     seed = 0 if options.seed is None else int(options.seed)
     _check_seed(seed, config.n_envs)
+    _refuse_suite_seeds(seed, config)
     run = {"command": command}
     segment = _Segment(out, config, source, seed, run, None, 0, config.timesteps, seed, {})
     _build(segment, None, device)
@@ -404,6 +423,7 @@ def _prepare_resume(options: TrainOptions, out: Path, device: str, command: str)
     log = read_train_log(out)
     segment_seed = seed + len(log.get("segments", [])) * config.n_envs
     _check_seed(segment_seed, config.n_envs)
+    _refuse_suite_seeds(segment_seed, config)
     segment = _Segment(
         out, config, source, seed, run, checkpoint, start_steps, add, segment_seed, log
     )
