@@ -17,7 +17,7 @@ from agents.experiments.evaluation.records import scenario_fingerprint
 from agents.experiments.imitation.config import load_imitation_config
 from agents.experiments.training.config import CONFIG_DIR, EVAL_SEED, TrainConfig
 from debris_gym.scenario import Scenario
-from debris_gym.suites.build import STANDARD_SUITES, StandardSuite, build_suite
+from debris_gym.suites.build import StandardSuite, build_suite
 from tests.helpers import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -43,7 +43,8 @@ def test_standard_suites_ship_and_load():
         assert suite.name == name and suite.env_id == env_id and len(suite) == 100
         assert suite.env_kwargs == {} and suite.description
         assert set(suite.provenance) == {"command", "git"}
-        assert all(isinstance(m.scenario, Scenario) and m.scenario.dim == dim for m in suite.missions)
+        assert all(isinstance(m.scenario, Scenario) for m in suite.missions)
+        assert all(m.scenario.dim == dim for m in suite.missions)
         assert all(m.scenario.motion == "cwh" for m in suite.missions)  # the v1 world
         assert len(set(suite.seeds)) == 100
         assert len({scenario_fingerprint(m.scenario) for m in suite.missions}) == 100
@@ -119,11 +120,11 @@ def test_content_hash_covers_what_is_flown_only():
 
 
 def test_bad_files_and_names_are_named(tmp_path):
-    with pytest.raises(ValueError, match="suite must be one of .*standard-2d-v1"):
+    with pytest.raises(ValueError, match=r"suite must be one of .*standard-2d-v1"):
         suites.load_suite("nope")
     path = tmp_path / "bad.json.gz"
     path.write_bytes(gzip.compress(json.dumps({"name": "bad"}).encode()))
-    with pytest.raises(ValueError, match="missing .*env_id"):
+    with pytest.raises(ValueError, match=r"missing .*env_id"):
         suites.read_suite(path)
     path.write_bytes(b"not gzip")
     with pytest.raises(ValueError, match="not a gzip-compressed JSON suite file"):
@@ -135,8 +136,8 @@ def test_bad_files_and_names_are_named(tmp_path):
 
 def _default_training_seeds() -> list[range]:
     """Every reset seed a checked-in training config uses at the default --seed 0."""
-    from agents.policies.model_files import load_config_file
     from agents.experiments.training.config import available_configs
+    from agents.policies.model_files import load_config_file
 
     ranges = []
     for stem in available_configs():
@@ -157,8 +158,8 @@ def test_suite_seeds_are_disjoint_from_default_training_and_evaluation_seeds():
 
 
 def test_training_refuses_seeds_that_are_a_suites(monkeypatch, tmp_path):
-    from agents.policies.model_files import load_config_file
     from agents.experiments.training import run
+    from agents.policies.model_files import load_config_file
 
     # a suite whose seeds sit where training would seed its envs
     base = suites.load_suite("standard-2d-v1")
@@ -167,14 +168,14 @@ def test_training_refuses_seeds_that_are_a_suites(monkeypatch, tmp_path):
     monkeypatch.setattr(suites, "_suite_dir", lambda: tmp_path)
     data, _ = load_config_file(CONFIG_DIR / "rendezvous2d_ppo.yaml")
     config = TrainConfig.from_dict(data, source="ppo")
-    with pytest.raises(ValueError, match="training .*evaluation suite.*fake: 3.*evaluation-only"):
+    with pytest.raises(ValueError, match=r"training .*evaluation suite.*fake: 3.*evaluation-only"):
         run._refuse_suite_seeds(0, config)
     run._refuse_suite_seeds(10, config)  # clear of seed 3: accepted
 
 
 def test_imitation_refuses_seeds_that_are_a_suites():
     # fields are seeded 5 000 000 + 100 000 · seed + k: seed 8950 lands on 900 000 000
-    with pytest.raises(ValueError, match="imitation .*standard-2d-v1.*evaluation-only"):
+    with pytest.raises(ValueError, match=r"imitation .*standard-2d-v1.*evaluation-only"):
         load_imitation_config("DebrisGym/Rendezvous2D-v1", seed=8950)
     load_imitation_config("DebrisGym/Rendezvous2D-v1", seed=1)
 
