@@ -29,6 +29,13 @@ Your own policy, from Python::
     )
     print(summary_markdown(summarize(results)))
 
+A frozen suite (:mod:`debris_gym.suites`) from Python: its first N missions, each field pinned::
+
+    from debris_gym.suites import load_suite
+
+    suite = load_suite("standard-2d-v1")
+    results = evaluate_agents(suite.env_id, "apf-mpc,astar", episodes=10, seed=0, suite=suite)
+
 A policy is anything with SB3's ``predict(obs, state=None, episode_start=None,
 deterministic=True) -> (action, state)``.
 """
