@@ -40,9 +40,16 @@ STRUCTURE_MODULES = ("mission_data",)
 """Modules whose named tuples the compiled signatures are made of: the compiled code reads
 their fields by position, so a change to them drops the cache too."""
 
-COMPILE_OPTIONS: dict[str, object] = {"cache": True, "nogil": True, "error_model": "numpy"}
+COMPILE_OPTIONS: dict[str, object] = {
+    "cache": True,
+    "nogil": True,
+    "error_model": "numpy",
+    "_nrt": True,
+}
 """Options of every decorator below. ``error_model="numpy"``: a division by zero gives inf/NaN
-as in numpy instead of raising, which spares a zero test before every ``/`` in the hot loops."""
+as in numpy instead of raising, which spares a zero test before every ``/`` in the hot loops.
+``_nrt=True`` (numba's reference counting, its default) is explicit so that a kernel called
+from a :data:`borrowing` loop does not inherit the loop's setting."""
 
 _STAMP = "numba_sources.sha256"
 
@@ -102,8 +109,15 @@ def drop_stale_cache(package_dir: Path, modules: tuple[str, ...] = COMPILED_MODU
     return True
 
 
+DECORATOR_MODULES = ("jit",)
+"""This module: the decorators' options (a loop's reference counting among them) shape the
+machine code, so a change to them drops the cache too."""
+
 with contextlib.suppress(OSError):
-    drop_stale_cache(Path(__file__).resolve().parent, COMPILED_MODULES + STRUCTURE_MODULES)
+    drop_stale_cache(
+        Path(__file__).resolve().parent,
+        COMPILED_MODULES + STRUCTURE_MODULES + DECORATOR_MODULES,
+    )
 
 kernel = numba.njit(**COMPILE_OPTIONS)
 """Decorator for a compiled loop called from Python."""
@@ -113,6 +127,13 @@ inlined = numba.njit(**COMPILE_OPTIONS, inline="always")
 
 threaded = numba.njit(**COMPILE_OPTIONS, parallel=True)
 """Decorator for a compiled loop whose ``numba.prange`` iterations run on several threads."""
+
+borrowing = numba.njit(**{**COMPILE_OPTIONS, "_nrt": False})
+"""Decorator for a compiled loop without numba's reference counting (its runtime, NRT, left
+out of the loop's code): the loop only borrows the arrays its caller hands it, and may not
+allocate (numba refuses to compile an allocation there). Kernels it calls keep their
+reference counting (``_nrt=True`` in :data:`COMPILE_OPTIONS`: numba would otherwise compile
+them with the caller's setting)."""
 
 
 def specialise(dispatcher, *args):

@@ -10,7 +10,8 @@ fields (arrays and scalars alike) and which its on-disk cache can key on:
 * :class:`Missions` — the per-mission state arrays (row i = mission i);
 * :class:`Field` — the per-field arrays: the bodies (the six geometry arrays of
   :class:`~debris_gym.batch_geometry.FieldBatch`), the dock, the bounds and the scales;
-* :class:`StepOutputs` — what a step returns: rewards, flags and reward terms.
+* :class:`StepOutputs` — what a step returns: rewards, flags and reward terms;
+* :class:`StepScratch` — the row loop's working arrays, allocated by its caller.
 
 No numba or gymnasium import: these are plain data.
 """
@@ -179,6 +180,28 @@ class StepOutputs(NamedTuple):
     """(N,) bool: the step limit reached."""
     terms: np.ndarray
     """(N, 7) reward terms, columns in :data:`REWARD_TERMS` order."""
+
+
+class StepScratch(NamedTuple):
+    """Working arrays of one row loop of the step, reused from row to row (the loop itself is
+    compiled without reference counting and may not allocate; see
+    :func:`debris_gym.mission_step.step_rows`)."""
+
+    path: np.ndarray
+    """(K + 1, dim) the chaser's position at the step's start and at each of its K sub-steps
+    (m)."""
+    start: np.ndarray
+    """(2·dim,) the chaser's state before the step."""
+    accel: np.ndarray
+    """(dim,) the acceleration the step applies (m/s²)."""
+    touched: np.ndarray
+    """(B,) bool: the bodies the path touched."""
+    relative_path: np.ndarray
+    """(K + 1, dim) the path relative to one moving body (m)."""
+    order: np.ndarray
+    """(T,) int64 scratch of the tour potential."""
+    counters: np.ndarray
+    """(T,) int64 scratch of the tour potential."""
 
 
 def hold_steps(capture_hold: float, dt: float) -> int:

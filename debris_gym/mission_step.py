@@ -14,10 +14,14 @@ One row (mission) of a step is::
 Each phase is an inlined compiled function; :func:`step_rows` reads as that list.
 :func:`begin_rows` starts episodes. The kernels take the named structures of
 :mod:`debris_gym.mission_data` and unpack the structures of arrays (``Missions``, ``Field``,
-``StepOutputs``) once, at their top, handing each phase the arrays it reads or writes: an array
-read out of a structure costs an atomic reference-count update that numba does not remove,
-and inside the row loop those updates cost more than the step's physics (docs/benchmarks.md).
-Scalars (``Rules``, ``Shaping``) are read from their structures anywhere.
+``StepOutputs``) once, at their top, handing each phase the arrays it reads or writes; scalars
+(``Rules``, ``Shaping``) are read from their structures anywhere.
+
+The row loop :func:`step_rows` is compiled without numba's reference counting
+(:data:`debris_gym.jit.borrowing`): with it, every array handed to an inlined phase costs an
+atomic reference-count update per row that numba does not remove, and in a row of spheres only
+(3D) those updates cost a third of the row (docs/benchmarks.md). The loop borrows its arrays
+from its caller, which also allocates its working arrays (:class:`StepScratch`).
 
 The rules are those of ``docs/environments.md``; :class:`debris_gym.mission_batch.MissionBatch`
 drives these kernels and ``tests/test_mission_batch.py`` holds them to an independent reference
@@ -33,7 +37,8 @@ import numpy as np
 
 from debris_gym.batch_geometry import field_gaps
 from debris_gym.goal import DOCK_GOAL, NO_GOAL, current_goal, remaining_tour
-from debris_gym.jit import inlined, kernel, threaded
+from debris_gym.jit import borrowing, inlined, kernel, threaded
+from debris_gym.mission_data import StepScratch
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.swept_contacts import moving_path_touches, path_touches
 from debris_gym.thrust import delta_v_rate_row, thrust_row
@@ -447,7 +452,8 @@ def begin_rows(rows, states, rules, shaping, missions, field):
 @kernel
 def step_all(live, actions, rules, shaping, missions, field, out):
     """One step of every mission in ``live`` (see :meth:`MissionBatch.step`)."""
-    step_rows(0, live.shape[0], live, actions, rules, shaping, missions, field, out)
+    scratch = step_scratch(rules, field)
+    step_rows(0, live.shape[0], live, actions, rules, shaping, missions, field, out, scratch)
 
 
 @threaded
@@ -456,12 +462,31 @@ def step_all_threaded(n_chunks, live, actions, rules, shaping, missions, field, 
     num = live.shape[0]
     for c in numba.prange(n_chunks):
         lo, hi = c * num // n_chunks, (c + 1) * num // n_chunks
-        step_rows(lo, hi, live, actions, rules, shaping, missions, field, out)
+        scratch = step_scratch(rules, field)
+        step_rows(lo, hi, live, actions, rules, shaping, missions, field, out, scratch)
 
 
-@kernel  # called once per row range: no need to inline it
-def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out):
-    """One step of the missions ``lo … hi − 1`` that are ``live``: the phases in order."""
+@inlined
+def step_scratch(rules, field):
+    """The :class:`StepScratch` of one row loop for ``rules`` and ``field``."""
+    dim = field.dock.shape[1]
+    n_path = rules.step_matrix_t.shape[1] // dim  # start + every sub-step
+    n_targets = rules.n_targets
+    return StepScratch(
+        np.empty((n_path, dim)),
+        np.empty(2 * dim),
+        np.empty(dim),
+        np.empty(field.centers.shape[1], dtype=np.bool_),
+        np.empty((n_path, dim)),
+        np.empty(n_targets, dtype=np.int64),
+        np.empty(n_targets, dtype=np.int64),
+    )
+
+
+@borrowing  # called once per row range: no need to inline it
+def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out, scratch):
+    """One step of the missions ``lo … hi − 1`` that are ``live``: the phases in order
+    (``scratch``: a :class:`StepScratch` of this loop's own)."""
     (state, time, steps, delta_v, captured, collision, out_of_bounds, success, gaps, nearest,
      min_clearance, potentials, applied, hold, score) = missions  # fmt: skip
     (centers, radii, polygon_start, polygons, n_vertices, vertices, velocities, attitude, turns,
@@ -470,14 +495,7 @@ def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out):
     matrix_t = rules.step_matrix_t
     body_matrix_t = rules.body_matrix_t
     n_targets = rules.n_targets
-    dim = dock.shape[1]
-    path = np.empty((matrix_t.shape[1] // dim, dim))  # start + every sub-step
-    start = np.empty(2 * dim)
-    accel = np.empty(dim)
-    touched = np.empty(centers.shape[1], dtype=np.bool_)
-    rel = np.empty_like(path)  # the path relative to one moving body
-    order = np.empty(n_targets, dtype=np.int64)  # scratch of the tour potential
-    counters = np.empty(n_targets, dtype=np.int64)
+    path, start, accel, touched, rel, order, counters = scratch
     for i in range(lo, hi):
         if not live[i]:
             for k in range(terms.shape[1]):

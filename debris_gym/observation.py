@@ -170,8 +170,13 @@ def observe_all_threaded(n_chunks, rules, layout, missions, field, horizon, out)
 
 @inlined
 def _put(out, i, k, value):
-    """out[i, k] = value clipped to ±OBS_LIMIT (in float64, then rounded once to float32)."""
-    out[i, k] = min(max(value, -OBS_LIMIT), OBS_LIMIT)
+    """out[i, k] = value clipped to ±OBS_LIMIT (in float64, then rounded once to float32).
+
+    ``k`` (a block's offset in the layout plus a count) is never negative, but the compiler
+    cannot prove it, and numba wraps a negative signed index around on every write; indexing
+    with the same bits as unsigned leaves that out.
+    """
+    out[i, np.uint64(k)] = min(max(value, -OBS_LIMIT), OBS_LIMIT)
     return k + 1
 
 

@@ -58,7 +58,8 @@ def test_the_digest_covers_every_compiled_module_of_the_package():
     users = sorted(
         p.stem
         for p in pkg.rglob("*.py")
-        if p.stem != "jit" and ("@kernel" in p.read_text() or "@inlined" in p.read_text())
+        if p.stem != "jit"
+        and any(f"@{d}" in p.read_text() for d in ("kernel", "inlined", "threaded", "borrowing"))
     )
     assert users == sorted(jit.COMPILED_MODULES)
     assert "numba.njit" not in "".join(
@@ -88,3 +89,38 @@ def test_division_by_zero_in_compiled_code_follows_numpy():
         return a / b
 
     assert divide(1.0, 0.0) == np.inf
+
+
+def _refcount_calls(dispatcher) -> int:
+    ir = "".join(dispatcher.inspect_llvm().values())
+    return ir.count("@NRT_incref") + ir.count("@NRT_decref")
+
+
+def test_a_borrowing_loop_carries_no_reference_counting():
+    """The step's row loop hands arrays to inlined phases on every row; under numba's
+    reference counting each hand-over is an atomic update (docs/benchmarks.md). The same loop
+    compiled as a ``borrowing`` kernel has none, and the step's row loop is one."""
+    from debris_gym import mission_step
+
+    def rows(values, out):
+        for i in range(values.shape[0]):
+            out[i] = _row_sum(values, i)
+
+    values, out = np.arange(12.0).reshape(4, 3), np.zeros(4)
+    counted = jit.numba.njit(_nrt=True)(rows)  # no cache: the IR is read back
+    borrowed = jit.numba.njit(_nrt=False)(rows)
+    counted(values, out)
+    borrowed(values, out)
+    np.testing.assert_array_equal(out, values.sum(axis=1))
+    assert _refcount_calls(counted) > 0
+    assert _refcount_calls(borrowed) == 0
+    assert mission_step.step_rows.targetoptions["_nrt"] is False
+
+
+@jit.numba.njit(inline="always")
+def _row_sum(values, i):
+    row = values[i]  # a view: a reference-counted array
+    s = 0.0
+    for k in range(row.shape[0]):
+        s += row[k]
+    return s
