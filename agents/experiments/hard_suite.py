@@ -233,12 +233,13 @@ def suite_document(missions: Sequence[Screen], command: str, git: str) -> dict[s
 
 
 def write_suite(path: Path, document: dict[str, Any]) -> None:
-    """Write ``document`` as gzip of JSON (no timestamp in the gzip header: same bytes for the
-    same suite)."""
+    """Write ``document`` as gzip of JSON (no timestamp or file name in the gzip header: same
+    bytes for the same suite)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     data = json.dumps(document, separators=(",", ":")).encode()
-    with open(path, "wb") as raw, gzip.GzipFile(fileobj=raw, mode="wb", mtime=0) as out:
-        out.write(data)
+    with open(path, "wb") as raw:
+        with gzip.GzipFile(filename="", fileobj=raw, mode="wb", mtime=0) as out:
+            out.write(data)
 
 
 def load_suite(path: Path = SUITE_PATH) -> dict[str, Any]:
