@@ -6,31 +6,30 @@ Selection rule (docs/baselines.md, "The hard suite"):
 * fields: ``DebrisGym/Rendezvous2D-v1`` with :data:`ENV_KWARGS` (60 obstacles instead of 20, a
   4 m smallest gap instead of 10 m: gaps the chaser cannot pass, so the debris forms the concave
   clusters where APF's minima live); reset seeds tried in order from :data:`FIRST_SEED`
-  (3 000 000: training stays below 1 000 000 and its evaluation envs start there); a seed whose
-  field the generator cannot place is skipped;
+  (902 000 000, in the range kept for evaluation suites, ``debris_gym.suites.RESERVED_SEEDS``,
+  after the standard suites' 900 000 000 and 901 000 000 blocks); a seed whose field the
+  generator cannot place is skipped;
 * kept when **plain APF stalls** — it fails, or its flight falls into a local minimum by the
   APF-RRT test (:class:`~agents.policies.apf_rrt.APFRRTAgent` with ``RRTParams(max_escapes=0)``
   flies exactly as APF and only counts the minima) — **and the mission is solvable**: the
   ``astar`` baseline completes it (success, no collision), or else ``apf-mpc`` does;
 * the first :data:`SUITE_SIZE` kept missions, in seed order, are the suite.
 
-The file (``debris_gym/suites/hard.json.gz``) is gzip of JSON ``{"name", "env_id",
-"description", "env_kwargs", "provenance": {"command", "git"}, "missions": [{"seed",
-"scenario"}, ...]}``; episode ``i`` is ``env.reset(seed=missions[i]["seed"],
-options={"scenario": Scenario.from_dict(missions[i]["scenario"])})``.
-
-Command lines::
+The file, ``debris_gym/suites/hard.json.gz``, is a :mod:`debris_gym.suites` suite: ``evaluate.py
+--suite hard`` flies it. Command lines::
 
     python -m agents.experiments.hard_suite select            # writes the suite file
     python -m agents.experiments.hard_suite measure --agents apf,apf-rrt,apf-mpc,astar
+
+``measure`` adds what ``evaluate.py`` does not record: how often APF-RRT detected a minimum and
+escaped.
 """
 
 from __future__ import annotations
 
 import argparse
-import gzip
+import dataclasses
 import json
-import subprocess
 import sys
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -44,6 +43,8 @@ import debris_gym  # registers the IDs; locates the suite folder
 from agents.planners.rrt import RRTParams
 from agents.policies.registry import make_agent
 from debris_gym.scenario import Scenario
+from debris_gym.suites import RESERVED_SEEDS, Mission, Suite, read_suite, write_suite
+from debris_gym.suites.build import _git_commit
 
 __all__ = [
     "ENV_ID",
@@ -54,13 +55,12 @@ __all__ = [
     "MissionRow",
     "Screen",
     "fly_mission",
-    "load_suite",
+    "hard_suite",
     "main",
     "measure",
+    "rows_markdown",
     "screen_seed",
     "select_missions",
-    "suite_document",
-    "write_suite",
 ]
 
 ENV_ID = "DebrisGym/Rendezvous2D-v1"
@@ -69,8 +69,8 @@ ENV_ID = "DebrisGym/Rendezvous2D-v1"
 ENV_KWARGS: dict[str, Any] = {"n_obstacles": 60, "min_gap": 4.0}
 """Options on top of the v1 world: a denser field with gaps the chaser cannot pass."""
 
-FIRST_SEED = 3_000_000
-"""First reset seed tried (the suite's seeds are this and above)."""
+FIRST_SEED = 902_000_000
+"""First reset seed tried (the suite's seeds are this and above, inside the reserved range)."""
 
 SUITE_SIZE = 30
 """Missions in the suite."""
@@ -84,7 +84,7 @@ SOLVERS = ("astar", "apf-mpc")
 DESCRIPTION = (
     "Rendezvous2D-v1 missions (60 obstacles, 4 m smallest gap) where plain APF stalls - it fails "
     "or its flight falls into a local minimum by the APF-RRT test - and a baseline (astar, else "
-    "apf-mpc) completes the mission; the first 30 such seeds from 3000000. Selection: "
+    "apf-mpc) completes the mission; the first 30 such seeds from 902000000. Selection: "
     "agents/experiments/hard_suite.py, docs/baselines.md."
 )
 
@@ -99,14 +99,14 @@ class Screen:
         detections: local minima APF's flight fell into (the APF-RRT test).
         solved_by: the first baseline of :data:`SOLVERS` that completed it, or None (only
             tried when APF stalled).
-        scenario: the field, as :meth:`Scenario.to_dict`.
+        scenario: the field.
     """
 
     seed: int
     apf_success: bool
     detections: int
     solved_by: str | None
-    scenario: dict[str, Any]
+    scenario: Scenario | None
 
     @property
     def apf_stalled(self) -> bool:
@@ -180,7 +180,7 @@ def screen_seed(env: gym.Env, watcher: Any, solvers: dict[str, Any], seed: int) 
             if result["is_success"] and not result["collision"]:
                 solved_by = name
                 break
-    return Screen(seed, apf_success, detections, solved_by, scenario.to_dict())
+    return Screen(seed, apf_success, detections, solved_by, scenario)
 
 
 def select_missions(
@@ -220,42 +220,34 @@ def select_missions(
         env.close()
 
 
-def suite_document(missions: Sequence[Screen], command: str, git: str) -> dict[str, Any]:
-    """The suite file's content for the kept ``missions``."""
-    return {
-        "name": "hard",
-        "env_id": ENV_ID,
-        "description": DESCRIPTION,
-        "env_kwargs": dict(ENV_KWARGS),
-        "provenance": {"command": command, "git": git},
-        "missions": [{"seed": m.seed, "scenario": m.scenario} for m in missions],
-    }
+def hard_suite(missions: Sequence[Screen], command: str, git: str) -> Suite:
+    """The suite of the kept ``missions``.
+
+    Raises:
+        ValueError: a seed outside the range reserved for suites.
+    """
+    outside = [m.seed for m in missions if m.seed not in RESERVED_SEEDS]
+    if outside:
+        raise ValueError(
+            f"seeds {outside[:3]} lie outside the range reserved for suites "
+            f"{RESERVED_SEEDS.start}…{RESERVED_SEEDS.stop - 1}; choose --first-seed inside it"
+        )
+    return Suite(
+        name="hard",
+        env_id=ENV_ID,
+        description=DESCRIPTION,
+        env_kwargs=dict(ENV_KWARGS),
+        missions=tuple(Mission(m.seed, m.scenario) for m in missions),
+        provenance={"command": command, "git": git},
+    )
 
 
-def write_suite(path: Path, document: dict[str, Any]) -> None:
-    """Write ``document`` as gzip of JSON (no timestamp or file name in the gzip header: same
-    bytes for the same suite)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    data = json.dumps(document, separators=(",", ":")).encode()
-    with open(path, "wb") as raw:
-        with gzip.GzipFile(filename="", fileobj=raw, mode="wb", mtime=0) as out:
-            out.write(data)
-
-
-def load_suite(path: Path = SUITE_PATH) -> dict[str, Any]:
-    """The suite file's content (gzip of JSON), as written by :func:`write_suite`."""
-    with gzip.open(path, "rt", encoding="utf-8") as f:
-        return json.load(f)
-
-
-def measure(
-    document: dict[str, Any], agent_names: Sequence[str], progress: bool = True
-) -> list[MissionRow]:
-    """Fly every agent on every mission of the suite ``document``; one row each."""
+def measure(suite: Suite, agent_names: Sequence[str], progress: bool = True) -> list[MissionRow]:
+    """Fly every agent on every mission of ``suite``; one row each."""
     from tqdm import tqdm
 
-    missions = document["missions"]
-    env = gym.make(document["env_id"], **document["env_kwargs"])
+    missions = suite.missions
+    env = gym.make(suite.env_id, **suite.env_kwargs)
     rows: list[MissionRow] = []
     bar = tqdm(
         total=len(agent_names) * len(missions),
@@ -268,12 +260,11 @@ def measure(
         for name in agent_names:
             agent = make_agent(name, env)
             for mission in missions:
-                scenario = Scenario.from_dict(mission["scenario"])
-                info = fly_mission(env, agent, int(mission["seed"]), scenario)
+                info = fly_mission(env, agent, mission.seed, mission.scenario)
                 rows.append(
                     MissionRow(
                         agent=name,
-                        seed=int(mission["seed"]),
+                        seed=mission.seed,
                         success=bool(info["is_success"]),
                         collision=bool(info["collision"]),
                         targets_captured=int(info["targets_captured"]),
@@ -321,21 +312,6 @@ def rows_markdown(rows: Sequence[MissionRow]) -> str:
     return "\n".join(lines)
 
 
-def _git_state() -> str:
-    """The commit of the working tree (``-dirty`` when it has uncommitted changes)."""
-    root = Path(__file__).resolve().parents[2]
-    try:
-        out = subprocess.run(
-            ["git", "-C", str(root), "describe", "--always", "--dirty", "--abbrev=12"],
-            capture_output=True,
-            text=True,
-            check=True,
-        )
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-    return out.stdout.strip()
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m agents.experiments.hard_suite select|measure``."""
     parser = argparse.ArgumentParser(
@@ -367,21 +343,22 @@ def main(argv: Sequence[str] | None = None) -> int:
                     kept.append(screen)
                 if log is not None:
                     row = {k: v for k, v in vars(screen).items() if k != "scenario"}
+                    row["kept"] = screen.kept
                     log.write(json.dumps(row) + "\n")
                     log.flush()
         finally:
             if log is not None:
                 log.close()
-        write_suite(args.out, suite_document(kept, command.strip(), _git_state()))
+        write_suite(hard_suite(kept, command.strip(), _git_commit()), args.out)
         print(f"wrote {len(kept)} missions to {args.out}")
         return 0
-    document = load_suite(args.suite)
+    suite = read_suite(args.suite)
     if args.episodes is not None:
         if args.episodes < 1:
             parser.error("--episodes must be >= 1")
-        document = {**document, "missions": document["missions"][: args.episodes]}
+        suite = dataclasses.replace(suite, missions=suite.missions[: args.episodes])
     names = [n.strip() for n in args.agents.split(",") if n.strip()]
-    rows = measure(document, names)
+    rows = measure(suite, names)
     print(rows_markdown(rows))
     if args.json is not None:
         args.json.write_text(json.dumps([vars(r) for r in rows], indent=1))
