@@ -1,7 +1,7 @@
 """The shipped ``hard`` suite (debris_gym/suites/hard.json.gz) and its selection module: the
 file's format, every field re-drawn by the env's own generator from its seed (the independent
 truth that the scenarios are the seeded v1 fields the rule names), the rule re-checked on a
-mission by flying it, and the writer/reader round trip."""
+mission by flying it, and the suite's seeds kept inside the reserved range."""
 
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ import agents
 from agents.experiments import hard_suite
 from agents.planners.rrt import RRTParams
 from debris_gym.scenario import Scenario
+from debris_gym.suites import RESERVED_SEEDS, load_suite
 
 FORMAT_KEYS = {"name", "env_id", "description", "env_kwargs", "provenance", "missions"}
 
@@ -38,6 +39,8 @@ def test_the_file_has_the_suite_format(suite):
     seeds = [m["seed"] for m in missions]
     assert all(isinstance(s, int) for s in seeds)
     assert seeds == sorted(set(seeds)) and seeds[0] >= hard_suite.FIRST_SEED
+    assert all(s in RESERVED_SEEDS for s in seeds)
+    assert load_suite("hard").seeds == tuple(seeds)  # the package's loader reads it
     for m in missions:
         assert set(m) == {"seed", "scenario"}
         scenario = Scenario.from_dict(m["scenario"])  # every rule of the scenario checks
@@ -80,7 +83,7 @@ def test_the_rule_holds_on_the_first_mission(suite):
 
 def test_screen_keeps_exactly_the_stalled_solvable_missions():
     def screen(success, detections, solved_by):
-        return hard_suite.Screen(1, success, detections, solved_by, {})
+        return hard_suite.Screen(1, success, detections, solved_by, None)
 
     assert screen(False, 0, "astar").kept  # APF fails, A* completes
     assert screen(True, 2, "apf-mpc").kept  # APF caught twice, APF-MPC completes
@@ -88,19 +91,18 @@ def test_screen_keeps_exactly_the_stalled_solvable_missions():
     assert not screen(False, 3, None).kept  # nobody completes it: not shown solvable
 
 
-def test_writer_and_reader_round_trip_byte_for_byte(tmp_path):
-    screens = [hard_suite.Screen(3_000_007, False, 1, "astar", {"dim": 2, "k": [1.5, 2]})]
-    doc = hard_suite.suite_document(screens, "python -m agents.experiments.hard_suite select", "x")
-    first, second = tmp_path / "a" / "s.json.gz", tmp_path / "b.json.gz"
-    hard_suite.write_suite(first, doc)
-    hard_suite.write_suite(second, doc)
-    assert first.read_bytes() == second.read_bytes()  # no timestamp in the gzip header
-    assert hard_suite.load_suite(first) == doc
-    assert set(doc) == FORMAT_KEYS
-    assert doc["missions"] == [{"seed": 3_000_007, "scenario": {"dim": 2, "k": [1.5, 2]}}]
+def test_the_suite_refuses_seeds_outside_the_reserved_range(suite):
+    field = Scenario.from_dict(suite["missions"][0]["scenario"])
+    inside = hard_suite.Screen(RESERVED_SEEDS.start, False, 1, "astar", field)
+    built = hard_suite.hard_suite([inside], "cmd", "abc")
+    assert built.name == "hard" and built.seeds == (RESERVED_SEEDS.start,)
+    assert set(built.to_dict()) == FORMAT_KEYS
+    outside = hard_suite.Screen(3_000_009, False, 1, "astar", field)
+    with pytest.raises(ValueError, match="reserved"):
+        hard_suite.hard_suite([outside], "cmd", "abc")
 
 
-@pytest.mark.parametrize(("count", "first_seed"), [(0, 3_000_000), (2.5, 0), (1, -1)])
+@pytest.mark.parametrize(("count", "first_seed"), [(0, hard_suite.FIRST_SEED), (2.5, 0), (1, -1)])
 def test_select_refuses_bad_arguments(count, first_seed):
     with pytest.raises(ValueError, match=r"count|first_seed"):
         next(hard_suite.select_missions(count, first_seed, progress=False))
