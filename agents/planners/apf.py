@@ -327,6 +327,20 @@ def is_local_minimum(f_att: np.ndarray, f_rep: np.ndarray, params: APFParams) ->
     return balanced and opposed
 
 
+def is_held_back(f_att: np.ndarray, f_rep: np.ndarray, params: APFParams) -> bool:
+    """[An23] eq. 14 with its balance test one-sided, for a moving field: the repulsion is
+    nearly opposite the attraction, cos∠(F_att, F_rep) < opposed_cos, and at least
+    (1 − balance_tol) as strong, ‖F_rep‖ ≥ (1 − balance_tol)·‖F_att‖, with no upper bound (a body
+    closing in on the chaser pushes it back harder than the goal pulls)."""
+    fa = float(np.linalg.norm(f_att))
+    fr = float(np.linalg.norm(f_rep))
+    if fa <= 0.0 or fr <= 0.0:
+        return False
+    strong = fr >= (1.0 - params.balance_tol) * fa
+    opposed = float(f_att @ f_rep) / (fa * fr) < params.opposed_cos
+    return strong and opposed
+
+
 # --- the planner -------------------------------------------------------------------------------
 
 
@@ -509,6 +523,7 @@ __all__ = [
     "apf_path",
     "attractive_force",
     "attractive_potential",
+    "is_held_back",
     "is_local_minimum",
     "repulsion",
     "repulsive_field",

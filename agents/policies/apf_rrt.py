@@ -3,15 +3,26 @@
 The detection test, the RRT and the virtual repulsive points are :mod:`agents.planners.apf` and
 :mod:`agents.planners.rrt`; this module watches the flight for a stall and follows the escape
 route.
+
+In a moving field (the v1 world) a trap is rarely a point at rest: the bodies that form it drift,
+and a chaser caught in it is carried along, often pushed away from the goal by a body closing in
+on it, for many minutes. The repulsion then opposes the attraction but outweighs it (the body
+pushes harder than the goal pulls), so eq. 14's balance test misses it. There a stall is declared
+on eq. 14 with its balance test one-sided (:func:`~agents.planners.apf.is_held_back`: repulsion
+nearly opposite the attraction and at least half as strong), and "no progress" means that the
+closest approach to the goal has not improved over the window (the goal distance of a chaser
+carried by a drifting trap wanders, so its change from the window's start is no measure). In a
+frozen field the test is eq. 14 as before.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
 
-from agents.planners.apf import APFParams, VirtualPoint, is_local_minimum
+from agents.planners.apf import APFParams, VirtualPoint, is_held_back, is_local_minimum
 from agents.planners.mission import Goal
 from agents.planners.rrt import EdgeChecker, RRTParams, escape_route, exit_index, virtual_point
 from agents.policies.apf import APFAgent, APFGuidance
@@ -32,9 +43,20 @@ class APFRRTAgent(APFAgent):
     APF then continues to the goal, the virtual point in force. Virtual points are cleared when
     the mission moves on.
 
-    In a moving field the RRT is grown on the field as it is at the stall, and the route and the
-    virtual point are kept in the goal's frame (like the APF itself), so they move with the
-    target.
+    In a moving field the balance test is one-sided and progress is measured by the closest
+    approach (module docstring); the RRT is grown
+    on the field as it is at the stall, and the route and the virtual point are kept in the
+    goal's frame (like the APF itself), so they move with the target.
+
+    Until the first escape the agent flies exactly as :class:`APFAgent`; with
+    ``RRTParams(max_escapes=0)`` it never escapes and only counts the minima APF falls into
+    (:attr:`detections`), which is how the ``hard`` suite is selected
+    (:mod:`agents.experiments.hard_suite`).
+
+    Attributes (per episode):
+        detections: local minima detected (each stall counted once; escapes or not).
+        escapes: RRT escapes started.
+        stall_points: where they started (m, LVLH at the time).
 
     Args:
         env: the DebrisGym env.
@@ -63,6 +85,7 @@ class APFRRTAgent(APFAgent):
         self.rrt = self._fixed_rrt or RRTParams.for_scenario(scenario)
         self.rng = np.random.default_rng(self.seed)
         self.escapes = 0
+        self.detections = 0
         self.stall_points: list[np.ndarray] = []
         self._checkers: dict[tuple, EdgeChecker] = {}
         self._reset_goal_state()
@@ -86,6 +109,7 @@ class APFRRTAgent(APFAgent):
         self.route_history: list[float] = []
         self.goal_escapes = 0
         self.history: list[tuple[float, np.ndarray, np.ndarray]] = []
+        self.best_gap = math.inf  # closest approach to the goal (m) before the window
         self.stall_steps = max(1, round(self.guidance.stall_time / self.env.scenario.dt))
 
     def on_new_goal(self, goal: Goal) -> None:
@@ -122,7 +146,12 @@ class APFRRTAgent(APFAgent):
     def _leave_route(self) -> None:
         """Past the exit waypoint (or stuck on the route): APF takes over."""
         self.route = None
+        self._restart_window()
+
+    def _restart_window(self) -> None:
+        """Forget the flight so far: the next stall is judged on a fresh window."""
         self.history = []
+        self.best_gap = math.inf
 
     def observe_forces(
         self, pos: np.ndarray, vel: np.ndarray, goal: Goal, f_att: np.ndarray, f_rep: np.ndarray
@@ -145,15 +174,28 @@ class APFRRTAgent(APFAgent):
         self.history.append((float(np.linalg.norm(goal.point - pos)), f_att, f_rep))
         if len(self.history) <= w:
             return
-        del self.history[: -w - 1]
-        if self.history[0][0] - self.history[-1][0] >= g.stall_progress:
-            return
+        if self.motion is None:
+            del self.history[: -w - 1]
+            if self.history[0][0] - self.history[-1][0] >= g.stall_progress:
+                return
+        else:
+            # closest approach before the window vs. within it (a drifting trap's goal
+            # distance wanders, so only a new closest approach is progress)
+            for gap, _, _ in self.history[: -w - 1]:
+                self.best_gap = min(self.best_gap, gap)
+            del self.history[: -w - 1]
+            closest = min(h[0] for h in self.history[1:])
+            if min(self.best_gap, self.history[0][0]) - closest >= g.stall_progress:
+                return
         # eq. 14 on the window-mean forces: a chaser chattering in a minimum still passes
         mean_att = np.mean([h[1] for h in self.history], axis=0)
         mean_rep = np.mean([h[2] for h in self.history], axis=0)
-        if not is_local_minimum(mean_att, mean_rep, self.params):
+        stalled = is_local_minimum if self.motion is None else is_held_back
+        if not stalled(mean_att, mean_rep, self.params):
             return
+        self.detections += 1
         if self.goal_escapes >= self.rrt.max_escapes:
+            self._restart_window()  # counted once; APF flies on
             return
         self._escape(pos, goal)
 
@@ -170,7 +212,7 @@ class APFRRTAgent(APFAgent):
             self.rng,
             self._checkers if self.motion is None else {},  # a moving field: this snapshot's
         )
-        self.history = []
+        self._restart_window()
         if not found.success:
             return
         self.goal_escapes += 1

@@ -1,0 +1,369 @@
+"""The ``hard`` evaluation suite: seeded v1 2D missions where plain APF falls into a local
+minimum, so that APF-RRT's escape ([An23] §3) is exercised; selected, written and flown here.
+
+Selection rule (docs/baselines.md, "The hard suite"):
+
+* fields: ``DebrisGym/Rendezvous2D-v1`` with :data:`ENV_KWARGS` (60 obstacles instead of 20, a
+  4 m smallest gap instead of 10 m: gaps the chaser cannot pass, so the debris forms the concave
+  clusters where APF's minima live); reset seeds tried in order from :data:`FIRST_SEED`
+  (902 000 000, in the range kept for evaluation suites, ``debris_gym.suites.RESERVED_SEEDS``,
+  after the standard suites' 900 000 000 and 901 000 000 blocks); a seed whose field the
+  generator cannot place is skipped;
+* kept when **plain APF stalls** — it fails, or its flight falls into a local minimum by the
+  APF-RRT test (:class:`~agents.policies.apf_rrt.APFRRTAgent` with ``RRTParams(max_escapes=0)``
+  flies exactly as APF and only counts the minima) — **and the mission is solvable**: the
+  ``astar`` baseline completes it (success, no collision), or else ``apf-mpc`` does;
+* the first :data:`SUITE_SIZE` kept missions, in seed order, are the suite.
+
+The file, ``debris_gym/suites/hard.json.gz``, is a :mod:`debris_gym.suites` suite: ``evaluate.py
+--suite hard`` flies it. Command lines::
+
+    python -m agents.experiments.hard_suite select            # writes the suite file
+    python -m agents.experiments.hard_suite measure --agents apf,apf-rrt,apf-mpc,astar
+
+``measure`` adds what ``evaluate.py`` does not record: how often APF-RRT detected a minimum and
+escaped.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import debris_gym  # registers the IDs; locates the suite folder
+from agents.planners.rrt import RRTParams
+from agents.policies.registry import make_agent
+from debris_gym.scenario import Scenario
+from debris_gym.suites import RESERVED_SEEDS, Mission, Suite, read_suite, write_suite
+from debris_gym.suites.build import _git_commit
+
+__all__ = [
+    "ENV_ID",
+    "ENV_KWARGS",
+    "FIRST_SEED",
+    "SUITE_PATH",
+    "SUITE_SIZE",
+    "MissionRow",
+    "Screen",
+    "fly_mission",
+    "hard_suite",
+    "main",
+    "measure",
+    "rows_markdown",
+    "screen_seed",
+    "select_missions",
+]
+
+ENV_ID = "DebrisGym/Rendezvous2D-v1"
+"""The env the suite's missions are flown in."""
+
+ENV_KWARGS: dict[str, Any] = {"n_obstacles": 60, "min_gap": 4.0}
+"""Options on top of the v1 world: a denser field with gaps the chaser cannot pass."""
+
+FIRST_SEED = 902_000_000
+"""First reset seed tried (the suite's seeds are this and above, inside the reserved range)."""
+
+SUITE_SIZE = 30
+"""Missions in the suite."""
+
+SUITE_PATH = Path(debris_gym.__file__).resolve().parent / "suites" / "hard.json.gz"
+"""Where the suite file is shipped."""
+
+SOLVERS = ("astar", "apf-mpc")
+"""Baselines tried in turn to show that a mission is solvable."""
+
+DESCRIPTION = (
+    "Rendezvous2D-v1 missions (60 obstacles, 4 m smallest gap) where plain APF stalls - it fails "
+    "or its flight falls into a local minimum by the APF-RRT test - and a baseline (astar, else "
+    "apf-mpc) completes the mission; the first 30 such seeds from 902000000. Selection: "
+    "agents/experiments/hard_suite.py, docs/baselines.md."
+)
+
+
+@dataclass(frozen=True)
+class Screen:
+    """What screening one seed found.
+
+    Attributes:
+        seed: the reset seed.
+        apf_success: plain APF completed the mission.
+        detections: local minima APF's flight fell into (the APF-RRT test).
+        solved_by: the first baseline of :data:`SOLVERS` that completed it, or None (only
+            tried when APF stalled).
+        scenario: the field.
+    """
+
+    seed: int
+    apf_success: bool
+    detections: int
+    solved_by: str | None
+    scenario: Scenario | None
+
+    @property
+    def apf_stalled(self) -> bool:
+        """Plain APF failed or fell into a local minimum."""
+        return not self.apf_success or self.detections > 0
+
+    @property
+    def kept(self) -> bool:
+        """The selection rule: APF stalled and the mission is solvable."""
+        return self.apf_stalled and self.solved_by is not None
+
+
+@dataclass(frozen=True)
+class MissionRow:
+    """One agent on one mission (Δv in m/s, time in s)."""
+
+    agent: str
+    seed: int
+    success: bool
+    collision: bool
+    targets_captured: int
+    delta_v: float
+    time: float
+    detections: int | None
+    escapes: int | None
+
+
+def _make_env(env_kwargs: dict[str, Any] | None = None) -> gym.Env:
+    # the checker wrapper cannot take a reset that raised (an unplaceable seed) and go on
+    kwargs = ENV_KWARGS if env_kwargs is None else env_kwargs
+    return gym.make(ENV_ID, disable_env_checker=True, **kwargs)
+
+
+def fly_mission(
+    env: gym.Env, agent: Any, seed: int, scenario: Scenario | None = None
+) -> dict[str, Any]:
+    """Fly one episode from ``env.reset(seed=seed)`` (the field pinned if given); the last
+    step's ``info``."""
+    options = None if scenario is None else {"scenario": scenario}
+    obs, info = env.reset(seed=seed, options=options)
+    done = False
+    while not done:
+        action, _ = agent.predict(obs)
+        obs, _, terminated, truncated, info = env.step(action)
+        done = terminated or truncated
+    return info
+
+
+def screen_seed(env: gym.Env, watcher: Any, solvers: dict[str, Any], seed: int) -> Screen | None:
+    """Apply the selection rule to one seed (None: the generator cannot place its field).
+
+    Args:
+        env: the suite's env.
+        watcher: an APF-RRT agent with ``RRTParams(max_escapes=0)`` built for ``env``.
+        solvers: baseline name → agent built for ``env``, tried in order.
+        seed: the reset seed.
+    """
+    try:
+        info = fly_mission(env, watcher, seed)
+    except ValueError as error:
+        if "could not place" in str(error):
+            return None
+        raise
+    scenario = env.unwrapped.scenario
+    apf_success = bool(info["is_success"])
+    detections = int(watcher.detections)
+    solved_by = None
+    if not apf_success or detections > 0:
+        for name, agent in solvers.items():
+            result = fly_mission(env, agent, seed, scenario)
+            if result["is_success"] and not result["collision"]:
+                solved_by = name
+                break
+    return Screen(seed, apf_success, detections, solved_by, scenario)
+
+
+def select_missions(
+    count: int = SUITE_SIZE, first_seed: int = FIRST_SEED, progress: bool = True
+) -> Iterator[Screen]:
+    """Screen seeds from ``first_seed`` in order; yield every screen, stop after ``count`` kept.
+
+    Raises:
+        ValueError: ``count`` < 1 or ``first_seed`` < 0.
+    """
+    from tqdm import tqdm
+
+    if isinstance(count, bool) or int(count) != count or count < 1:
+        raise ValueError(f"count must be an integer >= 1, got {count!r}")
+    if isinstance(first_seed, bool) or int(first_seed) != first_seed or first_seed < 0:
+        raise ValueError(f"first_seed must be an integer >= 0, got {first_seed!r}")
+    env = _make_env()
+    watcher = make_agent("apf-rrt", env, rrt=RRTParams(max_escapes=0))
+    solvers = {name: make_agent(name, env) for name in SOLVERS}
+    kept = 0
+    seed = int(first_seed)
+    bar = tqdm(
+        total=count, desc="hard suite", unit="mission", file=sys.stderr, disable=not progress
+    )
+    try:
+        while kept < count:
+            screen = screen_seed(env, watcher, solvers, seed)
+            seed += 1
+            if screen is None:
+                continue
+            kept += screen.kept
+            bar.update(int(screen.kept))
+            bar.set_postfix_str(f"seed {screen.seed}, tried {seed - first_seed}", refresh=False)
+            yield screen
+    finally:
+        bar.close()
+        env.close()
+
+
+def hard_suite(missions: Sequence[Screen], command: str, git: str) -> Suite:
+    """The suite of the kept ``missions``.
+
+    Raises:
+        ValueError: a seed outside the range reserved for suites.
+    """
+    outside = [m.seed for m in missions if m.seed not in RESERVED_SEEDS]
+    if outside:
+        raise ValueError(
+            f"seeds {outside[:3]} lie outside the range reserved for suites "
+            f"{RESERVED_SEEDS.start}…{RESERVED_SEEDS.stop - 1}; choose --first-seed inside it"
+        )
+    return Suite(
+        name="hard",
+        env_id=ENV_ID,
+        description=DESCRIPTION,
+        env_kwargs=dict(ENV_KWARGS),
+        missions=tuple(Mission(m.seed, m.scenario) for m in missions),
+        provenance={"command": command, "git": git},
+    )
+
+
+def measure(suite: Suite, agent_names: Sequence[str], progress: bool = True) -> list[MissionRow]:
+    """Fly every agent on every mission of ``suite``; one row each."""
+    from tqdm import tqdm
+
+    missions = suite.missions
+    env = gym.make(suite.env_id, **suite.env_kwargs)
+    rows: list[MissionRow] = []
+    bar = tqdm(
+        total=len(agent_names) * len(missions),
+        desc="measure",
+        unit="ep",
+        file=sys.stderr,
+        disable=not progress,
+    )
+    try:
+        for name in agent_names:
+            agent = make_agent(name, env)
+            for mission in missions:
+                info = fly_mission(env, agent, mission.seed, mission.scenario)
+                rows.append(
+                    MissionRow(
+                        agent=name,
+                        seed=mission.seed,
+                        success=bool(info["is_success"]),
+                        collision=bool(info["collision"]),
+                        targets_captured=int(info["targets_captured"]),
+                        delta_v=float(info["delta_v"]),
+                        time=float(info["time"]),
+                        detections=getattr(agent, "detections", None),
+                        escapes=getattr(agent, "escapes", None),
+                    )
+                )
+                bar.update()
+    finally:
+        bar.close()
+        env.close()
+    return rows
+
+
+def rows_markdown(rows: Sequence[MissionRow]) -> str:
+    """Per-agent table: success, collisions, mean Δv and time over all missions and over the
+    missions every agent completes, and the missions with an escape / detection."""
+    names = list(dict.fromkeys(r.agent for r in rows))
+    seeds = sorted({r.seed for r in rows})
+    ok = {s for s in seeds if all(r.success for r in rows if r.seed == s)}
+    lines = [
+        f"{len(seeds)} missions; 'all complete' = the {len(ok)} every agent completes.",
+        "",
+        "| agent | success | collisions | Δv [m/s] | time [s] | Δv, all complete [m/s] | "
+        "time, all complete [s] | missions escaped / detected |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for name in names:
+        mine = [r for r in rows if r.agent == name]
+        both = [r for r in mine if r.seed in ok]
+        fired = "-"
+        if mine[0].escapes is not None:
+            esc = sum(1 for r in mine if r.escapes)
+            det = sum(1 for r in mine if r.detections)
+            fired = f"{esc} / {det} ({sum(r.escapes for r in mine)} escapes)"
+        lines.append(
+            f"| {name} | {sum(r.success for r in mine)} / {len(mine)} | "
+            f"{sum(r.collision for r in mine)} | {np.mean([r.delta_v for r in mine]):.1f} | "
+            f"{np.mean([r.time for r in mine]):.0f} | "
+            f"{np.mean([r.delta_v for r in both]) if both else float('nan'):.1f} | "
+            f"{np.mean([r.time for r in both]) if both else float('nan'):.0f} | {fired} |"
+        )
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m agents.experiments.hard_suite select|measure``."""
+    parser = argparse.ArgumentParser(
+        prog="python -m agents.experiments.hard_suite", description=__doc__.split("\n\n")[0]
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+    sel = sub.add_parser("select", help="screen seeds and write the suite file")
+    sel.add_argument("--count", type=int, default=SUITE_SIZE, help="missions to keep")
+    sel.add_argument("--first-seed", type=int, default=FIRST_SEED, help="first seed tried")
+    sel.add_argument("--out", type=Path, default=SUITE_PATH, help="suite file to write")
+    sel.add_argument("--log", type=Path, default=None, help="also write every screen (JSONL)")
+    mea = sub.add_parser("measure", help="fly baselines on the suite, print a table")
+    mea.add_argument("--suite", type=Path, default=SUITE_PATH, help="suite file to read")
+    mea.add_argument("--agents", default="apf,apf-rrt,apf-mpc,astar", help="baselines, comma-sep")
+    mea.add_argument("--episodes", type=int, default=None, help="fly the first N missions")
+    mea.add_argument("--json", type=Path, default=None, help="also write the rows (JSON)")
+    args = parser.parse_args(argv)
+    if args.command == "select":
+        if args.count < 1 or args.first_seed < 0:
+            parser.error("--count must be >= 1 and --first-seed >= 0")
+        command = "python -m agents.experiments.hard_suite " + " ".join(
+            sys.argv[1:] if argv is None else argv
+        )
+        kept: list[Screen] = []
+        log = None if args.log is None else open(args.log, "w", encoding="utf-8")
+        try:
+            for screen in select_missions(args.count, args.first_seed):
+                if screen.kept:
+                    kept.append(screen)
+                if log is not None:
+                    row = {k: v for k, v in vars(screen).items() if k != "scenario"}
+                    row["kept"] = screen.kept
+                    log.write(json.dumps(row) + "\n")
+                    log.flush()
+        finally:
+            if log is not None:
+                log.close()
+        write_suite(hard_suite(kept, command.strip(), _git_commit()), args.out)
+        print(f"wrote {len(kept)} missions to {args.out}")
+        return 0
+    suite = read_suite(args.suite)
+    if args.episodes is not None:
+        if args.episodes < 1:
+            parser.error("--episodes must be >= 1")
+        suite = dataclasses.replace(suite, missions=suite.missions[: args.episodes])
+    names = [n.strip() for n in args.agents.split(",") if n.strip()]
+    rows = measure(suite, names)
+    print(rows_markdown(rows))
+    if args.json is not None:
+        args.json.write_text(json.dumps([vars(r) for r in rows], indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
