@@ -149,6 +149,21 @@ class SpaceTimeField:
         lvlh = pts + self.frame_position(np.broadcast_to(times, (len(pts),)))
         return np.all((lvlh >= self.low + margin) & (lvlh <= self.high - margin), axis=1)
 
+    def node(self, point: np.ndarray, time: float, margin: float = 0.0) -> tuple[float, bool]:
+        """One state's clearance (m, as :meth:`clearance`) and whether it lies in the bounds
+        shrunk by ``margin`` (m, as :meth:`in_bounds`): the two in one look-up."""
+        x = min(max((time - self.t0) / self.h, 0.0), len(self.centres) - 1.0)
+        k = min(int(x), len(self.centres) - 2)
+        f = x - k
+        c0, c1 = self.centres[k], self.centres[k + 1]
+        diff = point - (c0 + (c1 - c0) * f)
+        dist = np.sqrt(np.einsum("bd,bd->b", diff, diff))
+        gap = float(np.min(np.where(self.active, dist - self.reach, np.inf), initial=np.inf))
+        o0, o1 = self.frame_track[k, : self.dim], self.frame_track[k + 1, : self.dim]
+        lvlh = point + o0 + (o1 - o0) * f
+        inside = bool(np.all(lvlh >= self.low + margin) and np.all(lvlh <= self.high - margin))
+        return gap, inside
+
     # --- edges --------------------------------------------------------------------------------
 
     def edge_gap(self, p0: np.ndarray, t0: float, p1: np.ndarray, t1: float) -> float:
@@ -171,7 +186,8 @@ class SpaceTimeField:
         seg = b - a
         den = np.einsum("tbd,tbd->tb", seg, seg)
         s = np.clip(-np.einsum("tbd,tbd->tb", a, seg) / np.maximum(den, 1e-300), 0.0, 1.0)
-        closest = np.linalg.norm(a + s[..., None] * seg, axis=2).min(axis=0)  # (B,)
+        near = a + s[..., None] * seg
+        closest = np.sqrt(np.einsum("tbd,tbd->tb", near, near).min(axis=0))  # (B,)
         gaps = np.where(self.active, closest - self.reach, np.inf)
         return float(gaps.min(initial=np.inf))
 

@@ -77,7 +77,7 @@ class STRRTParams:
     range_factor: float = 1.5
     initial_range: float = 1.6
     max_iterations: int = 600
-    improve_iterations: int = 150
+    improve_iterations: int = 60
     rewire_neighbours: int = 8
     connect_steps: int = 8
     horizon: float = 4000.0
@@ -293,11 +293,10 @@ class _Search:
 
     def _valid_node(self, q: np.ndarray, t: float) -> float | None:
         """The node's ball radius, or None when (q, t) is not a usable state."""
-        times = np.array([t])
-        if t > self.t_cap or not self.f.in_bounds(q[None], times, self.p.bounds_margin)[0]:
+        if t > self.t_cap:
             return None
-        r = float(self.f.clearance(q[None], times)[0])
-        return r if r >= 0 else None
+        r, inside = self.f.node(q, t, self.p.bounds_margin)
+        return r if inside and r >= 0 else None
 
     def _edge(self, tree: _Tree, i: int, q: np.ndarray, t: float) -> bool:
         return self.f.edge_clear(tree.pos[i], float(tree.time[i]), q, t)

@@ -40,6 +40,8 @@ from agents.planners.spacetime import SpaceTimeField
 
 __all__ = ["SmoothParams", "Trajectory", "Tube", "build_tube", "smooth_in_tube"]
 
+_SOLVED = (osqp.SolverStatus.OSQP_SOLVED, osqp.SolverStatus.OSQP_SOLVED_INACCURATE)
+
 
 @dataclass(frozen=True)
 class SmoothParams:
@@ -49,20 +51,25 @@ class SmoothParams:
         w_snap: weight of the squared fourth difference (snap).
         w_accel: weight of the squared second difference (acceleration).
         w_start: weight of the mismatch with the chaser's velocity at the start.
+        w_spine: weight of the squared distance from each ball's centre (the raw path): keeps
+            the problem strictly convex, which the solver needs to converge quickly.
         accel_fraction: per-axis acceleration bound as a fraction of max_accel / sqrt(dim).
         facets: facets of the 2D polygon inscribed in each ball (3D uses 26).
         hold_steps: samples at the goal after the arrival (≥ 3: at rest at the end).
+        max_iter: OSQP iteration limit per attempt.
     """
 
     w_snap: float = 1.0
     w_accel: float = 0.05
     w_start: float = 50.0
+    w_spine: float = 0.1
     accel_fraction: float = 0.5
     facets: int = 16
     hold_steps: int = 3
+    max_iter: int = 3000
 
     def __post_init__(self) -> None:
-        for name in ("w_snap", "w_accel", "w_start"):
+        for name in ("w_snap", "w_accel", "w_start", "w_spine"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
@@ -74,6 +81,8 @@ class SmoothParams:
             raise ValueError(f"facets must be an integer >= 4, got {self.facets!r}")
         if not (isinstance(self.hold_steps, int) and self.hold_steps >= 3):
             raise ValueError(f"hold_steps must be an integer >= 3, got {self.hold_steps!r}")
+        if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
+            raise ValueError(f"max_iter must be an integer >= 1, got {self.max_iter!r}")
 
 
 @dataclass(frozen=True)
@@ -180,8 +189,8 @@ def smooth_in_tube(
     d2 = axiswise(_difference(count, 2))
     cost = cost + p.w_accel * (d2.T @ d2)
     first = axiswise(_difference(count, 1)[:1])  # p₁ − p₀
-    cost = cost + p.w_start * (first.T @ first) + 1e-9 * sp.identity(n)
-    q = -p.w_start * (first.T @ v0)
+    cost = cost + p.w_start * (first.T @ first) + p.w_spine * sp.identity(n)
+    q = -p.w_start * (first.T @ v0) - p.w_spine * cs.reshape(-1)
     P = sp.triu(2.0 * cost, format="csc")
     q = 2.0 * q
 
@@ -206,11 +215,11 @@ def smooth_in_tube(
         solver = osqp.OSQP()
         solver.setup(
             P, q, sp.vstack(a_blocks, format="csc"), np.concatenate(lo), np.concatenate(hi),
-            verbose=False, polishing=True, eps_abs=1e-5, eps_rel=1e-5, max_iter=20000,
+            verbose=False, polishing=True, eps_abs=1e-4, eps_rel=1e-4, max_iter=p.max_iter,
         )  # fmt: skip
         res = solver.solve(raise_error=False)
         info = {"status": str(res.info.status), "accel_bounded": bounded}
-        if res.info.status_val in (osqp.SolverStatus.OSQP_SOLVED,) and res.x is not None:
+        if res.info.status_val in _SOLVED and res.x is not None and np.all(np.isfinite(res.x)):
             solution = res.x.reshape(count, d) * ell
             break
     if solution is None:
