@@ -251,14 +251,20 @@ class _Search:
         self.in_batch = 0
 
     def sample_goal(self) -> None:
-        """A goal state: the goal point at a time drawn from the newest slice of the range."""
+        """A goal state: the goal point at a time drawn from the newest slice of the range.
+
+        An attempt that finds none (the slice is empty or the goal is blocked then) counts
+        toward the batch, so a range without a usable goal state grows.
+        """
         lo = max(self.range_lo, self.t_least)
         hi = min(self.range_hi, self.best)
         if hi <= lo:
+            self.in_batch += 1
             return
         t = float(self.rng.uniform(lo, hi))
         r = float(self.f.clearance(self.goal[None], np.array([t]))[0])
         if r < 0:
+            self.in_batch += 1
             return
         self.trees[1].add(self.goal, t, r, -1, 0.0)
         (self.goals_new if self.range_lo > self.t0 else self.goals_old).append(t)
