@@ -10,7 +10,8 @@ stands still.
 How the bodies are represented:
 
 * their centres on a time grid t₀ + k·h (h = the env's step), propagated from their states at t₀
-  with the env's own exact model (:func:`debris_gym.dynamics.discretize`), minus the frame
+  with the env's own exact model (:func:`debris_gym.dynamics.discretize`; a frozen field's bodies
+  stay where they are), minus the frame
   body's centre; between grid points the centres are interpolated linearly, and the
   interpolation error — at most a·h²/8 for a relative acceleration bounded by a — is added to
   every body's inflation (a is the largest natural CWH acceleration of the relative motion on
@@ -84,8 +85,8 @@ class SpaceTimeField:
         ad = discretize(scen.mean_motion, h, d).ad
         states = np.empty((count, n_bodies, 2 * d))
         states[0] = motion.states(self.t0)
-        for k in range(1, count):
-            states[k] = states[k - 1] @ ad.T
+        for k in range(1, count):  # a frozen field stands still
+            states[k] = states[k - 1] @ ad.T if scen.moving else states[0]
         if frame is None:
             self.frame_track = np.zeros((count, 2 * d))
         else:
@@ -95,6 +96,7 @@ class SpaceTimeField:
         self.radii = np.array([b.radius for b in scen.bodies], dtype=float)
         self.body_speed = np.linalg.norm(rel[..., d:], axis=2).max(axis=0)
         accel = np.linalg.norm(cwh_acceleration(rel, scen.mean_motion), axis=2).max(axis=0)
+        accel = accel if scen.moving else np.zeros(n_bodies)
         self.interp_error = 1.05 * accel * h * h / 8.0
         inflation = np.zeros(n_bodies) if inflation is None else np.asarray(inflation, float)
         if inflation.shape != (n_bodies,) or np.any(np.isnan(inflation)):

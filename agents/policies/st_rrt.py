@@ -50,8 +50,10 @@ class STRRTAgent(ClassicalAgent):
 
     Args:
         env: the DebrisGym env (``action="continuous"``).
-        planner: Tube-ST-RRT* parameters; None: :class:`STRRTParams` defaults, with the
-            sampling padding and bounds margin scaled to the field.
+        planner: Tube-ST-RRT* parameters; None: :class:`STRRTParams` scaled to the field:
+            ``max_speed`` 0.75 × the tracker's default cruise speed sqrt(0.035 · max_accel ·
+            size) (0.99 m/s on the 1 km fields), steer range and sampling padding 20 % of the
+            world size, bounds margin 1 %, horizon 400 steps.
         smoothing: minimum-snap parameters.
         mpc: tracker parameters (the same defaults as the other MPC agents).
         ordering: "shortest", "polygon" or "nearest" target order (:class:`MissionPlan`).
@@ -121,9 +123,11 @@ class STRRTAgent(ClassicalAgent):
             chaser_radius=cfg.chaser_radius, geometry=self.geometry, motion=moving,
         )  # fmt: skip
         size = scenario.size
+        cruise = np.sqrt(0.035 * scenario.max_accel * size)
         self.params = self.planner_params or STRRTParams(
-            sample_padding=0.2 * size, bounds_margin=0.01 * size, steer_range=0.2 * size
-        )
+            max_speed=0.75 * float(cruise), steer_range=0.2 * size, horizon=400 * scenario.dt,
+            sample_padding=0.2 * size, bounds_margin=0.01 * size,
+        )  # fmt: skip
         self.rng = np.random.default_rng(self.seed)
         self._replan_distance = (
             self.replan_distance if self.replan_distance is not None else 0.02 * size
