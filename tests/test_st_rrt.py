@@ -28,13 +28,14 @@ DT = 10.0
 MARGIN = 3.0  # m: what every body is grown by in these tests
 
 
-def cw_position(state0: np.ndarray, t: float, n: float = N) -> np.ndarray:
-    """Closed-form unforced CW position at ``t`` (2D): [Curtis14] eq. 7.53, typed in here."""
+def cw_position(state0: np.ndarray, t, n: float = N) -> np.ndarray:
+    """Closed-form unforced CW position at ``t`` (s, a number or an array; 2D): [Curtis14]
+    eq. 7.53, typed in here. Returns (2,) or (..., 2) positions (m)."""
     x0, y0, vx0, vy0 = state0
-    s, c = math.sin(n * t), math.cos(n * t)
+    s, c = np.sin(n * np.asarray(t)), np.cos(n * np.asarray(t))
     x = (4 - 3 * c) * x0 + s / n * vx0 + 2 / n * (1 - c) * vy0
     y = 6 * (s - n * t) * x0 + y0 - 2 / n * (1 - c) * vx0 + (4 * s - 3 * n * t) / n * vy0
-    return np.array([x, y])
+    return np.stack([x, y], axis=-1)
 
 
 def orbit_body(radius: float, rho: float, alpha: float, y_c: float, vertices=None) -> Body:
@@ -191,12 +192,11 @@ def test_edge_gap_is_never_more_than_the_sampled_truth_and_close_to_it(p0, p1, t
     p0, p1 = np.array(p0), np.array(p1)
     gap = field.edge_gap(p0, t0, p1, t0 + span)
     times = np.linspace(t0, t0 + span, 801)
-    truth = math.inf
-    for t in times:  # circumscribed circles, exactly, from the typed-in motion
-        pt = p0 + (t - t0) / span * (p1 - p0)
-        centres = np.array([cw_position(s, t) for s in STATES])
-        radii = np.array([b.radius for b in SCEN.bodies])
-        truth = min(truth, float(np.min(np.linalg.norm(centres - pt, axis=1) - radii)))
+    # circumscribed circles, exactly, from the typed-in motion, at every sample
+    points = p0 + ((times - t0) / span)[:, None] * (p1 - p0)  # (T, 2)
+    centres = np.stack([cw_position(s, times) for s in STATES], axis=1)  # (T, B, 2)
+    radii = np.array([b.radius for b in SCEN.bodies])
+    truth = float(np.min(np.linalg.norm(centres - points[:, None], axis=2) - radii))
     assert gap <= truth + 1e-6
     # the sampling misses at most the relative speed × half a sample interval
     rel_speed = np.linalg.norm(p1 - p0) / span + 1.0
