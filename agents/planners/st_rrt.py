@@ -290,12 +290,16 @@ class _Search:
                 return q, float(self.rng.uniform(t_lb, t_ub))
         return None
 
-    def _steer(self, tree: _Tree, i: int, q: np.ndarray, t: float, dist: float):
+    def _steer(
+        self, tree: _Tree, i: int, q: np.ndarray, t: float, dist: float
+    ) -> tuple[np.ndarray, float]:
         """Move from node ``i`` toward (q, t) by at most the steer range (same speed)."""
         if dist <= self.p.steer_range:
             return q, t
         frac = self.p.steer_range / dist
-        return tree.pos[i] + frac * (q - tree.pos[i]), tree.time[i] + frac * (t - tree.time[i])
+        return tree.pos[i] + frac * (q - tree.pos[i]), float(
+            tree.time[i] + frac * (t - tree.time[i])
+        )
 
     def _valid_node(self, q: np.ndarray, t: float) -> float | None:
         """The node's ball radius, or None when (q, t) is not a usable state."""
@@ -452,7 +456,7 @@ def st_rrt_star(
     info = {
         "iterations": iteration,
         "nodes": s_tree.size + g_tree.size,
-        "goal_states": g_tree.size and int(np.sum(g_tree.parent[: g_tree.size] < 0)),
+        "goal_states": int(np.sum(g_tree.parent[: g_tree.size] < 0)),
         "time_range": search.range_hi - field.t0,
         "first_solution": search.first_solution,
     }

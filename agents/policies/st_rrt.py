@@ -175,9 +175,9 @@ class STRRTAgent(ClassicalAgent):
     # --- reference ----------------------------------------------------------------------------
 
     def _frame_state(self, t: float) -> np.ndarray:
-        return self.motion.body_state(self._frame, t) if self.motion.moving else (
-            self.motion.body_state(self._frame, 0.0)
-        )  # fmt: skip
+        """LVLH state (2·dim,) of the planning frame's origin at ``t`` (s): the goal target's,
+        or zeros for the dock."""
+        return self.motion.body_state(self._frame, t if self.motion.moving else 0.0)
 
     def _planned(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Trajectory positions and velocities (goal frame) at times ``t`` (held at the end)."""
@@ -195,6 +195,7 @@ class STRRTAgent(ClassicalAgent):
         return rel_pos + track[:, :d], rel_vel + track[:, d:]
 
     def _needs_plan(self, state: np.ndarray, now: float) -> bool:
+        """Whether to plan again now (counts the reason in :attr:`stats`)."""
         d = self.env.dim
         if self._traj is None:
             return now >= self._retry_at
@@ -261,7 +262,9 @@ class STRRTAgent(ClassicalAgent):
         self.stats["plan_time"] += elapsed
         self.plan_times.append(elapsed)
 
-    def _straight(self, start: np.ndarray, goal: np.ndarray, now: float):
+    def _straight(
+        self, start: np.ndarray, goal: np.ndarray, now: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """A straight line to the goal at half the planning speed (after a failed search)."""
         dt = self.env.scenario.dt
         length = float(np.linalg.norm(goal - start))
