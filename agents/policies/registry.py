@@ -19,6 +19,7 @@ BASELINES: dict[str, str] = {
     "apf-rrt": "agents.policies.apf_rrt:APFRRTAgent",
     "apf-mpc": "agents.policies.apf_mpc:APFMPCAgent",
     "astar": "agents.policies.astar:AStarAgent",
+    "st-rrt": "agents.policies.st_rrt:STRRTAgent",
 }
 """Baseline name → ``module:Class`` (imported on first use)."""
 
