@@ -19,6 +19,7 @@ BASELINES: dict[str, str] = {
     "apf-rrt": "agents.policies.apf_rrt:APFRRTAgent",
     "apf-mpc": "agents.policies.apf_mpc:APFMPCAgent",
     "astar": "agents.policies.astar:AStarAgent",
+    "se-scp": "agents.policies.se_scp:SESCPAgent",
 }
 """Baseline name → ``module:Class`` (imported on first use)."""
 

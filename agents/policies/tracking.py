@@ -255,8 +255,16 @@ class MPCPathAgent(ClassicalAgent):
         self.path_log.append(np.asarray(waypoints))
         self._best_progress = 0
         self._since_progress = 0
-        self._ref = PathReference(
-            np.asarray(waypoints) - frame_pos,
+        self._ref = self.make_reference(np.asarray(waypoints) - frame_pos, result)
+
+    def make_reference(self, waypoints: np.ndarray, result: PlanResult) -> PathReference:
+        """The reference the tracker follows for a new plan: ``waypoints`` (m, in the goal's
+        frame in a moving field) with the speed profile of :class:`PathReference`. A subclass
+        whose planner times its path (``result``) may return any object with the same
+        ``horizon`` / ``deviation`` / ``progress`` / ``s`` / ``spacing``."""
+        scen = self.env.scenario
+        return PathReference(
+            waypoints,
             max_accel=scen.max_accel,
             dt=scen.dt,
             params=self.reference_params,
