@@ -110,6 +110,11 @@ class SCPParams:
         max_growths: how often the allocation may grow before giving up.
         sphere_facets: facets of the polytope inside each sphere (2D; 3D uses 3× as many).
         thrust_facets: facets of the thrust-ball polytope and of the ‖u‖ epigraph (2D; 3D 3×).
+        sphere_penalty: None: every point is held in its sphere (hard constraints; an
+            infeasible programme grows the time allocation). A number ρ (m/s per m): the
+            points may leave their spheres by e_k ≥ 0 (m) at a cost ρ·Σ e_k beside the fuel, so
+            a programme always has a solution (a chaser already too fast to stay in its first
+            sphere); ``info["violation"]`` reports the largest e_k (0 when the spheres hold).
         regularisation: weight of the quadratic term Σ‖u/a‖² beside the fuel (dimensionless).
         eps: OSQP absolute and relative tolerance.
         max_iter: OSQP iteration limit per solve.
@@ -125,6 +130,7 @@ class SCPParams:
     max_growths: int = 2
     sphere_facets: int = 16
     thrust_facets: int = 16
+    sphere_penalty: float | None = None
     solver: str = "highs"
     regularisation: float = 0.1
     eps: float = 1.0e-3
@@ -155,6 +161,9 @@ class SCPParams:
                 raise ValueError(f"{name} must be an integer >= 4, got {value!r}")
         if not (math.isfinite(self.regularisation) and self.regularisation >= 0):
             raise ValueError(f"regularisation must be >= 0, got {self.regularisation!r}")
+        penalty = self.sphere_penalty
+        if penalty is not None and not (math.isfinite(penalty) and penalty > 0):
+            raise ValueError(f"sphere_penalty must be > 0 or None, got {penalty!r}")
         if self.solver not in ("highs", "osqp"):
             raise ValueError(f"solver must be 'highs' or 'osqp', got {self.solver!r}")
         if not (math.isfinite(self.eps) and self.eps > 0):
@@ -281,6 +290,7 @@ def scp_trajectory(
     thrust_model: str = "ball",
     params: SCPParams | None = None,
     waypoints: np.ndarray | None = None,
+    steps: int | None = None,
 ) -> SCPResult:
     """A fuel-optimal trajectory from ``state`` to the last sphere's centre through the chain.
 
@@ -297,6 +307,9 @@ def scp_trajectory(
         params: tunables.
         waypoints: (m+1, dim) polyline through the chain for the first guess; None: start,
             lens points, goal.
+        steps: number of steps T to arrive in (a final time fixed by an earlier plan); None:
+            the time allocation of :func:`allocate_steps`. Grows like the allocation when the
+            programme is infeasible.
     """
     from agents.planners.spherical_expansion import SphereChain, chain_waypoints
 
@@ -321,7 +334,11 @@ def scp_trajectory(
     if waypoints is None:
         chain = SphereChain(True, np.arange(len(radii)), centers, radii, 0.0)
         waypoints = chain_waypoints(chain)
-    steps = allocate_steps(waypoints, float(np.linalg.norm(x0[d:])), max_accel, step, params)
+    if steps is None:
+        steps = allocate_steps(waypoints, float(np.linalg.norm(x0[d:])), max_accel, step, params)
+    elif not (isinstance(steps, int) and steps >= 1):
+        raise ValueError(f"steps must be an integer >= 1 or None, got {steps!r}")
+    steps = int(min(max(steps, len(radii), 2), params.max_steps))
     tried: list[int] = []
     statuses: list[str] = []
     iterations = 0
@@ -334,7 +351,7 @@ def scp_trajectory(
         cum = np.concatenate([[0.0], np.cumsum(seg)])
         guess = np.stack([np.interp(arc, cum, waypoints[:, i]) for i in range(d)], axis=1)
         sigma = assign_points(guess, waypoints)
-        best: tuple[float, np.ndarray, np.ndarray, np.ndarray] | None = None
+        best: tuple[float, np.ndarray, np.ndarray, np.ndarray, float] | None = None
         for _ in range(params.max_iterations):
             if sigma is None:
                 break
@@ -346,16 +363,17 @@ def scp_trajectory(
             statuses.append(solved[0])
             if solved[1] is None:
                 break
-            cost, states, controls = solved[1]
+            fuel, states, controls, violation = solved[1]
+            cost = fuel + (params.sphere_penalty or 0.0) * violation
             if best is not None and cost >= best[0] - 1e-6 * max(1.0, abs(best[0])):
                 break
-            best = (cost, states, controls, sigma)
+            best = (cost, states, controls, sigma, violation)
             new = _reassign(states[:, :d], sigma, centers, radii, sphere_f)
             if new is None or np.array_equal(new, sigma):
                 break
             sigma = new
         if best is not None:
-            _, states, controls, sigma = best
+            _, states, controls, sigma, violation = best
             rate = (
                 np.abs(controls).sum(axis=1)
                 if thrust_model == "box"
@@ -369,7 +387,7 @@ def scp_trajectory(
                 assignment=sigma,
                 delta_v=float(rate.sum() * step),
                 iterations=iterations,
-                info={"steps_tried": tried, "statuses": statuses},
+                info={"steps_tried": tried, "statuses": statuses, "violation": violation},
             )
         steps = min(math.ceil(steps * params.time_growth), params.max_steps)
         if steps == tried[-1]:
@@ -446,12 +464,13 @@ def _solve(
     params: SCPParams,
     sphere_facets: int,
     thrust_facets: int,
-) -> tuple[str, tuple[float, np.ndarray, np.ndarray] | None]:
+) -> tuple[str, tuple[float, np.ndarray, np.ndarray, float] | None]:
     """One convex programme (a QP for OSQP) for a fixed assignment ``sigma``.
 
     Condensed: the states are eliminated with the exact model (x[k] = Sx[k] x[0] + Su[k] u), so
     the variables are the thrusts ũ = u / a and the fuel slacks (units of a). Returns
-    ``(status, (Δv m/s, states, controls))``, the second part None when not solved.
+    ``(status, (Δv m/s, states, controls, largest sphere violation m))``, the second part None
+    when not solved.
     """
     d = centers.shape[1]
     T = len(sigma) - 1
@@ -462,12 +481,17 @@ def _solve(
     box = thrust_model == "box"
     n_slack = d if box else 1
     n_u, n_s = T * d, T * n_slack
-    nz = n_u + n_s
+    soft = params.sphere_penalty is not None
+    n_e = T - 1 if soft else 0  # one sphere violation (in ℓ) per inner point
+    nz = n_u + n_s + n_e
     blocks: list[sp.spmatrix] = []
     lower: list[np.ndarray] = []
     upper: list[np.ndarray] = []
 
     def add(block, lo, hi) -> None:
+        block = sp.csr_matrix(block)
+        if block.shape[1] < nz:
+            block = sp.hstack([block, sp.csr_matrix((block.shape[0], nz - block.shape[1]))])
         blocks.append(sp.csr_matrix(block))
         lower.append(np.asarray(lo, dtype=float))
         upper.append(np.asarray(hi, dtype=float))
@@ -478,8 +502,6 @@ def _solve(
     goal_state = np.concatenate([centers[-1], v_goal])
     end = (goal_state - sx[T] @ x0) / unit
     add(np.hstack([su[T] * a / unit[:, None], np.zeros((2 * d, n_s))]), end, end)
-    zeros_s = sp.csr_matrix((0, 0))
-    del zeros_s
     if box:
         thrust = sp.identity(n_u, format="csr")
         pad = sp.csr_matrix((n_u, n_s))
@@ -498,7 +520,7 @@ def _solve(
         add(sp.hstack([per, -ones]), np.full(rows, -np.inf), np.zeros(rows))
     # spheres: N (p[k] − c_j) ≤ r_j h − tolerance for each sphere point k must lie in
     normals, h = inscribed_polytope(d, sphere_facets)
-    coef, bound = [], []
+    coef, bound, owner = [], [], []
     for k in range(1, T):
         holders = {int(sigma[k])}
         if sigma[k + 1] != sigma[k]:
@@ -508,18 +530,29 @@ def _solve(
         for j in holders:
             coef.append(gain)
             bound.append((radii[j] * h - _TOLERANCE + normals @ (centers[j] - free)) / ell)
+            owner.append(np.full(len(normals), k - 1))
     if coef:
         rows_c = np.vstack(coef)
-        add(np.hstack([rows_c, np.zeros((len(rows_c), n_s))]), np.full(len(rows_c), -np.inf),
-            np.concatenate(bound))  # fmt: skip
+        n_rows = len(rows_c)
+        block = sp.hstack([sp.csr_matrix(rows_c), sp.csr_matrix((n_rows, n_s))])
+        if soft:  # N p − e_k ≤ bound: the violation e_k ≥ 0 is paid for in the objective
+            who = np.concatenate(owner)
+            block = sp.hstack([block, sp.csr_matrix((-np.ones(n_rows), (np.arange(n_rows), who)),
+                                                    shape=(n_rows, n_e))])  # fmt: skip
+        add(block, np.full(n_rows, -np.inf), np.concatenate(bound))
+    if soft:
+        add(sp.hstack([sp.csr_matrix((n_e, n_u + n_s)), sp.identity(n_e)]), np.zeros(n_e),
+            np.full(n_e, np.inf))  # fmt: skip
     A = sp.vstack(blocks, format="csc")
     lo, hi = np.concatenate(lower), np.concatenate(upper)
     q = np.zeros(nz)
-    q[n_u:] = 1.0
+    q[n_u : n_u + n_s] = 1.0
+    if soft:  # fuel is in units of a·Δ (m/s), violations in ℓ = a·Δ² (m)
+        q[n_u + n_s :] = params.sphere_penalty * step
     if params.solver == "highs":
         status, z = _solve_lp(q, A, lo, hi)
     else:
-        status, z = _solve_osqp(q, A, lo, hi, n_u, n_s, params)
+        status, z = _solve_osqp(q, A, lo, hi, n_u, n_s + n_e, params)
     if z is None:
         return status, None
     res_x = z
@@ -533,7 +566,8 @@ def _solve(
     # states from the exact model and the thrusts actually returned
     states = np.einsum("kab,b->ka", sx, x0) + np.einsum("kac,c->ka", su, ctrl.reshape(-1))
     rate = np.abs(ctrl).sum(axis=1) if box else np.linalg.norm(ctrl, axis=1)
-    return status, (float(rate.sum() * step), states, ctrl)
+    violation = float(np.max(res_x[n_u + n_s :], initial=0.0) * ell)
+    return status, (float(rate.sum() * step), states, ctrl, violation)
 
 
 def _solve_lp(

@@ -9,9 +9,9 @@ to the free space: a sample X_rand is drawn in the bounds, the nearest node foun
 node is X_rand itself if it lies inside that node's sphere, otherwise the point of the sphere's
 surface nearest X_rand (``Steer``). Two nodes are joined when their spheres overlap, so the
 straight segment between the centres stays in the union of the two spheres; the cost of an edge
-is the distance between the centres, stretched where a sphere is small (:func:`edge_cost`). The shortest chain start → goal (Dijkstra,
-:func:`scipy.sparse.csgraph.dijkstra`) is the corridor the sequential convex programme
-(:mod:`agents.planners.scp`) keeps its trajectory in.
+is the distance between the centres, stretched where a sphere is small (:func:`edge_cost`). The
+shortest chain start → goal (Dijkstra, :func:`scipy.sparse.csgraph.dijkstra`) is the corridor
+the sequential convex programme (:mod:`agents.planners.scp`) keeps its trajectory in.
 
 An edge needs a little more than touching spheres: ``d ≤ κ (r_v + r_w) − min_overlap``, with κ
 the inner-radius factor of the polytope the SCP puts inside each sphere (1 for exact spheres), so

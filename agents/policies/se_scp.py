@@ -89,21 +89,59 @@ class TrajectoryReference:
         return ref[:, :d], ref[:, d:]
 
 
+class SweptGeometry:
+    """Clearance (m) of points fixed in a goal's frame against the moving bodies, the least
+    over a few times: what :func:`~agents.planners.spherical_expansion.node_radii` needs.
+
+    A point is given where it is at the first time; at a later time t it has moved with the
+    frame (the goal target, or LVLH itself for the dock), and its clearance is taken against the
+    bodies where they are at t. So a sphere of that radius stays body-free at every sampled
+    time (time-indexed spheres, sampled).
+
+    Args:
+        motion: the bodies' predicted motion.
+        frame: index of the body whose frame the points ride in; None: LVLH (the dock).
+        times: (S,) times (s), the first one now.
+    """
+
+    def __init__(self, motion: Any, frame: int | None, times: np.ndarray) -> None:
+        self.geometries = [motion.geometry(float(t)) for t in times]
+        self.dim = self.geometries[0].dim
+        self.n_bodies = self.geometries[0].n_bodies
+        base = motion.body_state(frame, float(times[0]))[: self.dim]
+        self.shifts = [motion.body_state(frame, float(t))[: self.dim] - base for t in times]
+
+    def signed_distance(self, points: np.ndarray) -> np.ndarray:
+        """(M, n_bodies) least signed distance (m) over the times."""
+        pts = np.asarray(points, dtype=float).reshape(-1, self.dim)
+        out = None
+        for geometry, shift in zip(self.geometries, self.shifts, strict=True):
+            gaps = geometry.signed_distance(pts + shift)
+            out = gaps if out is None else np.minimum(out, gaps)
+        return out
+
+
 class SESCPAgent(MPCPathAgent):
     """Spherical-expansion graph + SCP trajectory, tracked by the shared MPC ("se-scp").
 
     Args:
         env: the DebrisGym env (``action="continuous"``).
         expansion: spherical-expansion tunables; None: the defaults.
-        scp: trajectory-optimisation tunables; None: the defaults. Its ``step`` must be a whole
-            number of env steps; None: two env steps.
+        scp: trajectory-optimisation tunables; None: the defaults with soft spheres
+            (``sphere_penalty`` 100 m/s per m: a re-plan from a chaser moving too fast to stay
+            in its first sphere still has a plan; the tracker's keep-out guards the bodies). Its
+            ``step`` must be a whole number of env steps; None: two env steps.
         mpc: MPC tracker parameters (the same defaults as "apf-mpc").
         reference: speed profile of the fallback path reference.
         ordering: "shortest", "polygon" or "nearest" target order.
         replan_distance: deviation (m) from the planned trajectory that triggers a re-plan;
             None: 2 % of the world size.
         replan_every: in a moving field, re-solve on a fresh snapshot after this many
-            decisions.
+            decisions at the latest (:meth:`plan_expired` re-solves sooner when the plan meets a
+            body).
+        check_steps: steps ahead (env steps) the plan is checked against the moving bodies.
+        keep_fraction: fraction of the margin the plan may lose to the bodies' motion before
+            it is re-solved.
         margin: keep-out (m) beyond the chaser radius of the spheres; None: the tracker's.
         seed: seed of the sampling generator (re-seeded every episode).
     """
@@ -120,8 +158,10 @@ class SESCPAgent(MPCPathAgent):
         *,
         ordering: str = "shortest",
         replan_distance: float | None = None,
-        replan_every: int = 5,
+        replan_every: int = 30,
         margin: float | None = None,
+        check_steps: int = 20,
+        keep_fraction: float = 0.5,
         seed: int = 0,
     ) -> None:
         super().__init__(
@@ -132,11 +172,17 @@ class SESCPAgent(MPCPathAgent):
             raise ValueError(f"margin must be >= 0 m or None, got {margin!r}")
         if not (isinstance(seed, int) and seed >= 0):
             raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
-        self.scp_params = scp or SCPParams()
+        self.scp_params = scp or SCPParams(sphere_penalty=100.0)
         sphere_facets, _ = self.scp_params.facets(self.env.dim)
         _, kappa = inscribed_polytope(self.env.dim, sphere_facets)
         self.expansion_params = expansion or ExpansionParams(polytope_factor=kappa)
+        if not (isinstance(check_steps, int) and check_steps >= 1):
+            raise ValueError(f"check_steps must be an integer >= 1, got {check_steps!r}")
+        if not (math.isfinite(keep_fraction) and 0.0 <= keep_fraction <= 1.0):
+            raise ValueError(f"keep_fraction must be in [0, 1], got {keep_fraction!r}")
         self.margin = margin
+        self.check_steps = check_steps
+        self.keep_fraction = keep_fraction
         self.seed = seed
         self.last_scp = None
 
@@ -150,11 +196,16 @@ class SESCPAgent(MPCPathAgent):
         self._scp = dataclasses.replace(self.scp_params, step=step)
         self._step_model = discretize(scenario.mean_motion, scenario.dt, scenario.dim)
         self._trajectory: np.ndarray | None = None
-        self.stats.update(scp_failures=0, chain_failures=0, scp_delta_v=0.0)
+        self._arrival: tuple[tuple, float] | None = None
+        self.stats.update(scp_failures=0, chain_failures=0, scp_delta_v=0.0, conflict_replans=0)
 
     def plan_path(self, start: np.ndarray, goal: Goal) -> PlanResult:
         cfg, scen = self.env.config, self.plan_scenario
-        geometry = self.plan_geometry
+        geometry: Any = self.plan_geometry
+        if self.motion is not None:  # spheres that stay clear while the bodies move
+            frame_index = goal.index if goal.kind == "target" else None
+            times = self.env.elapsed + scen.dt * np.arange(0, self.check_steps + 1, 4)
+            geometry = SweptGeometry(self.motion, frame_index, times)
         d = scen.dim
         margin = self.margin if self.margin is not None else self.tracker.keepout_margin
         margins = np.full(geometry.n_bodies, cfg.chaser_radius + margin)
@@ -180,11 +231,19 @@ class SESCPAgent(MPCPathAgent):
         if self.motion is not None and goal.kind == "target":
             frame = self.motion.body_state(goal.index, self.env.elapsed)
         state = np.asarray(self.env.chaser_state, float) - frame
+        # keep the arrival time of the first plan toward this goal (a shrinking horizon): a
+        # re-plan re-solves the rest of the same manoeuvre instead of starting a new one
+        now, step = self.env.elapsed, self._scp.step
+        key = (goal.kind, goal.index)
+        steps = None
+        if self._arrival is not None and self._arrival[0] == key:
+            left = self._arrival[1] - now
+            steps = max(math.ceil(left / step - 1e-9), 1) if left >= step else None
         result = scp_trajectory(
             state, chain.centers - frame[:d], chain.radii, np.zeros(d),
             mean_motion=scen.mean_motion, dt=scen.dt, max_accel=scen.max_accel,
             thrust_model=cfg.thrust_model, params=self._scp,
-            waypoints=waypoints - frame[:d],
+            waypoints=waypoints - frame[:d], steps=steps,
         )  # fmt: skip
         self.last_scp = result
         info = {"nodes": graph.n_nodes, "chain": len(chain.radii)}
@@ -192,9 +251,39 @@ class SESCPAgent(MPCPathAgent):
             self.stats["scp_failures"] += 1
             return PlanResult(True, waypoints, PlanResult.path_length(waypoints), info)
         self.stats["scp_delta_v"] += result.delta_v
+        if steps is None or len(result.controls) != steps:
+            self._arrival = (key, now + len(result.controls) * step)
         self._trajectory = self._fine_states(state, result.controls)
         path = self._trajectory[:, :d] + frame[:d]
         return PlanResult(True, path, PlanResult.path_length(path), info)
+
+    def plan_expired(self, now: float) -> bool:
+        """Re-plan when the planned trajectory, flown from now on, would come closer to a body
+        (where that body will be then) than the chaser radius plus ``keep_fraction`` of the
+        margin, or after ``replan_every`` decisions; a plan still clear is kept, so successive
+        plans do not jump between corridors."""
+        if super().plan_expired(now) or self._trajectory is None:
+            return self._trajectory is None or super().plan_expired(now)
+        ref = self._ref
+        if not isinstance(ref, TrajectoryReference):
+            return True
+        d = self.env.dim
+        ahead = ref.states[min(ref.progress + 1, len(ref.states) - 1) :][: self.check_steps]
+        dt = self.env.scenario.dt
+        times = now + dt * np.arange(1, len(ahead) + 1)
+        frame = self._goal.index if self._goal.kind == "target" else None
+        cfg = self.env.config
+        margin = self.margin if self.margin is not None else self.tracker.keepout_margin
+        need = cfg.chaser_radius + self.keep_fraction * margin
+        for k, t in enumerate(times):
+            point = ahead[k, :d] + self.motion.body_state(frame, t)[:d]
+            gaps = self.motion.geometry(t).point_gaps(point)
+            if frame is not None:
+                gaps[frame] = np.inf  # the goal's own approach is guarded by the tracker
+            if gaps.min() < need:
+                self.stats["conflict_replans"] += 1
+                return True
+        return False
 
     def _fine_states(self, state: np.ndarray, controls: np.ndarray) -> np.ndarray:
         """The planned states at every env step: each plan thrust held over its substeps."""

@@ -117,6 +117,11 @@ class MPCPathAgent(ClassicalAgent):
         (the field, or in a moving field the field frozen as it is now)."""
         raise NotImplementedError
 
+    def plan_expired(self, now: float) -> bool:
+        """Moving field: whether to re-plan on a fresh snapshot at time ``now`` (s); by default
+        every ``replan_every`` decisions."""
+        return self._since_plan >= self.replan_every
+
     # --- ClassicalAgent -----------------------------------------------------------------------
 
     def plan(self, scenario: Scenario) -> None:
@@ -170,7 +175,7 @@ class MPCPathAgent(ClassicalAgent):
             self._goal = goal or self.mission.current_goal(captured, pos, now)
             self.tracker.reset()
             self._new_path(pos)
-        elif self.motion is not None and self._since_plan >= self.replan_every:
+        elif self.motion is not None and self.plan_expired(now):
             self._new_path(pos)
         elif self._ref is not None and self._ref.deviation > self._replan_distance:
             self.stats["replans"] += 1
@@ -230,7 +235,7 @@ class MPCPathAgent(ClassicalAgent):
         if goal is None:
             self._ref = None
             return
-        cfg, scen = self.env.config, self.env.scenario
+        cfg = self.env.config
         self._since_plan = 0
         frame_pos = np.zeros(len(pos))
         t0 = time.perf_counter()
