@@ -140,8 +140,11 @@ class SESCPAgent(MPCPathAgent):
             decisions at the latest (:meth:`plan_expired` re-solves sooner when the plan meets a
             body).
         check_steps: steps ahead (env steps) the plan is checked against the moving bodies.
+        sweep_steps: moving field: every sphere is kept clear of the bodies over this many env
+            steps from now (sampled every 3 steps; :class:`SweptGeometry`).
         keep_fraction: fraction of the margin the plan may lose to the bodies' motion before
             it is re-solved.
+        fallback_every: decisions between attempts to re-plan while a fallback path is flown.
         margin: keep-out (m) beyond the chaser radius of the spheres; None: the tracker's.
         seed: seed of the sampling generator (re-seeded every episode).
     """
@@ -161,6 +164,8 @@ class SESCPAgent(MPCPathAgent):
         replan_every: int = 30,
         margin: float | None = None,
         check_steps: int = 20,
+        sweep_steps: int = 12,
+        fallback_every: int = 3,
         keep_fraction: float = 0.5,
         seed: int = 0,
     ) -> None:
@@ -182,6 +187,12 @@ class SESCPAgent(MPCPathAgent):
             raise ValueError(f"keep_fraction must be in [0, 1], got {keep_fraction!r}")
         self.margin = margin
         self.check_steps = check_steps
+        if not (isinstance(sweep_steps, int) and sweep_steps >= 0):
+            raise ValueError(f"sweep_steps must be an integer >= 0, got {sweep_steps!r}")
+        self.sweep_steps = sweep_steps
+        if not (isinstance(fallback_every, int) and fallback_every >= 1):
+            raise ValueError(f"fallback_every must be an integer >= 1, got {fallback_every!r}")
+        self.fallback_every = fallback_every
         self.keep_fraction = keep_fraction
         self.seed = seed
         self.last_scp = None
@@ -197,6 +208,7 @@ class SESCPAgent(MPCPathAgent):
         self._step_model = discretize(scenario.mean_motion, scenario.dt, scenario.dim)
         self._trajectory: np.ndarray | None = None
         self._arrival: tuple[tuple, float] | None = None
+        self._age = 0
         self.stats.update(scp_failures=0, chain_failures=0, scp_delta_v=0.0, conflict_replans=0)
 
     def plan_path(self, start: np.ndarray, goal: Goal) -> PlanResult:
@@ -204,7 +216,7 @@ class SESCPAgent(MPCPathAgent):
         geometry: Any = self.plan_geometry
         if self.motion is not None:  # spheres that stay clear while the bodies move
             frame_index = goal.index if goal.kind == "target" else None
-            times = self.env.elapsed + scen.dt * np.arange(0, self.check_steps + 1, 4)
+            times = self.env.elapsed + scen.dt * np.arange(0, self.sweep_steps + 1, 3)
             geometry = SweptGeometry(self.motion, frame_index, times)
         d = scen.dim
         margin = self.margin if self.margin is not None else self.tracker.keepout_margin
@@ -212,14 +224,20 @@ class SESCPAgent(MPCPathAgent):
         if goal.kind == "target":
             margins[goal.index] = cfg.chaser_radius + 0.25 * cfg.capture_radius
         low, high = np.array(scen.low, float), np.array(scen.high, float)
-        # a chaser already inside a margin (just after a capture) keeps half its true gap
-        gap = node_radii(geometry, start, np.full(geometry.n_bodies, cfg.chaser_radius), low, high)
-        own = node_radii(geometry, start, margins, low, high)
+        # the start sphere is needed now only: the field as it is; a chaser already inside a
+        # margin (just after a capture) keeps half its true gap
+        here = self.plan_geometry
+        gap = node_radii(here, start, np.full(here.n_bodies, cfg.chaser_radius), low, high)
+        own = node_radii(here, start, margins, low, high)
         start_radius = max(float(own), 0.5 * float(gap))
         self._trajectory = None
+        self._age = 0
+        floor = self.expansion_params.min_radius
+        start_radius = max(start_radius, floor)
+        goal_radius = max(float(node_radii(geometry, goal.point, margins, low, high)), floor)
         graph = expand_spheres(
             geometry, start, goal.point, margins, self._rng, self.expansion_params,
-            low=low, high=high, start_radius=start_radius,
+            low=low, high=high, start_radius=start_radius, goal_radius=goal_radius,
         )  # fmt: skip
         chain = shortest_chain(graph)
         if not chain.success or np.any(chain.radii <= 0):
@@ -262,8 +280,13 @@ class SESCPAgent(MPCPathAgent):
         (where that body will be then) than the chaser radius plus ``keep_fraction`` of the
         margin, or after ``replan_every`` decisions; a plan still clear is kept, so successive
         plans do not jump between corridors."""
-        if super().plan_expired(now) or self._trajectory is None:
-            return self._trajectory is None or super().plan_expired(now)
+        self._age += 1
+        if super().plan_expired(now):
+            return True
+        if self._trajectory is None:  # a fallback path: re-try the programme now and then
+            return self._age >= self.fallback_every
+        if self._age < 2:  # a fresh plan gets one decision before it is judged again
+            return False
         ref = self._ref
         if not isinstance(ref, TrajectoryReference):
             return True
