@@ -280,11 +280,6 @@ def expand_spheres(
             if np.min(np.linalg.norm(centers[:count] - new, axis=1)) < 1e-6:
                 continue
         radius = float(node_radii(geometry, new, margins, low, high))
-        if radius < params.min_radius and gap > radii[near]:
-            # the sphere's surface is too tight (a small start sphere beside a body): keep the
-            # free sample itself as a node, which later nodes can join to the rest
-            new = sample.copy()
-            radius = float(node_radii(geometry, new, margins, low, high))
         if radius < params.min_radius:
             continue
         centers[count], radii[count] = new, radius
