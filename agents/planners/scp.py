@@ -228,7 +228,6 @@ def assign_points(positions: np.ndarray, waypoints: np.ndarray) -> np.ndarray | 
     seg = np.linalg.norm(np.diff(waypoints, axis=0), axis=1)
     cum = np.concatenate([[0.0], np.cumsum(seg)])
     spheres = len(waypoints) - 1
-    best = np.zeros(len(positions), dtype=np.int64)
     # arc length of each point = its distance along the polyline (they are laid on it)
     along = np.array([_arc(p, waypoints, cum) for p in positions])
     best = np.searchsorted(cum[1:-1], along, side="right")
@@ -246,7 +245,7 @@ def _arc(point: np.ndarray, waypoints: np.ndarray, cum: np.ndarray) -> float:
     return float(cum[j] + t[j] * math.sqrt(length2[j]))
 
 
-def _profile(length: float, speed0: float, params: SCPParams, a: float, steps: int, dt: float):
+def _profile(length: float, params: SCPParams, a: float, steps: int, dt: float) -> np.ndarray:
     """Arc lengths (m) at the T+1 points of a speed-up / cruise / stop profile over ``length``."""
     t_total = steps * dt
     times = np.arange(steps + 1) * dt
@@ -262,7 +261,6 @@ def _profile(length: float, speed0: float, params: SCPParams, a: float, steps: i
             0.5 * v * ramp + v * (times - ramp),
         ),
     )
-    del speed0
     return np.clip(s, 0.0, length)
 
 
@@ -346,7 +344,7 @@ def scp_trajectory(
     for _ in range(params.max_growths + 1):
         tried.append(steps)
         length = float(np.linalg.norm(np.diff(waypoints, axis=0), axis=1).sum())
-        arc = _profile(length, 0.0, params, max_accel, steps, step)
+        arc = _profile(length, params, max_accel, steps, step)
         seg = np.linalg.norm(np.diff(waypoints, axis=0), axis=1)
         cum = np.concatenate([[0.0], np.cumsum(seg)])
         guess = np.stack([np.interp(arc, cum, waypoints[:, i]) for i in range(d)], axis=1)
