@@ -20,6 +20,7 @@ BASELINES: dict[str, str] = {
     "apf-mpc": "agents.policies.apf_mpc:APFMPCAgent",
     "astar": "agents.policies.astar:AStarAgent",
     "st-rrt": "agents.policies.st_rrt:STRRTAgent",
+    "se-scp": "agents.policies.se_scp:SESCPAgent",
 }
 """Baseline name → ``module:Class`` (imported on first use)."""
 

@@ -117,6 +117,11 @@ class MPCPathAgent(ClassicalAgent):
         (the field, or in a moving field the field frozen as it is now)."""
         raise NotImplementedError
 
+    def plan_expired(self, now: float) -> bool:
+        """Moving field: whether to re-plan on a fresh snapshot at time ``now`` (s); by default
+        every ``replan_every`` decisions."""
+        return self._since_plan >= self.replan_every
+
     # --- ClassicalAgent -----------------------------------------------------------------------
 
     def plan(self, scenario: Scenario) -> None:
@@ -170,7 +175,7 @@ class MPCPathAgent(ClassicalAgent):
             self._goal = goal or self.mission.current_goal(captured, pos, now)
             self.tracker.reset()
             self._new_path(pos)
-        elif self.motion is not None and self._since_plan >= self.replan_every:
+        elif self.motion is not None and self.plan_expired(now):
             self._new_path(pos)
         elif self._ref is not None and self._ref.deviation > self._replan_distance:
             self.stats["replans"] += 1
@@ -230,7 +235,7 @@ class MPCPathAgent(ClassicalAgent):
         if goal is None:
             self._ref = None
             return
-        cfg, scen = self.env.config, self.env.scenario
+        cfg = self.env.config
         self._since_plan = 0
         frame_pos = np.zeros(len(pos))
         t0 = time.perf_counter()
@@ -255,8 +260,16 @@ class MPCPathAgent(ClassicalAgent):
         self.path_log.append(np.asarray(waypoints))
         self._best_progress = 0
         self._since_progress = 0
-        self._ref = PathReference(
-            np.asarray(waypoints) - frame_pos,
+        self._ref = self.make_reference(np.asarray(waypoints) - frame_pos, result)
+
+    def make_reference(self, waypoints: np.ndarray, result: PlanResult) -> PathReference:
+        """The reference the tracker follows for a new plan: ``waypoints`` (m, in the goal's
+        frame in a moving field) with the speed profile of :class:`PathReference`. A subclass
+        whose planner times its path (``result``) may return any object with the same
+        ``horizon`` / ``deviation`` / ``progress`` / ``s`` / ``spacing``."""
+        scen = self.env.scenario
+        return PathReference(
+            waypoints,
             max_accel=scen.max_accel,
             dt=scen.dt,
             params=self.reference_params,
