@@ -26,6 +26,13 @@ target, fine discrete thrust, and undiscounted shaping on the shortest remaining
 never refunds (so the return ranks a success above idling, crashing, fleeing and burning the
 budget, whichever target a tour starts with)."""
 
+EASY_MISSION: dict[str, object] = {"n_targets": 1, "n_obstacles": 5, "return_to_dock": False}
+"""The Easy rung of v1: one target among five other debris, no return (the mission ends at the
+capture)."""
+
+MEDIUM_MISSION: dict[str, object] = {"n_targets": 2, "n_obstacles": 10, "return_to_dock": True}
+"""The Medium rung of v1: two targets among ten other debris, then back to the dock."""
+
 ENV_SPECS: dict[str, dict] = {
     "DebrisGym/Rendezvous2D-v1": {
         "max_episode_steps": 1000,
@@ -34,6 +41,22 @@ ENV_SPECS: dict[str, dict] = {
     "DebrisGym/Rendezvous3D-v1": {
         "max_episode_steps": 1000,
         "kwargs": {"dim": 3, **PHYSICAL_WORLD},
+    },
+    "DebrisGym/Rendezvous2D-Easy-v1": {
+        "max_episode_steps": 1000,
+        "kwargs": {"dim": 2, **PHYSICAL_WORLD, **EASY_MISSION},
+    },
+    "DebrisGym/Rendezvous2D-Medium-v1": {
+        "max_episode_steps": 1000,
+        "kwargs": {"dim": 2, **PHYSICAL_WORLD, **MEDIUM_MISSION},
+    },
+    "DebrisGym/Rendezvous3D-Easy-v1": {
+        "max_episode_steps": 1000,
+        "kwargs": {"dim": 3, **PHYSICAL_WORLD, **EASY_MISSION},
+    },
+    "DebrisGym/Rendezvous3D-Medium-v1": {
+        "max_episode_steps": 1000,
+        "kwargs": {"dim": 3, **PHYSICAL_WORLD, **MEDIUM_MISSION},
     },
     "DebrisGym/Rendezvous2D-v0": {"max_episode_steps": 1000, "kwargs": {"dim": 2}},
     "DebrisGym/Rendezvous3D-v0": {"max_episode_steps": 1000, "kwargs": {"dim": 3}},
@@ -55,7 +78,10 @@ ENV_SPECS: dict[str, dict] = {
         },
     },
 }
-"""Every registered ID with its time limit (steps) and keyword arguments."""
+"""Every registered ID with its time limit (steps) and keyword arguments. The Easy and Medium
+IDs are difficulty rungs of the v1 world (the same physics, rules and reward; fewer targets and
+debris): the same missions as ``reset(options={"mission": EASY_MISSION})`` on the v1 ID, so a
+curriculum can climb them in one env."""
 
 
 def register_envs() -> None:

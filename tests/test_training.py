@@ -528,14 +528,14 @@ def test_dqn_policy_flies_discrete_and_continuous_envs(trained):
 
 
 def test_curriculum_switches_the_training_env(train_cli, tmp_path, capsys):
-    """Stages run with their env options until their step count, then the final task."""
+    """Stages run with their missions until their step count, then the final task."""
     out = tmp_path / "run"
-    stages = "[{until: 128, env_kwargs: {n_targets: 1, return_to_dock: false}}]"
+    stages = "[{until: 128, mission: {n_targets: 1, return_to_dock: false}}]"
     argv = [*tiny_args("ppo"), "--out", str(out), "--set", f"curriculum={stages}"]
     argv += ["--set", "eval.freq=0"]
     assert train_cli.main(argv) == 0
     printed = capsys.readouterr().out
-    assert "curriculum: stage 0 (until 128) from step 0: {'n_targets': 1" in printed
+    assert "curriculum: stage 0 (until 128) from step 0: mission {'n_targets': 1" in printed
     assert "curriculum: stage 1 (the final task) from step 128" in printed
     with open(out / "train_episodes.csv") as fh:
         rows = list(csv.DictReader(fh))
@@ -543,7 +543,7 @@ def test_curriculum_switches_the_training_env(train_cli, tmp_path, capsys):
     assert all(c <= 1 for c in early)  # one target in stage 0
     config = yaml.safe_load((out / "config.yaml").read_text())
     assert config["curriculum"] == [
-        {"until": 128, "env_kwargs": {"n_targets": 1, "return_to_dock": False}}
+        {"until": 128, "mission": {"n_targets": 1, "return_to_dock": False}}
     ]
 
 
@@ -552,8 +552,10 @@ def test_curriculum_switches_the_training_env(train_cli, tmp_path, capsys):
     [
         ("[{until: 0}]", "curriculum[0].until"),
         ("[{until: 500}, {until: 400}]", "must be > 500"),
-        ("[{until: 10, env_kwargs: {obs_targets: 2}}]", "changes the observation"),
-        ("[{until: 10, env_kwargs: {n_targets: 0}}]", "curriculum[0].env_kwargs"),
+        ("[{until: 10, mission: {obs_targets: 2}}]", "may change only n_targets"),
+        ("[{until: 10, mission: {n_targets: 0}}]", "curriculum[0].mission"),
+        ("[{until: 10, env_kwargs: {shaping_gamma: 0.9}}]", "curriculum[0].env_kwargs"),
+        ("[{until: 10, mission: {}, env_kwargs: {}}]", "not both"),
         ("[{until: 10, envkwargs: {}}]", "curriculum[0].envkwargs"),
     ],
 )
@@ -588,3 +590,25 @@ def test_a_policy_trained_with_other_observation_options_flies_beside_the_baseli
     env = gym.make(ENV_ID)  # the default env does not fit the model; the error names the options
     with pytest.raises(ValueError, match=re.escape("trained with env options {'obs_targets': 2")):
         agents.load_agent(f"ppo:{out / 'model.zip'}", env)
+
+
+def test_training_you_can_watch_captures_and_success_in_tensorboard(train_cli, tmp_path, capsys):
+    """TensorBoard gets rollout/success_rate, rollout/targets_captured and the held-out
+    evaluation's eval/success_rate and eval/targets_captured; the console's evaluation line
+    names the captures. The logged captures equal the episode log's own mean."""
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    out = tmp_path / "run"
+    assert train_cli.main([*tiny_args("ppo"), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert re.search(r"eval @ [\d,]+ steps: .*success \d+%, targets captured [\d.]+ per", printed)
+    events = EventAccumulator(str(next((out / "tb").iterdir())))
+    events.Reload()
+    tags = set(events.Tags()["scalars"])
+    wanted = {"rollout/success_rate", "rollout/targets_captured", "eval/success_rate"}
+    assert wanted | {"eval/targets_captured"} <= tags
+    with open(out / "train_episodes.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    last = events.Scalars("rollout/targets_captured")[-1]
+    seen = [int(r["targets_captured"]) for r in rows if int(r["timesteps"]) <= last.step]
+    assert last.value == pytest.approx(np.mean(seen[-100:]))

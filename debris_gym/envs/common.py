@@ -20,10 +20,12 @@ from debris_gym.scenario import Scenario
 
 __all__ = [
     "DEFAULT_HORIZON_STEPS",
+    "MISSION_KEYS",
     "RESET_OPTIONS",
     "checked_chaser_states",
     "checked_continuous_actions",
     "checked_discrete_action",
+    "checked_mission",
     "checked_reset_options",
     "checked_seed",
     "discrete_action_table",
@@ -188,8 +190,45 @@ def warn_if_physics_differ(cfg: EnvConfig, scenario: Scenario) -> None:
 
 # --- user input at reset and step: one check each, shared by the single and the vector env ---
 
-RESET_OPTIONS = ("chaser_state", "scenario")
+RESET_OPTIONS = ("chaser_state", "mission", "scenario")
 """Keys ``reset(options=...)`` accepts."""
+
+MISSION_KEYS = ("n_targets", "n_obstacles", "return_to_dock")
+"""Config keys ``reset(options={"mission": {...}})`` may change: what a mission asks and how
+cluttered its field is, never the physics, the rules of capture, the reward weights or the
+spaces — so a curriculum can move a running learner between difficulty rungs."""
+
+
+def checked_mission(made: EnvConfig, mission: Any) -> EnvConfig:
+    """The config of a ``{"mission": {...}}`` reset option: ``made`` (the env's config as made)
+    with the :data:`MISSION_KEYS` the option names replaced.
+
+    An empty dict gives ``made`` back (the env's own mission again).
+
+    The observation's size never depends on these keys (the target slots are
+    ``obs_targets``, the obstacle slots ``obs_obstacles``), so the spaces stay.
+
+    Raises:
+        ValueError: naming the key: a key outside :data:`MISSION_KEYS`, a value out of its
+            range, or a field that cannot be placed.
+    """
+    if not isinstance(mission, Mapping):
+        raise ValueError(
+            f"options['mission'] must be a dict with keys among {', '.join(MISSION_KEYS)}, "
+            f"got {type(mission).__name__}"
+        )
+    unknown = sorted(set(mission) - set(MISSION_KEYS), key=str)
+    if unknown:
+        raise ValueError(
+            f"options['mission'] may change only {', '.join(MISSION_KEYS)}; got {unknown} (the "
+            "other options are the env's own: make another env to change them)"
+        )
+    if not mission:
+        return made
+    config = EnvConfig.from_kwargs(**{**made.to_dict(), **mission})
+    if made.scenario == "random":
+        field_spec(config)  # raises naming the options when such a field cannot be placed
+    return config
 
 
 def checked_seed(seed: Any, name: str = "seed") -> int | None:

@@ -15,6 +15,7 @@ from debris_gym.envs.common import (
     checked_chaser_states,
     checked_continuous_actions,
     checked_discrete_action,
+    checked_mission,
     checked_reset_options,
     checked_seed,
     discrete_action_table,
@@ -104,6 +105,7 @@ class DebrisFieldEnv(gym.Env):
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
         self.config = EnvConfig.from_kwargs(**kwargs)
+        self._made_config = self.config  # what a {"mission": {}} reset option returns to
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode={render_mode!r} is not supported; use one of "
@@ -129,6 +131,12 @@ class DebrisFieldEnv(gym.Env):
         self._renderer = None
 
     # --- state accessors --------------------------------------------------------------------
+
+    @property
+    def made_config(self) -> EnvConfig:
+        """The config the env was made with: what ``reset(options={"mission": {...}})`` changes
+        keys of (``self.config`` is the one in force)."""
+        return self._made_config
 
     @property
     def scenario(self) -> Scenario | None:
@@ -230,7 +238,8 @@ class DebrisFieldEnv(gym.Env):
         """The batch of one mission for fields of this physics and size (made again when they
         change)."""
         m = self._missions
-        if m is None or (m.physics, m.n_targets, m.field.n_bodies) != (
+        if m is None or (m.config, m.physics, m.n_targets, m.field.n_bodies) != (
+            self.config,
             physics,
             n_targets,
             n_bodies,
@@ -292,7 +301,11 @@ class DebrisFieldEnv(gym.Env):
             options: ``{"scenario": Scenario | dict | path}`` pins the field;
                 ``{"chaser_state": array (2·dim,)}`` sets the initial LVLH state (m, m/s):
                 strictly inside the bounds, clear of every body, speed at most the world size
-                over ``dt`` (:func:`~debris_gym.envs.common.checked_chaser_states`).
+                over ``dt`` (:func:`~debris_gym.envs.common.checked_chaser_states`);
+                ``{"mission": {"n_targets": 1, "n_obstacles": 5, "return_to_dock": False}}``
+                changes what the missions ask (:data:`~debris_gym.envs.common.MISSION_KEYS`)
+                from this reset on, until a reset names another mission (``{}``: the env's
+                own again) — a curriculum's rung, with the spaces unchanged.
 
         Raises:
             ValueError: naming the bad option; the env is unchanged.
@@ -301,7 +314,13 @@ class DebrisFieldEnv(gym.Env):
         options = checked_reset_options(options)
         saved = self._np_random, self._np_random_seed
         saved_state = None if saved[0] is None else saved[0].bit_generator.state
+        saved_mission = self.config, self._field_spec, self._drawer
         try:
+            if options.get("mission") is not None:
+                config = checked_mission(self._made_config, options["mission"])
+                if config != self.config:
+                    self.config, self._drawer = config, None
+                    self._field_spec = field_spec(config)
             super().reset(seed=seed)
             drawn = None
             if options.get("scenario") is not None:
@@ -330,6 +349,7 @@ class DebrisFieldEnv(gym.Env):
                 if options.get("scenario") is not None:
                     check_dock_clear(scenario, self.config.chaser_radius)
         except BaseException:  # nothing of the env changed but its generator: put it back
+            self.config, self._field_spec, self._drawer = saved_mission
             self._np_random, self._np_random_seed = saved
             if saved_state is not None:
                 saved[0].bit_generator.state = saved_state

@@ -33,6 +33,7 @@ from debris_gym.envs.common import (
     check_motion_matches,
     checked_chaser_states,
     checked_continuous_actions,
+    checked_mission,
     checked_reset_options,
     checked_seed,
     discrete_action_table,
@@ -111,6 +112,7 @@ class DebrisFieldVectorEnv(VectorEnv):
         self.metadata = {**self.metadata, "autoreset_mode": mode}
         self.autoreset_mode = mode
         self.config = cfg = EnvConfig.from_kwargs(**kwargs)
+        self._made_config = cfg  # what a {"mission": {}} reset option returns to
         self.num_envs = n = int(num_envs)
         self.max_episode_steps = max_episode_steps
         self.render_mode = None
@@ -130,6 +132,12 @@ class DebrisFieldVectorEnv(VectorEnv):
         self._obs = np.zeros((n, len(self._obs_names)), dtype=np.float32)
 
     # --- fields -------------------------------------------------------------------------------
+
+    @property
+    def made_config(self) -> EnvConfig:
+        """The config the env was made with: what ``reset(options={"mission": {...}})`` changes
+        keys of (``self.config`` is the one in force)."""
+        return self._made_config
 
     @property
     def scenarios(self) -> Sequence[Scenario | None]:
@@ -275,12 +283,15 @@ class DebrisFieldVectorEnv(VectorEnv):
             seed: an int seeds sub-env i with ``seed + i``; a list gives one seed per sub-env.
             options: ``{"scenario": ...}`` pins the same field in every sub-env;
                 ``{"chaser_state": array (N, 2·dim) or (2·dim,)}`` sets the initial states
-                (:func:`~debris_gym.envs.common.checked_chaser_states`).
+                (:func:`~debris_gym.envs.common.checked_chaser_states`);
+                ``{"mission": {...}}`` changes what every sub-env's missions ask
+                (:data:`~debris_gym.envs.common.MISSION_KEYS`) from this reset on, autoresets
+                included, until a reset names another mission (``{}``: the env's own again).
 
         Raises:
             ValueError: naming the bad seed or option; the env is unchanged.
         """
-        n, cfg = self.num_envs, self.config
+        n = self.num_envs
         if seed is None:
             seeds: list[int | None] = [None] * n
         elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
@@ -299,7 +310,14 @@ class DebrisFieldVectorEnv(VectorEnv):
         rngs = [None if s is None else seeding.np_random(s)[0] for s in seeds]
         rngs = [r if r is not None else self._rngs[i] for i, r in enumerate(rngs)]
         saved = [r.bit_generator.state for r in self._rngs]
+        saved_mission = self.config, self._field_spec, self._drawer, self._missions
         try:
+            if options.get("mission") is not None:
+                config = checked_mission(self._made_config, options["mission"])
+                if config != self.config:  # a new batch, sized and ruled by the new mission
+                    self.config, self._drawer, self._missions = config, None, None
+                    self._field_spec = field_spec(config)
+            cfg = self.config
             pinned = options.get("scenario")
             fields = None
             if pinned is not None:
@@ -323,6 +341,7 @@ class DebrisFieldVectorEnv(VectorEnv):
             elif pinned is not None:
                 check_dock_clear(pinned, cfg.chaser_radius)  # every sub-env starts at the dock
         except BaseException:
+            self.config, self._field_spec, self._drawer, self._missions = saved_mission
             for rng, state in zip(self._rngs, saved):
                 rng.bit_generator.state = state
             raise

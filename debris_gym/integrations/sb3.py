@@ -18,6 +18,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode
 
+from debris_gym.envs.common import checked_mission
+
 try:
     from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 except ImportError as exc:  # pragma: no cover - exercised only without SB3
@@ -51,14 +53,36 @@ class NativeVecEnv(VecEnv):
             num_envs, self.venv.single_observation_space, self.venv.single_action_space
         )
         self._actions: np.ndarray | None = None
+        self._new_mission: dict[str, Any] | None = None
 
     def reset(self) -> np.ndarray:
+        """Reset every sub-env, with the seeds of ``seed()`` and the options of
+        ``set_options()`` (one dict for all: the sub-envs share one batch)."""
         seeds = self._seeds
         seed: list[int | None] | None = None if all(s is None for s in seeds) else list(seeds)
-        obs, _ = self.venv.reset(seed=seed)
+        options = self._options[0] if self._options else {}
+        if any(o != options for o in self._options):
+            raise ValueError("the native vector env takes one options dict for every sub-env")
+        obs, _ = self.venv.reset(seed=seed, options=options or None)
         self._reset_seeds()
         self._reset_options()
+        self._new_mission = None
         return obs
+
+    def set_mission(self, mission: dict[str, Any]) -> None:
+        """Move every sub-env to another mission (a difficulty rung) at the next step.
+
+        That step ends every running episode — those that do not end by themselves are
+        truncated (``TimeLimit.truncated``: learners bootstrap them, as at a time limit) — and
+        restarts every sub-env with ``reset(options={"mission": mission})``; the generators go
+        on, so nothing else about the run changes. This is how a curriculum changes rungs while
+        SB3 is collecting rollouts, with no reset from outside.
+
+        Raises:
+            ValueError: now, naming the bad key or value (checked against the env's options).
+        """
+        checked_mission(self.venv.unwrapped.made_config, mission)
+        self._new_mission = dict(mission)
 
     def step_async(self, actions: np.ndarray) -> None:
         self._actions = np.asarray(actions)
@@ -75,7 +99,21 @@ class NativeVecEnv(VecEnv):
                 infos[i]["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
             else:
                 infos[i] = {key: info[key][i] for key in INFO_KEYS}
+        if self._new_mission is not None:
+            obs = self._change_mission(obs, dones, infos)
+            dones = np.ones(self.num_envs, dtype=bool)
         return obs, reward.astype(np.float32), dones, infos
+
+    def _change_mission(
+        self, obs: np.ndarray, dones: np.ndarray, infos: list[dict[str, Any]]
+    ) -> np.ndarray:
+        """Truncate the running episodes and restart every sub-env on the new mission."""
+        for i in np.flatnonzero(~dones):
+            infos[i]["terminal_observation"] = obs[i].copy()
+            infos[i]["TimeLimit.truncated"] = True
+        mission, self._new_mission = self._new_mission, None
+        new_obs, _ = self.venv.reset(options={"mission": mission})
+        return new_obs
 
     def close(self) -> None:
         self.venv.close()

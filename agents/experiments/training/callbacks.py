@@ -9,6 +9,7 @@ import csv
 import sys
 import time
 import zipfile
+from collections import deque
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -44,42 +45,34 @@ __all__ = [
 
 
 class CurriculumCallback(BaseCallback):
-    """Before each rollout, give the training env the options of the current stage.
+    """Before a rollout that starts a new stage, move the training env to that stage's mission.
+
+    The env does it itself (:meth:`~debris_gym.integrations.sb3.NativeVecEnv.set_mission`: at
+    the next step every running episode is truncated and restarted on the new rung), so the
+    normalisation statistics, the model and the rollout stay as SB3 keeps them.
 
     Args:
         config: the run's config (its ``curriculum`` stages).
-        seed: base seed; stage ``k``'s fields are seeded from ``seed + k``.
     """
 
-    def __init__(self, config: TrainConfig, seed: int) -> None:
+    def __init__(self, config: TrainConfig) -> None:
         super().__init__()
         self.config = config
-        self.seed = seed
         self.current: int | None = None
 
     def _on_rollout_start(self) -> None:
-        from debris_gym.integrations.sb3 import NativeVecEnv
-
         config = self.config
         stage = config.stage(self.num_timesteps)
         if stage == self.current:
             return
-        kwargs = config.stage_env_kwargs(stage)
-        holder = self.training_env  # VecNormalize → VecMonitor → NativeVecEnv
-        while not isinstance(holder.venv, NativeVecEnv):
-            holder = holder.venv
-        holder.venv.close()
-        holder.venv = NativeVecEnv(config.env_id, config.n_envs, **kwargs)
-        self.training_env.seed(self.seed + stage)
-        # SB3 keeps the rollout's starting point on the model; a new env needs a fresh one
-        self.model._last_obs = self.training_env.reset()
-        self.model._last_episode_starts = np.ones(config.n_envs, dtype=bool)
+        mission = config.stage_mission(stage)
+        self.training_env.set_mission(mission)  # VecNormalize/VecMonitor hand it down
         self.current = stage
         final = stage == len(config.curriculum)
         what = "the final task" if final else f"until {config.curriculum[stage]['until']:,}"
         print(
             f"curriculum: stage {stage} ({what}) from step {self.num_timesteps:,}: "
-            f"{config.curriculum[stage]['env_kwargs'] if not final else config.env_kwargs}",
+            f"mission {mission or 'of ' + config.env_id}",
             flush=True,
         )
 
@@ -101,6 +94,9 @@ class EpisodeLogCallback(BaseCallback):
         self.path = path
         self.rows: list[tuple] = []
         self.start = time.perf_counter()
+        self.recent_captures: deque[int] = deque(maxlen=100)
+        """Targets captured in the last 100 training episodes (SB3's window for its
+        ``rollout/ep_rew_mean`` and ``rollout/success_rate``)."""
 
     def _on_training_start(self) -> None:
         if not self.path.exists():
@@ -121,6 +117,7 @@ class EpisodeLogCallback(BaseCallback):
                         round(time.perf_counter() - self.start, 3),
                     )
                 )
+                self.recent_captures.append(int(ep.get("targets_captured", 0)))
         if len(self.rows) >= 256:
             self.flush()
         return True
@@ -131,6 +128,11 @@ class EpisodeLogCallback(BaseCallback):
             with open(self.path, "a", newline="") as fh:
                 csv.writer(fh).writerows(self.rows)
             self.rows = []
+
+    def _on_rollout_end(self) -> None:
+        # beside SB3's rollout/success_rate in TensorBoard and the console table
+        if self.recent_captures:
+            self.logger.record("rollout/targets_captured", float(np.mean(self.recent_captures)))
 
     def _on_training_end(self) -> None:
         self.flush()
@@ -207,9 +209,15 @@ class HeldOutEvalCallback(EvalCallback):
         self.seconds += time.perf_counter() - start
         returns = self.evaluations_results[-1] if self.evaluations_results else [np.nan]
         success = self.evaluations_successes[-1] if self.evaluations_successes else [np.nan]
+        captures = float(np.mean(self._targets_buffer)) if self._targets_buffer else np.nan
+        # SB3 recorded and wrote eval/mean_reward and eval/success_rate at this step; the
+        # captures go beside them (SB3's logger writes only TensorBoard here: verbose=0)
+        self.logger.record("eval/targets_captured", captures)
+        self.logger.dump(self.num_timesteps)
         print(
             f"eval @ {self.num_timesteps:,} steps: return {np.mean(returns):.2f} "
-            f"± {np.std(returns):.2f}, success {100 * np.mean(success):.0f}% "
+            f"± {np.std(returns):.2f}, success {100 * np.mean(success):.0f}%, "
+            f"targets captured {captures:.2f} per episode "
             f"({len(returns)} held-out episodes, {time.perf_counter() - start:.1f} s)",
             flush=True,
         )
@@ -294,7 +302,7 @@ class PruningCheckpointCallback(CheckpointCallback):
 
 
 def make_callbacks(
-    config: TrainConfig, out: Path, eval_env: Any, resume_at: int | None, seed: int = 0
+    config: TrainConfig, out: Path, eval_env: Any, resume_at: int | None
 ) -> tuple[list[Any], HeldOutEvalCallback | None, PruningCheckpointCallback | None, Any]:
     """The callbacks of a run: (all of them, the evaluation or None, the checkpointer or None,
     the episode logger).
@@ -305,12 +313,11 @@ def make_callbacks(
         eval_env: the evaluation VecEnv (None when ``config.eval.freq`` is 0).
         resume_at: timesteps of the checkpoint a resumed run starts from (None: a fresh run);
             the evaluation log continues up to it.
-        seed: base seed of the curriculum's stages.
     """
     episodes = EpisodeLogCallback(out / "train_episodes.csv")
     callbacks: list[Any] = [episodes]
     if config.curriculum:
-        callbacks.insert(0, CurriculumCallback(config, seed))
+        callbacks.insert(0, CurriculumCallback(config))
     n = config.n_envs
     checkpoint = None
     if config.checkpoint.freq > 0:

@@ -150,11 +150,12 @@ class TrainConfig:
                 return k
         return len(self.curriculum)
 
-    def stage_env_kwargs(self, stage: int) -> dict[str, Any]:
-        """The training env's options in curriculum stage ``stage``."""
+    def stage_mission(self, stage: int) -> dict[str, Any]:
+        """The ``reset(options={"mission": ...})`` of curriculum stage ``stage`` (``{}``: the
+        final task, the env's own mission)."""
         if stage >= len(self.curriculum):
-            return dict(self.env_kwargs)
-        return {**self.env_kwargs, **self.curriculum[stage]["env_kwargs"]}
+            return {}
+        return dict(self.curriculum[stage]["mission"])
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], source: str = "config") -> TrainConfig:

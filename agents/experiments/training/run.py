@@ -196,13 +196,12 @@ def _refuse_suite_seeds(seed: int, config: TrainConfig) -> None:
     """Refuse a run whose training or periodic-evaluation envs would be reset with a frozen
     suite's seeds: suites are evaluation-only (:mod:`debris_gym.suites`).
 
-    Training sub-env ``i`` of curriculum stage ``k`` is seeded with ``seed + k + i``; periodic
-    evaluation (model selection: ``best_model.zip``) with ``EVAL_SEED + i``.
+    Training sub-env ``i`` is seeded with ``seed + i`` (curriculum stages continue its
+    generator); periodic evaluation (model selection: ``best_model.zip``) with ``EVAL_SEED + i``.
     """
     from debris_gym.suites import refuse_suite_seeds
 
-    stages = len(config.curriculum) + 1
-    refuse_suite_seeds(range(seed, seed + stages - 1 + config.n_envs), "training (--seed)")
+    refuse_suite_seeds(range(seed, seed + config.n_envs), "training (--seed)")
     if config.eval.freq > 0:
         refuse_suite_seeds(
             range(EVAL_SEED, EVAL_SEED + config.eval.n_envs),
@@ -504,7 +503,6 @@ def _run_segment(segment: _Segment, options: TrainOptions) -> TrainResult:
         out,
         segment.eval_env,
         start_steps if checkpoint is not None else None,
-        segment.segment_seed,
     )
     if options.progress:
         callbacks.append(ProgressBarCallback())

@@ -124,16 +124,18 @@ def section(cls: type, data: Any, prefix: str, source: str) -> Any:
 def validate_curriculum(
     data: Any, env_kwargs: dict[str, Any], spec_kwargs: dict[str, Any], final: Any, source: str
 ) -> list[dict[str, Any]]:
-    """Curriculum stages: ``until`` strictly increasing, env options valid, same spaces."""
-    from debris_gym.config import EnvConfig
-    from debris_gym.envs.common import observation_names
+    """Curriculum stages ``{until: N, mission: {...}}``: ``until`` strictly increasing, each
+    mission a valid ``reset(options={"mission": ...})`` of the final task's env (only
+    :data:`~debris_gym.envs.common.MISSION_KEYS`; the spaces stay). ``env_kwargs`` is read as
+    ``mission`` (configs written before the rungs were an env feature)."""
+    from debris_gym.envs.common import checked_mission
 
     stages = typed(data if data is not None else [], list, "curriculum", source)
     out: list[dict[str, Any]] = []
     previous = 0
     for k, stage in enumerate(stages):
         where = f"curriculum[{k}]"
-        stage = check_keys(stage, ["until", "env_kwargs"], f"{where}.", source)
+        stage = check_keys(stage, ["until", "mission", "env_kwargs"], f"{where}.", source)
         if "until" not in stage:
             raise config_error(source, f"{where}.until", "is missing (required)")
         until = typed(stage["until"], int, f"{where}.until", source)
@@ -142,23 +144,15 @@ def validate_curriculum(
                 source, f"{where}.until", f"must be > {previous} (stages in increasing order)"
             )
         previous = until
-        kwargs = typed(stage.get("env_kwargs") or {}, dict, f"{where}.env_kwargs", source)
-        options = {k2: v for k2, v in {**env_kwargs, **kwargs}.items() if k2 != "max_episode_steps"}
+        if "mission" in stage and "env_kwargs" in stage:
+            raise config_error(source, f"{where}", "give mission or env_kwargs, not both")
+        key = "env_kwargs" if "env_kwargs" in stage else "mission"
+        mission = typed(stage.get(key) or {}, dict, f"{where}.{key}", source)
         try:
-            cfg = EnvConfig.from_kwargs(**{**spec_kwargs, **options})
-        except (TypeError, ValueError) as exc:
-            raise config_error(source, f"{where}.env_kwargs", f"is invalid: {exc}") from None
-        if len(observation_names(cfg)) != len(observation_names(final)) or (
-            cfg.action,
-            cfg.dim,
-        ) != (final.action, final.dim):
-            raise config_error(
-                source,
-                f"{where}.env_kwargs",
-                "changes the observation or action space (keep obs_targets, obs_obstacles, "
-                "observation, lidar_rays, obs_goal, action and dim as in env_kwargs)",
-            )
-        out.append({"until": until, "env_kwargs": kwargs})
+            checked_mission(final, mission)
+        except ValueError as exc:
+            raise config_error(source, f"{where}.{key}", f"is invalid: {exc}") from None
+        out.append({"until": until, "mission": mission})
     return out
 
 
