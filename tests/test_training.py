@@ -348,9 +348,11 @@ def test_checked_in_configs_are_valid():
         assert config.version >= 1
         if config.algo == "ppo":
             assert config.normalize.enabled
-            if config.env_kwargs.get("shaping_terminal", "zero") == "zero":
+            # the env's options as the run makes them: its ID's, then the recipe's
+            env_options = {**gym.spec(config.env_id).kwargs, **config.env_kwargs}
+            if env_options.get("shaping_terminal", "zero") == "zero":
                 # policy-invariant shaping: gamma equals the env's shaping_gamma (0.99 default)
-                assert config.gamma == config.env_kwargs.get("shaping_gamma", 0.99)
+                assert config.gamma == env_options.get("shaping_gamma", 0.99)
 
 
 @pytest.mark.parametrize(

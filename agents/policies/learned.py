@@ -62,6 +62,7 @@ PRETRAINED_DIR = Path(__file__).resolve().parent.parent / "pretrained"
 
 PRETRAINED_POLICIES: dict[str, tuple[str, str]] = {
     "DebrisGym/Rendezvous2D-v0": ("ppo", "rendezvous2d_dagger.zip"),
+    "DebrisGym/Rendezvous2D-Easy-v1": ("ppo", "rendezvous2d-easy_ppo.zip"),
 }
 """Env ID → (algorithm, file in :data:`PRETRAINED_DIR`)."""
 
@@ -445,7 +446,7 @@ def pretrained_path(env: Any) -> tuple[str, Path]:
         known = ", ".join(PRETRAINED_POLICIES)
         why = ""
         if env_id and env_id.endswith("-v1"):
-            why = ": no policy trained in the v1 world (moving debris) ships yet"
+            why = ": no policy trained for this v1 ID ships yet"
         raise ValueError(
             f"no pretrained policy for {env_id or 'this env'}{why} (there is one for {known})"
         )
