@@ -41,6 +41,7 @@ __all__ = [
     "build_finetune_model",
     "check_init_run",
     "finetune_train_env",
+    "reference_path",
     "restore_reference",
     "save_reference",
 ]
@@ -344,9 +345,9 @@ def save_reference(out: Path, config: TrainConfig) -> None:
         save_atomic(dst, lambda tmp, src=src: shutil.copyfile(src, tmp))
 
 
-def restore_reference(model: AnchoredPPO, config: TrainConfig, out: Path) -> None:
-    """Anchor a resumed ``model`` to the run's copy of the init model (``DIR/init_model.zip``),
-    or, if that is gone, to ``init.path``'s model.
+def reference_path(config: TrainConfig, out: Path) -> Path:
+    """The model a resumed run anchors to: the run's copy of the init model
+    (``DIR/init_model.zip``) or, if that is gone, ``init.path``'s model.
 
     Raises:
         FileNotFoundError: neither is there.
@@ -354,10 +355,15 @@ def restore_reference(model: AnchoredPPO, config: TrainConfig, out: Path) -> Non
     assert config.init.path is not None
     for candidate in (out / REFERENCE_MODEL, Path(config.init.path) / FINAL_MODEL):
         if candidate.is_file():
-            model.set_reference(_load_init_model(candidate, str(out / "config.yaml")).policy)
-            return
+            return candidate
     raise FileNotFoundError(
         f"--resume {out}: the anchor's reference is gone (neither {out / REFERENCE_MODEL} nor "
         f"{Path(config.init.path) / FINAL_MODEL} exists); copy the initial run's model.zip to "
         f"{out / REFERENCE_MODEL}"
     )
+
+
+def restore_reference(model: AnchoredPPO, config: TrainConfig, out: Path) -> None:
+    """Anchor a resumed ``model`` to :func:`reference_path`'s policy."""
+    path = reference_path(config, out)
+    model.set_reference(_load_init_model(path, str(out / "config.yaml")).policy)

@@ -402,6 +402,8 @@ def _prepare_resume(options: TrainOptions, out: Path, device: str, command: str)
     data, run = load_config_file(out / "config.yaml")
     config = TrainConfig.from_dict(data, source=str(out / "config.yaml"))
     seed = int(run.get("seed", 0))
+    if config.init.path is not None:  # the anchor's reference must be there before anything
+        finetune.reference_path(config, out)
     needs_stats = config.normalize.enabled
     checkpoint = find_latest_checkpoint(out, needs_stats)
     start_steps = model_timesteps(checkpoint)
