@@ -110,7 +110,10 @@ def adopt_init_options(
         data = {**data, "init": section}
     if not isinstance(section, dict) or not isinstance(section.get("path"), str):
         return data  # no init, or a malformed section that TrainConfig.from_dict names
-    path = Path(section["path"])
+    if not section["path"].strip():
+        return data  # from_dict names it
+    path = Path(section["path"]).resolve()  # a resume from elsewhere finds it
+    data = {**data, "init": {**section, "path": str(path)}}
     _, _, config_file = _init_files(path, source)
     try:
         init_data, _ = load_config_file(config_file)
