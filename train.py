@@ -22,6 +22,8 @@ examples:
   python train.py --algo ppo --timesteps 4096 --n-envs 2 --out /tmp/t1     # a quick check
   python train.py --env DebrisGym/Rendezvous2D-v1 --algo ppo --out runs/ppo  # the full recipe
   python train.py --algo sac --out runs/sac --set algo_kwargs.batch_size=512
+  python train.py --config agents/configs/rendezvous2d_finetune.yaml --init runs/dagger \
+      --out runs/ft                                      # RL fine-tuning of a DAgger policy
   python train.py --resume runs/ppo                                          # after Ctrl-C
   python train.py --resume runs/ppo --timesteps 1000000                      # 1M steps more
   python evaluate.py --agents apf,ppo=runs/ppo/model.zip
@@ -77,6 +79,12 @@ def build_parser() -> argparse.ArgumentParser:
         parser,
         "agents/configs/<env>_<algo>.yaml",
         "--set algo_kwargs.batch_size=512 --set normalize.enabled=false",
+    )
+    parser.add_argument(
+        "--init",
+        metavar="DIR",
+        help="fine-tune the policy of run DIR (imitate.py or train.py output) with PPO: its "
+        "weights, observation statistics and options; see the 'init' config keys",
     )
     parser.add_argument(
         "--resume",

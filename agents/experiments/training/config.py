@@ -100,6 +100,30 @@ class CheckpointConfig:
 
 
 @dataclass(frozen=True)
+class InitConfig:
+    """RL fine-tuning: start PPO from another run's policy (``train.py --init DIR``).
+
+    Attributes:
+        path: run directory of the initial policy (``imitate.py`` or ``train.py`` output:
+            ``model.zip``, ``vecnormalize.pkl``, ``config.yaml``); None = learn from scratch.
+            Its policy weights and observation statistics are the start (the statistics stay
+            frozen), its observation options are taken over.
+        critic_warmup: env steps (over all sub-envs) at the start during which only the value
+            function learns; the policy, ``log_std`` included, does not change.
+        anchor_coef: weight of the imitation anchor ``mean ‖μθ(s) − μ₀(s)‖²`` (μ: deterministic
+            action, normalised thrust in [-1, 1] per axis; μ₀: the initial policy's) at the end
+            of the warm-up.
+        anchor_decay: env steps after the warm-up over which the anchor's weight falls linearly
+            to 0.
+    """
+
+    path: str | None = None
+    critic_warmup: int = 0
+    anchor_coef: float = 0.0
+    anchor_decay: int = 0
+
+
+@dataclass(frozen=True)
 class TrainConfig:
     """One training recipe: env × algorithm × hyper-parameters (a YAML file's typed form).
 
@@ -125,6 +149,7 @@ class TrainConfig:
             ``env_kwargs`` merged over the top-level ones (e.g. fewer targets); afterwards the
             top-level ones. Observation and action spaces must not change; evaluation always
             flies the final task.
+        init: RL fine-tuning from another run's policy (:class:`InitConfig`; ppo only).
         notes: free text (what the recipe is for, what it was tuned on).
     """
 
@@ -141,6 +166,7 @@ class TrainConfig:
     eval: EvalConfig = field(default_factory=EvalConfig)
     checkpoint: CheckpointConfig = field(default_factory=CheckpointConfig)
     curriculum: list[dict[str, Any]] = field(default_factory=list)
+    init: InitConfig = field(default_factory=InitConfig)
     notes: str = ""
 
     def stage(self, timesteps: int) -> int:
@@ -278,6 +304,7 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
     curriculum = validate_curriculum(
         data.get("curriculum"), env_kwargs, spec.kwargs, env_config, source
     )
+    init = _validate_init(data.get("init"), algo, normalize, source)
     return TrainConfig(
         version=version,
         env_id=env_id,
@@ -292,8 +319,49 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
         eval=evaluation,
         checkpoint=checkpoint,
         curriculum=curriculum,
+        init=init,
         notes=notes,
     )
+
+
+def _validate_init(data: Any, algo: str, normalize: NormalizeConfig, source: str) -> InitConfig:
+    """The ``init`` section: ranges, and what fine-tuning needs of the rest of the config (the
+    init run directory itself is checked by :func:`~agents.experiments.training.finetune.
+    check_init_run`)."""
+    init = section(InitConfig, data, "init.", source)
+    at_least(init.critic_warmup, 0, "init.critic_warmup", source)
+    at_least(init.anchor_coef, 0.0, "init.anchor_coef", source)
+    at_least(init.anchor_decay, 0, "init.anchor_decay", source)
+    if init.path is None:
+        if init.critic_warmup > 0 or init.anchor_coef > 0:
+            raise config_error(
+                source,
+                "init.path",
+                "is required with init.critic_warmup or init.anchor_coef > 0 (the run to "
+                "fine-tune: train.py --init DIR)",
+            )
+        return init
+    if not init.path.strip():
+        raise config_error(source, "init.path", "must name a run directory, got an empty string")
+    if algo != "ppo":
+        raise config_error(
+            source, "init.path", f"fine-tuning from an initial policy needs algo ppo, got {algo!r}"
+        )
+    if init.anchor_coef > 0 and init.anchor_decay < 1:
+        raise config_error(
+            source,
+            "init.anchor_decay",
+            f"must be >= 1 env step when init.anchor_coef > 0 (the anchor decays to 0 over it), "
+            f"got {init.anchor_decay}",
+        )
+    if not (normalize.enabled and normalize.norm_obs):
+        raise config_error(
+            source,
+            "normalize.enabled",
+            "and normalize.norm_obs must be true with init.path (the initial policy reads "
+            "observations normalised by its run's statistics)",
+        )
+    return init
 
 
 def default_config_path(env_id: str, algo: str) -> Path:

@@ -48,7 +48,11 @@ def make_train_env(config: TrainConfig, seed: int, stats: Path | None = None) ->
 
     venv = _vec_env(config, config.n_envs)
     norm = config.normalize
-    if norm.enabled:
+    if config.init.path is not None:  # fine-tuning: the init run's statistics, frozen
+        from agents.experiments.training.finetune import finetune_train_env
+
+        venv = finetune_train_env(venv, config, stats)
+    elif norm.enabled:
         if stats is not None:
             venv = VecNormalize.load(str(stats), venv)
             venv.training = True
@@ -176,12 +180,24 @@ def build_model(
     source: str = "config",
 ) -> Any:
     """A fresh SB3 model of the recipe on ``train_env`` (nothing is written: SB3 makes its
-    TensorBoard folder only when learning starts).
+    TensorBoard folder only when learning starts); with ``init.path`` an
+    :class:`~agents.experiments.training.anchored.AnchoredPPO` started from that run's policy.
 
     Raises:
         ConfigError: SB3 rejects the recipe's keyword arguments (its own asserts and checks, which
             the ranges of :mod:`~agents.experiments.training.validation` do not cover).
     """
+    if config.init.path is not None:
+        from agents.experiments.training.finetune import build_finetune_model
+
+        return build_finetune_model(
+            config,
+            train_env,
+            seed=seed,
+            device=device,
+            tensorboard_log=tensorboard_log,
+            source=source,
+        )
     cls = algo_class(config.algo)
     try:
         return cls(

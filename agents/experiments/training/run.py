@@ -26,6 +26,7 @@ from stable_baselines3.common.callbacks import ProgressBarCallback
 from agents.experiments.config_files import CONFIG_DIR, apply_overrides, env_stub
 from agents.experiments.provenance import library_versions, utc_now
 from agents.experiments.run_directory import LOCK_FILE, RunDirectoryLock, check_output_dir
+from agents.experiments.training import finetune
 from agents.experiments.training.callbacks import close_progress_bar, make_callbacks
 from agents.experiments.training.checkpoints import (
     INTERRUPTED,
@@ -90,6 +91,7 @@ class TrainOptions:
         progress: show SB3's progress bar.
         threads: torch CPU threads.
         device: torch device (see :func:`~agents.experiments.training.models.resolve_device`).
+        init: a run directory whose policy the run starts from (config key ``init.path``).
         argv: the command line (recorded in config.yaml).
     """
 
@@ -105,6 +107,7 @@ class TrainOptions:
     progress: bool = True
     threads: int = 1
     device: str = "cpu"
+    init: str | Path | None = None
     argv: list[str] | None = None
 
 
@@ -165,12 +168,15 @@ def resolve_config(options: TrainOptions) -> tuple[TrainConfig, str]:
             raise ConfigError(
                 f"--algo {options.algo!r} disagrees with algo: {given_algo!r} in {path}"
             )
-    data = apply_overrides(data, options.overrides)
+    data = finetune.adopt_init_options(
+        apply_overrides(data, options.overrides), options.init, str(path)
+    )
     if options.n_envs is not None:
         data["n_envs"] = options.n_envs
     if options.timesteps is not None:
         data["timesteps"] = options.timesteps
     config = TrainConfig.from_dict(data, source=str(path))
+    finetune.check_init_run(config, str(path))
     rollout = config.algo_kwargs.get("n_steps", 2048) * config.n_envs
     batch = config.algo_kwargs.get("batch_size", 64)
     if config.algo == "ppo" and batch > rollout:  # e.g. the 128-env recipe run with --n-envs 2
@@ -316,6 +322,7 @@ def _check_resume_options(options: TrainOptions) -> Path:
         ("--n-envs", options.n_envs),
         ("--seed", options.seed),
         ("--set", options.overrides or None),
+        ("--init", options.init),
     ):
         if value is not None:
             raise ValueError(
@@ -395,6 +402,8 @@ def _prepare_resume(options: TrainOptions, out: Path, device: str, command: str)
     data, run = load_config_file(out / "config.yaml")
     config = TrainConfig.from_dict(data, source=str(out / "config.yaml"))
     seed = int(run.get("seed", 0))
+    if config.init.path is not None:  # the anchor's reference must be there before anything
+        finetune.reference_path(config, out)
     needs_stats = config.normalize.enabled
     checkpoint = find_latest_checkpoint(out, needs_stats)
     start_steps = model_timesteps(checkpoint)
@@ -429,7 +438,8 @@ def _prepare_resume(options: TrainOptions, out: Path, device: str, command: str)
     stats = sidecar_path(checkpoint, "vecnormalize") if needs_stats else None
     _build(segment, stats, device)
     try:
-        model = algo_class(config.algo).load(str(checkpoint), env=segment.train_env, device=device)
+        cls = finetune.AnchoredPPO if config.init.path is not None else algo_class(config.algo)
+        model = cls.load(str(checkpoint), env=segment.train_env, device=device)
     except (RuntimeError, EOFError, OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:
         _close_envs(segment)
         raise ValueError(
@@ -438,6 +448,8 @@ def _prepare_resume(options: TrainOptions, out: Path, device: str, command: str)
         ) from None
     model.tensorboard_log = tensorboard_dir(out)
     model.set_random_seed(segment_seed)
+    if config.init.path is not None:
+        finetune.configure_resumed(model, config, out)
     if config.algo in OFF_POLICY:
         _restore_replay_buffer(model, config, checkpoint)
     segment.model = model
@@ -498,6 +510,10 @@ def _run_segment(segment: _Segment, options: TrainOptions) -> TrainResult:
     if checkpoint is not None:
         truncate_episode_log(out / "train_episodes.csv", start_steps)
     write_run_config(out, config, run)  # before learning, so an interrupted run can be resumed
+    if checkpoint is None and config.init.path is not None:
+        finetune.save_reference(
+            out, config
+        )  # a resume restores the anchor's reference from the run
     callbacks, evaluation, checkpointer, episodes = make_callbacks(
         config,
         out,

@@ -38,6 +38,9 @@ UNSTARTED_RUN_FILES = (
     "best_model_replay_buffer.pkl",
     "checkpoints",
     "tb",
+    "init_model.zip",  # a fine-tune's copy of its initial policy (training/finetune.py)
+    "init_model_vecnormalize.pkl",
+    "init_model.yaml",
 )
 """What a run leaves before its first complete model: removed when a fresh run takes over a
 directory whose run never saved one (it cannot be resumed, and its episode log would otherwise

@@ -1,0 +1,372 @@
+"""RL fine-tuning of another run's policy (``train.py --init DIR``; the ``init`` config section).
+
+The init run (``imitate.py`` or ``train.py`` output) gives the fine-tune run
+
+* its **observation options** (:data:`~agents.policies.learned.OBSERVATION_KEYS` of its
+  ``config.yaml``): copied into the run's ``env_kwargs`` when the config leaves them out, a
+  different value is refused (:func:`adopt_init_options`);
+* its **policy weights** (actor, ``log_std`` and value head; the value head of a DAgger run is
+  untrained, hence the critic warm-up) and network shape (:func:`build_finetune_model`);
+* its **observation statistics**, kept frozen for the whole run (:class:`FrozenObsVecNormalize`):
+  the policy's input means what it meant to the initial policy, so neither the policy nor the
+  anchor's reference μ₀ sees its inputs shift. The reward is normalised by the running std of
+  the return as in any run (``normalize.norm_reward``);
+* the **frozen reference** of the anchor: a copy of the init model is written into the run
+  directory (``init_model.zip`` with ``init_model_vecnormalize.pkl`` and ``init_model.yaml``,
+  itself a model ``evaluate.py`` can fly) so that ``--resume`` restores μ₀ from the run alone
+  (:func:`restore_reference`).
+"""
+
+from __future__ import annotations
+
+import shutil
+import sys
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from stable_baselines3.common.vec_env import VecNormalize
+
+from agents.experiments.training.anchored import AnchoredPPO
+from agents.experiments.training.config import TrainConfig
+from agents.policies.learned import OBSERVATION_KEYS, read_vecnormalize
+from agents.policies.model_files import FINAL_MODEL, ConfigError, load_config_file, sidecar_path
+from debris_gym.files import save_atomic
+
+__all__ = [
+    "REFERENCE_MODEL",
+    "FrozenObsVecNormalize",
+    "adopt_init_options",
+    "build_finetune_model",
+    "check_init_run",
+    "finetune_train_env",
+    "reference_path",
+    "restore_reference",
+    "save_reference",
+]
+
+REFERENCE_MODEL = "init_model.zip"
+"""The init model's copy in the fine-tune run directory (the anchor's reference)."""
+
+_LOAD_OBJECTS = {"learning_rate": 0.0, "lr_schedule": lambda _: 0.0, "clip_range": lambda _: 0.0}
+"""SB3 ``custom_objects``: the init run's schedules are not needed (and may not unpickle)."""
+
+
+def _init_error(source: str, problem: str) -> ConfigError:
+    return ConfigError(f"{source}: config key 'init.path' {problem}")
+
+
+def _init_files(path: Path, source: str) -> tuple[Path, Path, Path]:
+    """``model.zip``, ``vecnormalize.pkl``, ``config.yaml`` of init run ``path``, all present."""
+    what = "(a run directory of imitate.py or train.py: model.zip, vecnormalize.pkl, config.yaml)"
+    if not path.is_dir():
+        raise _init_error(source, f"names {str(path)!r}, which is not a directory {what}")
+    model = path / FINAL_MODEL
+    files = (model, sidecar_path(model, "vecnormalize"), path / "config.yaml")
+    for file in files:
+        if not file.is_file():
+            raise _init_error(source, f"names {str(path)!r}, which has no {file.name} {what}")
+    if not zipfile.is_zipfile(model):
+        raise _init_error(source, f"names {str(path)!r}, whose {model.name} is not an SB3 model")
+    return files
+
+
+def _effective(env_id: str, env_kwargs: dict[str, Any], key: str) -> Any:
+    """The value of observation option ``key`` in env ``env_id`` with ``env_kwargs``."""
+    import gymnasium as gym
+
+    import debris_gym  # noqa: F401  (registers the IDs)
+    from debris_gym.config import EnvConfig
+
+    spec_kwargs = gym.registry[env_id].kwargs if env_id in gym.registry else {}
+    options = {k: v for k, v in env_kwargs.items() if k != "max_episode_steps"}
+    return getattr(EnvConfig.from_kwargs(**{**spec_kwargs, **options}), key)
+
+
+def adopt_init_options(
+    data: dict[str, Any], init: str | Path | None, source: str
+) -> dict[str, Any]:
+    """A config mapping with ``--init`` applied and the init run's observation options.
+
+    ``init`` (``--init DIR``, may be None) becomes ``init.path`` (absolute, so a resume from
+    elsewhere finds it). With an ``init.path``, every observation option the init run set is
+    copied into ``env_kwargs`` unless the config sets it; a config value that differs from the
+    init run's (its value or, if it left the key out, its env's default) is refused.
+
+    Raises:
+        ConfigError: ``init.path`` is not an init run directory, or an observation option
+            differs (the message names the key and both values).
+    """
+    section = data.get("init")
+    if init is not None:
+        text = str(init).strip()
+        if not text:
+            raise ConfigError("--init must name a run directory, got an empty string")
+        section = {
+            **(section if isinstance(section, dict) else {}),
+            "path": str(Path(text).resolve()),
+        }
+        data = {**data, "init": section}
+    if not isinstance(section, dict) or not isinstance(section.get("path"), str):
+        return data  # no init, or a malformed section that TrainConfig.from_dict names
+    if not section["path"].strip():
+        return data  # from_dict names it
+    path = Path(section["path"]).resolve()  # a resume from elsewhere finds it
+    data = {**data, "init": {**section, "path": str(path)}}
+    _, _, config_file = _init_files(path, source)
+    try:
+        init_data, _ = load_config_file(config_file)
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise _init_error(source, f"names a run whose config.yaml is unreadable ({exc})") from None
+    init_env = init_data.get("env_kwargs") or {}
+    env_kwargs = data.get("env_kwargs") or {}
+    if not isinstance(init_env, dict) or not isinstance(env_kwargs, dict):
+        return data  # from_dict (or load_agent on the init run) names the problem
+    init_id, env_id = str(init_data.get("env_id", "")), str(data.get("env_id", ""))
+    env_kwargs = dict(env_kwargs)
+    copied = {}
+    for key in OBSERVATION_KEYS:
+        if key not in env_kwargs:
+            if key in init_env:
+                env_kwargs[key] = copied[key] = init_env[key]
+            continue
+        try:
+            theirs = _effective(init_id, init_env, key)
+            ours = _effective(env_id, env_kwargs, key)
+        except (TypeError, ValueError):
+            continue  # an invalid option: from_dict names it
+        if theirs != ours:
+            raise ConfigError(
+                f"{source}: config key 'env_kwargs.{key}' is {ours!r} but the initial policy "
+                f"({config_file}) was trained with {key}={theirs!r}; a policy needs the "
+                "observation it was trained on: drop the key to take the init run's value"
+            )
+    if copied:
+        print(f"note: observation options {copied} taken from {config_file}", file=sys.stderr)
+    return {**data, "env_kwargs": env_kwargs}
+
+
+def _load_init_model(path: Path, source: str) -> Any:
+    from stable_baselines3 import PPO
+
+    try:
+        return PPO.load(str(path), device="cpu", custom_objects=_LOAD_OBJECTS)
+    except Exception as exc:  # SB3 raises many kinds on a foreign or damaged file
+        raise _init_error(
+            source, f"names a run whose {path.name} is not a PPO model ({type(exc).__name__})"
+        ) from None
+
+
+def check_init_run(config: TrainConfig, source: str) -> None:
+    """Check the init run of ``config`` (nothing to do without ``init.path``) against it.
+
+    Raises:
+        ConfigError: missing or damaged files, a model that is not PPO or whose spaces differ
+            from the env's, statistics that do not normalise observations, or ``normalize``
+            options that differ from the statistics' (``clip_obs``, ``epsilon``).
+    """
+    if config.init.path is None:
+        return
+    from debris_gym.integrations.sb3 import NativeVecEnv
+
+    model_file, stats_file, _ = _init_files(Path(config.init.path), source)
+    try:
+        stats = read_vecnormalize(stats_file)
+    except ValueError as exc:
+        raise _init_error(source, f"names a run with unusable statistics: {exc}") from None
+    if not stats.norm_obs:
+        raise _init_error(
+            source, f"names a run whose {stats_file.name} does not normalise observations"
+        )
+    for key in ("clip_obs", "epsilon"):
+        ours, theirs = getattr(config.normalize, key), float(vars(stats)[key])
+        if ours != theirs:
+            raise ConfigError(
+                f"{source}: config key 'normalize.{key}' is {ours} but the initial policy's "
+                f"statistics ({stats_file}) use {theirs}; set normalize.{key}: {theirs}"
+            )
+    model = _load_init_model(model_file, source)
+    env = NativeVecEnv(config.env_id, 1, **config.env_kwargs)
+    try:
+        for what in ("observation_space", "action_space"):
+            ours, theirs = getattr(env, what), getattr(model, what)
+            if ours.shape != theirs.shape or type(ours) is not type(theirs):
+                raise _init_error(
+                    source,
+                    f"names a model whose {what.replace('_', ' ')} {theirs} differs from the "
+                    f"env's {ours} ({config.env_id} with env_kwargs {config.env_kwargs})",
+                )
+    finally:
+        env.close()
+    _policy_kwargs(config, model, source)  # the network shapes agree
+
+
+class FrozenObsVecNormalize(VecNormalize):
+    """VecNormalize that normalises observations with fixed statistics (never updated) and
+    rewards by the running std of the discounted return (updated while ``training``).
+
+    It pickles as a plain :class:`VecNormalize` (training off), so its saved statistics are what
+    :func:`agents.load_agent` applies, without importing training code.
+    """
+
+    @classmethod
+    def from_stats(
+        cls, stats: VecNormalize, venv: Any, config: TrainConfig
+    ) -> FrozenObsVecNormalize:
+        """Wrap ``venv`` with the observation statistics of ``stats`` and the reward options of
+        ``config`` (its running return statistics come along too: a resume keeps its scale)."""
+        norm = config.normalize
+        wrapper = cls(
+            venv,
+            training=True,
+            norm_obs=True,
+            norm_reward=norm.norm_reward,
+            clip_obs=float(stats.clip_obs),
+            clip_reward=norm.clip_reward,
+            gamma=norm.gamma if norm.gamma is not None else config.gamma,
+            epsilon=float(stats.epsilon),
+        )
+        wrapper.obs_rms = stats.obs_rms.copy()
+        wrapper.ret_rms = stats.ret_rms.copy()
+        return wrapper
+
+    def reset(self) -> Any:
+        obs = self.venv.reset()
+        self.old_obs = obs
+        self.returns = np.zeros(self.num_envs)
+        return self.normalize_obs(obs)
+
+    def step_wait(self) -> Any:
+        obs, rewards, dones, infos = self.venv.step_wait()
+        self.old_obs, self.old_reward = obs, rewards
+        if self.training:  # the return's scale is learned; the observation's is not
+            self._update_reward(rewards)
+        for info, done in zip(infos, dones, strict=True):
+            if done and "terminal_observation" in info:
+                info["terminal_observation"] = self.normalize_obs(info["terminal_observation"])
+        self.returns[dones] = 0.0
+        return self.normalize_obs(obs), self.normalize_reward(rewards), dones, infos
+
+    def __reduce_ex__(self, protocol: Any) -> Any:
+        import copyreg
+
+        state = self.__getstate__()
+        state["training"] = False
+        # rebuilt as VecNormalize.__new__ + __setstate__, the way a plain one unpickles
+        return copyreg._reconstructor, (VecNormalize, object, None), state
+
+
+def finetune_train_env(venv: Any, config: TrainConfig, stats: Path | None) -> FrozenObsVecNormalize:
+    """``venv`` normalised for fine-tuning: observation statistics from ``stats`` (a resumed
+    checkpoint's) or, for a fresh run, from the init run's ``vecnormalize.pkl``."""
+    assert config.init.path is not None
+    if stats is None:
+        stats = sidecar_path(Path(config.init.path) / FINAL_MODEL, "vecnormalize")
+    return FrozenObsVecNormalize.from_stats(read_vecnormalize(stats), venv, config)
+
+
+def _policy_kwargs(config: TrainConfig, init_model: Any, source: str) -> dict[str, Any]:
+    """The fine-tune policy's keyword arguments: the init policy's network (a config's
+    ``net_arch`` / ``activation_fn`` must equal it), the config's other entries over it."""
+    from agents.experiments.training.models import policy_kwargs
+
+    theirs = dict(init_model.policy_kwargs)
+    ours = policy_kwargs(config)
+    for key in ("net_arch", "activation_fn"):
+        if key in ours and ours[key] != theirs.get(key):
+            raise ConfigError(
+                f"{source}: config key 'policy_kwargs.{key}' is {ours[key]!r} but the initial "
+                f"policy has {theirs.get(key)!r}; drop the key to take the initial policy's"
+            )
+    return {**theirs, **ours}
+
+
+def build_finetune_model(
+    config: TrainConfig,
+    train_env: Any,
+    *,
+    seed: int,
+    device: str,
+    tensorboard_log: str | None,
+    source: str,
+) -> AnchoredPPO:
+    """An :class:`AnchoredPPO` of the recipe with the init policy's weights, anchored to it.
+
+    ``policy_kwargs.log_std_init``, when the config sets it, replaces the init's ``log_std``
+    (the exploration noise of the fine-tune; the anchor acts on mean actions only).
+    """
+    from agents.experiments.training.models import algo_kwargs
+
+    assert config.init.path is not None
+    init_model = _load_init_model(Path(config.init.path) / FINAL_MODEL, source)
+    kwargs = _policy_kwargs(config, init_model, source)
+    try:
+        model = AnchoredPPO(
+            config.policy,
+            train_env,
+            critic_warmup=config.init.critic_warmup,
+            anchor_coef=config.init.anchor_coef,
+            anchor_decay=config.init.anchor_decay,
+            policy_kwargs=kwargs,
+            seed=seed,
+            device=device,
+            tensorboard_log=tensorboard_log,
+            verbose=0,
+            **algo_kwargs(config, int(train_env.action_space.shape[0])),
+        )
+    except (AssertionError, ValueError, TypeError, KeyError) as exc:
+        raise ConfigError(
+            f"{source}: SB3 PPO rejects config keys 'algo_kwargs' / 'policy_kwargs': {exc}"
+        ) from None
+    model.policy.load_state_dict(init_model.policy.state_dict())
+    if "log_std_init" in config.policy_kwargs:
+        model.policy.log_std.data.fill_(float(config.policy_kwargs["log_std_init"]))
+    model.set_reference(init_model.policy)
+    return model
+
+
+def configure_resumed(model: AnchoredPPO, config: TrainConfig, out: Path) -> None:
+    """Give a resumed model its run's anchor settings and frozen reference."""
+    model.critic_warmup = config.init.critic_warmup
+    model.anchor_coef = config.init.anchor_coef
+    model.anchor_decay = config.init.anchor_decay
+    restore_reference(model, config, out)
+
+
+def save_reference(out: Path, config: TrainConfig) -> None:
+    """Copy the init model (with its statistics and config) into run directory ``out``."""
+    assert config.init.path is not None
+    source = Path(config.init.path) / FINAL_MODEL
+    target = out / REFERENCE_MODEL
+    pairs = [
+        (source, target),
+        (sidecar_path(source, "vecnormalize"), sidecar_path(target, "vecnormalize")),
+        (source.parent / "config.yaml", target.with_suffix(".yaml")),
+    ]
+    for src, dst in pairs:
+        save_atomic(dst, lambda tmp, src=src: shutil.copyfile(src, tmp))
+
+
+def reference_path(config: TrainConfig, out: Path) -> Path:
+    """The model a resumed run anchors to: the run's copy of the init model
+    (``DIR/init_model.zip``) or, if that is gone, ``init.path``'s model.
+
+    Raises:
+        FileNotFoundError: neither is there.
+    """
+    assert config.init.path is not None
+    for candidate in (out / REFERENCE_MODEL, Path(config.init.path) / FINAL_MODEL):
+        if candidate.is_file():
+            return candidate
+    raise FileNotFoundError(
+        f"--resume {out}: the anchor's reference is gone (neither {out / REFERENCE_MODEL} nor "
+        f"{Path(config.init.path) / FINAL_MODEL} exists); copy the initial run's model.zip to "
+        f"{out / REFERENCE_MODEL}"
+    )
+
+
+def restore_reference(model: AnchoredPPO, config: TrainConfig, out: Path) -> None:
+    """Anchor a resumed ``model`` to :func:`reference_path`'s policy."""
+    path = reference_path(config, out)
+    model.set_reference(_load_init_model(path, str(out / "config.yaml")).policy)
