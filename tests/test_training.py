@@ -510,6 +510,28 @@ def test_the_shipped_pretrained_policy_flies_its_env():
         agents.load_agent("pretrained", gym.make("DebrisGym/Rendezvous2D-v1"))
 
 
+def test_the_pretrained_easy_policy_is_the_one_made_for_the_easy_rung():
+    """`pretrained` picks the policy made for the env being evaluated: on the Easy rung the
+    recipe's PPO policy (no observation options: the registered env as it is), which captures
+    its target on a held-out mission; the v0 IDs keep the DAgger policy."""
+    from agents import observation_options
+    from agents.policies.learned import pretrained_path
+
+    easy = "DebrisGym/Rendezvous2D-Easy-v1"
+    assert pretrained_path(easy)[1].name == "rendezvous2d-easy_ppo.zip"
+    assert pretrained_path("DebrisGym/Rendezvous2D-v0")[1].name == "rendezvous2d_dagger.zip"
+    assert observation_options("pretrained", easy) == {}
+    env = gym.make(easy)
+    agent = agents.load_agent("pretrained", env)
+    obs, info = env.reset(seed=20_000_000)
+    for _ in range(1000):
+        obs, _, terminated, truncated, info = env.step(agent.predict(obs)[0])
+        if terminated or truncated:
+            break
+    assert info["is_success"] and not info["collision"]
+    env.close()
+
+
 def test_dqn_policy_flies_discrete_and_continuous_envs(trained):
     model = trained("dqn") / "model.zip"
     discrete = gym.make(ENV_ID, action="discrete")
