@@ -277,3 +277,19 @@ def test_the_wrapper_reports_the_counters_in_info():
     assert 0.0 < info["shield_size_mean"] <= info["shield_size_max"] <= 2.0
     _, info = env.reset(seed=0, options={"scenario": wall_ahead(2)})
     assert info["shield_interventions"] == 0
+
+
+def test_sb3_trains_a_few_steps_behind_the_shield():
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    def make() -> gym.Env:
+        return ShieldWrapper(gym.make("DebrisGym/Rendezvous2D-v1", max_episode_steps=20))
+
+    venv = DummyVecEnv([make])
+    model = PPO("MlpPolicy", venv, n_steps=32, batch_size=32, n_epochs=1, seed=0, device="cpu")
+    model.learn(64)
+    shielded = venv.envs[0]
+    assert isinstance(shielded, ShieldWrapper)
+    assert shielded.stats.decisions > 0
