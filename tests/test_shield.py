@@ -8,6 +8,7 @@ tests) from the moment it crosses the chaser's position.
 
 from __future__ import annotations
 
+import json
 import math
 
 import gymnasium as gym
@@ -293,3 +294,65 @@ def test_sb3_trains_a_few_steps_behind_the_shield():
     shielded = venv.envs[0]
     assert isinstance(shielded, ShieldWrapper)
     assert shielded.stats.decisions > 0
+
+
+class ChargeNearestDebris:
+    """Full thrust straight at the nearest debris body, every step: a policy that crashes."""
+
+    def __init__(self, env) -> None:
+        self.env = env.unwrapped
+
+    def predict(self, obs, state=None, episode_start=None, deterministic=True):
+        base = self.env
+        d = base.dim
+        debris = base.body_states[len(base.scenario.targets) :, :d]
+        offset = debris - base.chaser_state[:d]
+        nearest = offset[np.argmin(np.linalg.norm(offset, axis=1))]
+        return (nearest / np.linalg.norm(nearest)).astype(np.float32), state
+
+
+def test_evaluate_with_the_shield_counts_interventions_in_every_output(tmp_path):
+    from agents.experiments.evaluation import evaluate_agents, summarize, summary_markdown
+    from agents.experiments.evaluation.report import episodes_csv
+
+    def run(shield):
+        return evaluate_agents(
+            "DebrisGym/Rendezvous2D-v1", {"charge": ChargeNearestDebris}, episodes=2, seed=2,
+            progress=False, max_episode_steps=60, shield=shield,
+        )  # fmt: skip
+
+    plain = run(None)
+    assert all(r.collision for r in plain.records)
+    assert all(r.shield_interventions == 0 for r in plain.records)
+    assert "Shielded" not in summary_markdown(summarize(plain))
+
+    shielded = run(ShieldParams())
+    assert not any(r.collision for r in shielded.records)
+    counts = [r.shield_interventions for r in shielded.records]
+    assert all(c > 0 for c in counts)
+    summary = summarize(shielded)
+    entry = summary["agents"]["charge"]
+    assert summary["shield"] == ShieldParams().to_dict()
+    assert entry["shield_interventions_mean"] == pytest.approx(np.mean(counts))
+    assert 0.0 < entry["shield_size_mean"] <= entry["shield_size_max"] <= 2.0
+    text = summary_markdown(summary)
+    assert text.splitlines()[0].count("**Shielded**") == 1
+    assert "| charge | " + f"{np.mean(counts):.3g}" in text
+    rows = episodes_csv(shielded.records).splitlines()
+    header = rows[0].split(",")
+    column = header.index("shield_interventions")
+    assert [int(row.split(",")[column]) for row in rows[1:]] == counts
+
+
+def test_evaluate_py_takes_the_shield_flag(tmp_path):
+    from tests.helpers import load_script
+
+    cli = load_script("evaluate.py")
+    out = tmp_path / "out"
+    argv = ["--agents", "zero", "--episodes", "1", "--max-steps", "5", "--plots", "0"]
+    assert cli.main([*argv, "--shield", "--no-progress", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["shield"]["horizon_steps"] == ShieldParams().horizon_steps
+    assert summary["agents"]["zero"]["shield_interventions_mean"] == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["evaluation"]["shield"] is True
