@@ -94,7 +94,8 @@ def test_full_thrust_at_debris_collides_and_the_shielded_same_policy_does_not(
     infos, interventions = fly(env, full_thrust_plus_y, SafetyShield(env), 25)
     assert len(infos) == 25  # neither a collision nor anything else ended it
     assert not any(info["collision"] for info in infos)
-    assert min(info["min_clearance"] for info in infos) >= ShieldParams().margin - 1e-6
+    margin = env.config.chaser_radius  # the default margin
+    assert min(info["min_clearance"] for info in infos) >= margin - 1e-6
     assert interventions > 0
 
 
@@ -164,7 +165,7 @@ def test_the_shield_dodges_a_body_on_its_predicted_orbit():
     assert first_intervention is not None
     body_then = cw_closed_form(start, first_intervention * 10.0)
     chaser_then = infos[first_intervention - 1]["chaser_state"] if first_intervention else 0.0
-    reach = body.radius + env.config.chaser_radius + ShieldParams().margin
+    reach = body.radius + 2 * env.config.chaser_radius  # radius + chaser + default margin
     assert np.linalg.norm(body_then[:2] - np.asarray(chaser_then)[:2]) > reach + 2.0
     # the same body frozen where it was then: nothing to fear, nothing done
     frozen = Body(tuple(body_then[:2]), body.radius, (0.0, 0.0))
@@ -180,9 +181,20 @@ def test_the_shield_dodges_a_body_on_its_predicted_orbit():
     assert np.linalg.norm(cw_closed_form(start, t_meet)[:2]) < 1e-6
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_apf_mpc_still_captures_every_target_with_the_shield_on(seed):
-    env = gym.make("DebrisGym/Rendezvous2D-v1")
+@pytest.mark.parametrize(
+    ("env_id", "seed"),
+    [
+        ("DebrisGym/Rendezvous2D-v1", 0),
+        ("DebrisGym/Rendezvous2D-v1", 1),
+        ("DebrisGym/Rendezvous2D-v1", 2),
+        ("DebrisGym/Rendezvous3D-v1", 0),
+        ("DebrisGym/Rendezvous2D-v0", 0),
+        # a 20-unit world with a 0.1-unit chaser: the default margin scales with it
+        ("DebrisGym/PaperField2D-v0", 0),
+    ],
+)
+def test_apf_mpc_still_captures_every_target_with_the_shield_on(env_id, seed):
+    env = gym.make(env_id)
     agent = ShieldedAgent(make_agent("apf-mpc", env), env)
     obs, _ = env.reset(seed=seed)
     done, first = False, True
@@ -237,6 +249,7 @@ RANGES = {
         st.floats(allow_nan=True, allow_infinity=True),
         st.integers(-(10**6), 10**6),
         st.booleans(),
+        st.none(),
         st.text(max_size=3),
     ),
 )
@@ -248,6 +261,8 @@ def test_shield_params_out_of_range_are_refused_naming_the_parameter(name, value
         else isinstance(value, (int, float)) and not isinstance(value, bool)
     )
     valid = kind_ok and math.isfinite(value) and low <= value <= high
+    if name == "margin" and value is None:
+        valid = True
     if valid:
         assert getattr(ShieldParams(**{name: value}), name) == value
     else:

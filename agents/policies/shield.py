@@ -80,7 +80,8 @@ class ShieldParams:
         substeps: samples of the path per step, in [1, 64]; clearance between samples is
             bounded analytically, so more samples only make the bound tighter.
         margin: clearance (m) kept from debris beyond contact (chaser radius included by the
-            env), in [0, 1e6].
+            env), in [0, 1e6]; None: the env's ``chaser_radius`` (1 m in the Rendezvous IDs,
+            0.1 in the 20-unit PaperField2D-v0 world), so the margin scales with the world.
         target_margin: clearance (m) kept from targets, in [0, 1e6]; keep it below the
             env's ``capture_radius`` or captures become impossible.
         directions: thrust directions of the candidate grid (on a circle in 2D, a Fibonacci
@@ -92,7 +93,7 @@ class ShieldParams:
 
     horizon_steps: int = 10
     substeps: int = 4
-    margin: float = 1.0
+    margin: float | None = None
     target_margin: float = 0.0
     directions: int = 16
     levels: int = 2
@@ -101,6 +102,8 @@ class ShieldParams:
     def __post_init__(self) -> None:
         for name, (low, high) in _LIMITS.items():
             value = getattr(self, name)
+            if name == "margin" and value is None:
+                continue
             integer = isinstance(low, int)
             kind = "an integer" if integer else "a finite number"
             ok = (
@@ -109,7 +112,8 @@ class ShieldParams:
                 else isinstance(value, (int, float, np.integer, np.floating))
             )
             if isinstance(value, bool) or not ok or not (low <= value <= high):
-                raise ValueError(f"{name} must be {kind} in [{low}, {high}], got {value!r}")
+                none = " or None" if name == "margin" else ""
+                raise ValueError(f"{name} must be {kind} in [{low}, {high}]{none}, got {value!r}")
             if not integer and not math.isfinite(value):
                 raise ValueError(f"{name} must be {kind} in [{low}, {high}], got {value!r}")
 
@@ -269,7 +273,7 @@ class SafetyShield:
         bodies_now = self._motion.states(t0)
         reach = field.reach.copy()
         centre_gap = np.linalg.norm(x0[:d] - bodies_now[:, :d], axis=1)
-        margins = np.full(n_bodies, p.margin)
+        margins = np.full(n_bodies, self.chaser_radius if p.margin is None else p.margin)
         margins[: len(scen.targets)] = p.target_margin
         # backups: rest in LVLH (-1), then the velocity of each of the nearest bodies
         refs = [-1]

@@ -66,16 +66,15 @@ def _with_ci(entry: dict[str, Any], key: str, digits: int = 3) -> str:
 
 def _title(summary: dict[str, Any]) -> str:
     """The table's first line: what was flown (suite, env, options, episodes, seeds, shield)."""
-    if summary.get("shield") is not None:
-        return f"{_plain_title(summary)} {_SHIELD_NOTE.format(**summary['shield'])}"
-    return _plain_title(summary)
-
-
-_SHIELD_NOTE = (
-    "**Shielded**: every agent flies behind the safety shield (run-time assurance: "
-    "{horizon_steps}-step horizon, margin {margin} m from debris, {target_margin} m from "
-    "targets; docs/baselines.md)."
-)
+    shield = summary.get("shield")
+    if shield is None:
+        return _plain_title(summary)
+    margin = "the chaser's radius" if shield["margin"] is None else f"{shield['margin']} m"
+    return (
+        f"{_plain_title(summary)} **Shielded**: every agent flies behind the safety shield "
+        f"(run-time assurance: {shield['horizon_steps']}-step horizon, margin {margin} from "
+        f"debris, {shield['target_margin']} m from targets; docs/baselines.md)."
+    )
 
 
 def _plain_title(summary: dict[str, Any]) -> str:
