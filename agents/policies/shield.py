@@ -141,6 +141,40 @@ class ShieldDecision:
     clearance: float
 
 
+@dataclass(frozen=True)
+class _Setting:
+    """What one decision needs, computed once per call (units: m, m/s, m/s², s).
+
+    Attributes:
+        x0: the chaser's state now (2·dim,).
+        n, h: mean motion (rad/s) and the sample interval (s).
+        max_accel: thrust limit (m/s²).
+        sub: the exact ZOH model over one sample interval.
+        brake_gain: (dim, 2·dim) the deadbeat gain: u = gain · (state relative to a reference)
+            cancels the relative velocity at the end of one step.
+        centres: (T + 1, B, dim) the bodies' centres on the sample grid.
+        reach: (B,) centre distance of contact (body radius + chaser radius + interpolation
+            error of the body's path).
+        centre_gap: (B,) the chaser's distance to each body centre now.
+        margins: (B,) required clearance beyond contact (debris: margin, targets:
+            target_margin).
+        ref_states: (K, F, 2·dim) the state each backup brakes to at every step (zeros: rest in
+            LVLH).
+    """
+
+    x0: np.ndarray
+    n: float
+    h: float
+    max_accel: float
+    sub: Any
+    brake_gain: np.ndarray
+    centres: np.ndarray
+    reach: np.ndarray
+    centre_gap: np.ndarray
+    margins: np.ndarray
+    ref_states: np.ndarray
+
+
 class SafetyShield:
     """Run-time assurance filter for one DebrisGym env (see the module docstring).
 
@@ -192,7 +226,7 @@ class SafetyShield:
         order = np.argsort(np.linalg.norm(accels - u_cmd, axis=1), kind="stable")
         safe = order[scores[order] >= 0.0]
         best = int(safe[0]) if len(safe) else int(np.argmax(scores))
-        size = float(np.linalg.norm(accels[best] - u_cmd)) / setting["max_accel"]
+        size = float(np.linalg.norm(accels[best] - u_cmd)) / setting.max_accel
         chosen = int(actions[best]) if self.discrete else actions[best].copy()
         if size == 0.0:  # the command's own twin won: fly the command itself
             return ShieldDecision(action, False, 0.0, float(scores[best]))
@@ -223,9 +257,9 @@ class SafetyShield:
             axis=1,
         )
 
-    def _candidates(self, setting: dict[str, Any], u_cmd: np.ndarray) -> tuple[Any, np.ndarray]:
+    def _candidates(self, setting: _Setting, u_cmd: np.ndarray) -> tuple[Any, np.ndarray]:
         """Candidate actions and the accelerations (m/s²) they command, the command's first."""
-        amax = setting["max_accel"]
+        amax = setting.max_accel
         if self.discrete:
             return np.arange(len(self.table)), self.table * amax
         p = self.params
@@ -254,7 +288,7 @@ class SafetyShield:
             raise RuntimeError("the shield's env has not been reset: call env.reset() first")
         return scen
 
-    def _setting(self) -> dict[str, Any]:
+    def _setting(self) -> _Setting:
         """Everything one decision needs: models, the bodies on the sample grid, backups."""
         scen = self._current_scenario()
         if scen is not self._scenario:  # a new episode's field: its motion, once
@@ -287,19 +321,12 @@ class SafetyShield:
                 if b >= 0:
                     ref_states[k, j] = states[b]
         model = discretize(n, dt, d)
-        return {
-            "x0": x0,
-            "n": n,
-            "h": h,
-            "max_accel": float(scen.max_accel),
-            "sub": discretize(n, h, d),
-            "brake_gain": -np.linalg.solve(model.bd[d:], model.ad[d:]),
-            "centres": field.centres[:samples],
-            "reach": reach,
-            "centre_gap": centre_gap,
-            "margins": margins,
-            "ref_states": ref_states,
-        }
+        return _Setting(
+            x0=x0, n=n, h=h, max_accel=float(scen.max_accel), sub=discretize(n, h, d),
+            brake_gain=-np.linalg.solve(model.bd[d:], model.ad[d:]),
+            centres=field.centres[:samples], reach=reach, centre_gap=centre_gap,
+            margins=margins, ref_states=ref_states,
+        )  # fmt: skip
 
     def _saturate(self, u: np.ndarray, amax: float) -> np.ndarray:
         """Accelerations (N, d) cut to what the env can fly: its thrust model, or the nearest
@@ -310,24 +337,24 @@ class SafetyShield:
             return table[best]
         return commanded_accel(u / amax, amax, self.thrust_model)
 
-    def _backup_accels(self, setting: dict[str, Any], x: np.ndarray, k: int) -> np.ndarray:
+    def _backup_accels(self, setting: _Setting, x: np.ndarray, k: int) -> np.ndarray:
         """(C, F, d) deadbeat braking accelerations of every backup at step ``k``."""
-        rel = x - setting["ref_states"][k][None]  # (C, F, 2d)
-        u = rel @ setting["brake_gain"].T
+        rel = x - setting.ref_states[k][None]  # (C, F, 2d)
+        u = rel @ setting.brake_gain.T
         shape = u.shape
-        return self._saturate(u.reshape(-1, self.dim), setting["max_accel"]).reshape(shape)
+        return self._saturate(u.reshape(-1, self.dim), setting.max_accel).reshape(shape)
 
-    def _first_backup_accels(self, setting: dict[str, Any]) -> np.ndarray:
+    def _first_backup_accels(self, setting: _Setting) -> np.ndarray:
         """(F, d) each backup's braking acceleration from the present state (m/s²)."""
-        return self._backup_accels(setting, setting["x0"][None, None], 0)[0]
+        return self._backup_accels(setting, setting.x0[None, None], 0)[0]
 
-    def _scores(self, setting: dict[str, Any], accels: np.ndarray) -> np.ndarray:
+    def _scores(self, setting: _Setting, accels: np.ndarray) -> np.ndarray:
         """(C,) predicted least clearance (m) beyond the required margins of each candidate
         acceleration flown for one step, with its best backup after it (>= 0: safe)."""
         p, d = self.params, self.dim
-        sub, amax = setting["sub"], setting["max_accel"]
-        n_refs = setting["ref_states"].shape[1]
-        x = np.broadcast_to(setting["x0"], (len(accels), n_refs, 2 * d)).copy()
+        sub, amax = setting.sub, setting.max_accel
+        n_refs = setting.ref_states.shape[1]
+        x = np.broadcast_to(setting.x0, (len(accels), n_refs, 2 * d)).copy()
         u = np.broadcast_to(accels[:, None, :], (*x.shape[:2], d))
         states = [x]
         for k in range(p.horizon_steps):
@@ -340,15 +367,15 @@ class SafetyShield:
         # the chaser's deviation from a straight line between samples: a·h²/8 with a its largest
         # acceleration (thrust plus the natural CWH term), 5 % spare as the bodies' bound has
         thrust = amax * (math.sqrt(d) if self.thrust_model == "box" else 1.0)
-        natural = np.linalg.norm(cwh_acceleration(path, setting["n"]), axis=-1).max()
-        slack = 1.05 * (thrust + natural) * setting["h"] ** 2 / 8.0
-        reach = setting["reach"] + slack  # (B,)
+        natural = np.linalg.norm(cwh_acceleration(path, setting.n), axis=-1).max()
+        slack = 1.05 * (thrust + natural) * setting.h**2 / 8.0
+        reach = setting.reach + slack  # (B,)
         # a body already closer than its margin must only not come closer than it is now
         # (1 µm below its present gap, so rounding cannot make the present state unsafe)
-        now = setting["centre_gap"] - reach
-        margins = setting["margins"]
+        now = setting.centre_gap - reach
+        margins = setting.margins
         need = reach + np.where(now < margins, now - 1e-6, margins)
-        rel = path[:, :, :, None, :d] - setting["centres"][:, None, None, :, :]  # (T+1,C,F,B,d)
+        rel = path[:, :, :, None, :d] - setting.centres[:, None, None, :, :]  # (T+1,C,F,B,d)
         a, seg = rel[:-1], rel[1:] - rel[:-1]
         den = np.einsum("...d,...d->...", seg, seg)
         s = np.clip(-np.einsum("...d,...d->...", a, seg) / np.maximum(den, 1e-300), 0.0, 1.0)
