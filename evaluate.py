@@ -23,6 +23,11 @@ Outputs in --out DIR:
                             reproduction; the reasons are in the table)
   manifest.json             the files of the set and the run's options (suite and hash)
 
+With --shield every agent flies behind the safety shield (run-time assurance; see
+docs/baselines.md): episodes.csv counts the commands it replaced (shield_interventions) and
+their size (shield_size_mean/max, a fraction of the thrust limit), summary.json and the
+table summarise them, and the title says the run was shielded.
+
 The files land together or not at all: they are written aside and moved into place at the end,
 and files of an earlier evaluation that this one does not write (trajectory plots of episodes no
 longer plotted, say) are removed. One run at a time may use a directory (a second is refused).
@@ -64,6 +69,7 @@ examples:
   python evaluate.py --agents apf,mine=my_pkg.my_mod:make_policy   # your own policy
   python evaluate.py --suite standard-2d-v1 --agents apf-mpc,astar --episodes 10
   python evaluate.py --paper --out runs/paper          # [APF-MPC] Table I side by side
+  python evaluate.py --agents apf,apf-mpc --shield     # every agent behind the safety shield
   python evaluate.py --resume runs/cmp                 # finish a run stopped by Ctrl-C
 """
 
@@ -215,6 +221,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="agent the others are paired with by seed — success (exact McNemar test), and "
         "Δv and time on the episodes both complete (default: apf-mpc if evaluated, else the "
         "first agent)",
+    )
+    parser.add_argument(
+        "--shield",
+        action="store_true",
+        help="fly every agent behind the safety shield (run-time assurance): each command is "
+        "checked against the bodies' predicted motion over a short horizon and replaced by "
+        "the closest safe one; interventions are counted in episodes.csv, summary.json and "
+        "the table (docs/baselines.md, 'The safety shield')",
     )
     parser.add_argument(
         "--no-progress",

@@ -14,6 +14,7 @@ report        the Markdown table, strict JSON, episodes.csv, writing the files a
 journal       an unfinished run's options and finished episodes (Ctrl-C, ``--resume``)
 plots         trajectory plots
 paper         [APF-MPC] Table I side by side with ours, not a reproduction (``--paper``)
+plan          ``evaluate.py``'s options as given and as resolved into a run
 command       ``evaluate.py`` once its arguments are parsed
 ============  ======================================================================
 

@@ -23,7 +23,6 @@ import shlex
 import sys
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -37,6 +36,7 @@ from agents.experiments.evaluation.paper import (
     paper_table,
     paper_table_markdown,
 )
+from agents.experiments.evaluation.plan import EvaluateOptions, EvaluationPlan, UsageError
 from agents.experiments.evaluation.report import summary_markdown, to_json, write_outputs
 from agents.experiments.evaluation.runner import evaluate_agents, index_finished, make_env
 from agents.experiments.evaluation.specs import (
@@ -46,11 +46,11 @@ from agents.experiments.evaluation.specs import (
     build_agent,
     check_agent_available,
     known_specs_text,
-    parse_agent_spec,
     parse_agent_specs,
 )
 from agents.experiments.evaluation.statistics import summarize
 from agents.experiments.run_directory import OutputDirError, RunDirectoryLock
+from agents.policies.shield import ShieldParams
 from debris_gym.suites import Suite, load_suite
 
 __all__ = [
@@ -75,98 +75,6 @@ DEFAULT_OUT = Path("runs/eval")
 
 AGENT_ERRORS = (ImportError, FileNotFoundError, NotImplementedError, TypeError, ValueError)
 """What building an agent raises when the agent, not the code, is at fault."""
-
-
-class UsageError(ValueError):
-    """A command-line argument is wrong; ``flag`` names it (``"--agents"``)."""
-
-    def __init__(self, flag: str, message: str) -> None:
-        super().__init__(message)
-        self.flag = flag
-
-
-@dataclass(frozen=True)
-class EvaluateOptions:
-    """The arguments of ``evaluate.py`` (see its ``--help``); None means the default.
-
-    With ``resume`` (a directory holding an unfinished evaluation) every other option but
-    ``progress`` must keep its default: the run's own options are read from the directory.
-    """
-
-    out: Path | None = None
-    env: str | None = None
-    agents: str | None = None
-    episodes: int | None = None
-    seed: int | None = None
-    plots: int | None = None
-    env_kwargs: dict[str, Any] | None = None
-    max_steps: int | None = None
-    reference: str | None = None
-    progress: bool = True
-    paper: bool = False
-    resume: Path | None = None
-    suite: str | None = None
-
-
-@dataclass(frozen=True)
-class EvaluationPlan:
-    """The resolved options of one evaluation: what ``DIR/unfinished/options.json`` holds and
-    ``--resume`` runs again.
-
-    Attributes:
-        out: output directory.
-        env_id: the env every agent flies; ``env_kwargs`` its ``gym.make`` options.
-        agents: ``(spec text, label)`` of every agent to run, in order.
-        episodes: episodes per agent; episode i is reset with seed ``seed + i`` — or, with
-            ``suite``, is the suite's mission i.
-        max_steps: time-limit override (steps), or None for the registered one.
-        plots: trajectory plots of the first ``plots`` episodes.
-        reference: the agent others' Δv is paired with, or None for the default.
-        paper: write ``paper_table.*`` ([APF-MPC] Table I beside ours).
-        skipped: agents left out of a default list, {label: reason}.
-        warnings: what building an agent warned about, {label: message} (shown in the
-            summary).
-        suite: the frozen suite flown (:mod:`debris_gym.suites`), else None.
-        suite_hash: its content hash when the run started (a resumed run refuses a suite
-            whose content has changed since).
-    """
-
-    out: Path
-    env_id: str
-    env_kwargs: dict[str, Any]
-    agents: tuple[tuple[str, str], ...]
-    episodes: int
-    seed: int
-    max_steps: int | None = None
-    plots: int = 3
-    reference: str | None = None
-    paper: bool = False
-    skipped: dict[str, str] = field(default_factory=dict)
-    warnings: dict[str, str] = field(default_factory=dict)
-    suite: str | None = None
-    suite_hash: str | None = None
-
-    @property
-    def specs(self) -> list[AgentSpec]:
-        """The agents, parsed, with their labels."""
-        return [dataclasses.replace(parse_agent_spec(t), label=label) for t, label in self.agents]
-
-    def to_json(self) -> dict[str, Any]:
-        """Plain-JSON form (``out`` left out: the journal lives in it)."""
-        data = dataclasses.asdict(self)
-        del data["out"]
-        data["agents"] = [list(pair) for pair in self.agents]
-        return data
-
-    @classmethod
-    def from_json(cls, data: dict[str, Any], out: Path) -> EvaluationPlan:
-        """The plan :meth:`to_json` wrote, for output directory ``out``.
-
-        Raises:
-            KeyError, TypeError, ValueError: ``data`` is not such a plan.
-        """
-        agents = tuple((str(text), str(label)) for text, label in data.pop("agents"))
-        return cls(out=out, agents=agents, **data)
 
 
 class EvaluationInterrupted(Exception):
@@ -444,6 +352,7 @@ def _fresh_plan(options: EvaluateOptions) -> EvaluationPlan:
     _check_env(env_id, env_kwargs, options.max_steps, seed, suite)
     specs, skipped, warned = _choose_agents(options, env_id, env_kwargs)
     return EvaluationPlan(
+        shield=bool(options.shield),
         out=Path(options.out if options.out is not None else DEFAULT_OUT),
         env_id=env_id,
         env_kwargs=env_kwargs,
@@ -467,7 +376,7 @@ def _resume_plan(options: EvaluateOptions) -> EvaluationPlan:
     assert options.resume is not None
     defaults = EvaluateOptions(progress=options.progress, resume=options.resume)
     for name in ("out", "env", "agents", "episodes", "seed", "plots", "env_kwargs", "max_steps",
-                 "reference", "paper", "suite"):  # fmt: skip
+                 "reference", "paper", "suite", "shield"):  # fmt: skip
         if getattr(options, name) != getattr(defaults, name):
             flag = "--" + name.replace("_", "-")
             raise UsageError(
@@ -586,6 +495,7 @@ def _run_locked(plan: EvaluationPlan, resuming: bool, progress: bool) -> str:
                 finished=finished,
                 on_episode=journal.append,
                 suite=_plan_suite(plan),
+                shield=ShieldParams() if plan.shield else None,
             )
         summary = summarize(results, reference=plan.reference)
         if plan.skipped:

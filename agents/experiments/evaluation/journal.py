@@ -23,7 +23,12 @@ from typing import Any
 
 import numpy as np
 
-from agents.experiments.evaluation.records import RECORD_FIELDS, EpisodeRecord, Trajectory
+from agents.experiments.evaluation.records import (
+    RECORD_FIELDS,
+    SHIELD_COLUMNS,
+    EpisodeRecord,
+    Trajectory,
+)
 from agents.experiments.run_directory import deferred_interrupts
 from debris_gym.files import write_atomic
 from debris_gym.scenario import Scenario
@@ -74,7 +79,8 @@ def record_from_json(data: dict[str, Any]) -> EpisodeRecord:
     Raises:
         KeyError, TypeError, ValueError: ``data`` is not such a record.
     """
-    values = {name: data[name] for name in RECORD_FIELDS}
+    defaults = {name: 0 for name in SHIELD_COLUMNS}  # journals written before the shield
+    values = {name: data[name] if name in data else defaults[name] for name in RECORD_FIELDS}
     trajectory = None
     if data.get("trajectory") is not None:
         t = data["trajectory"]

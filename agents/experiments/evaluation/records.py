@@ -20,6 +20,7 @@ from debris_gym.scenario import Scenario
 __all__ = [
     "CSV_COLUMNS",
     "RECORD_FIELDS",
+    "SHIELD_COLUMNS",
     "TIMING_COLUMNS",
     "EpisodeRecord",
     "EvaluationResults",
@@ -63,7 +64,9 @@ class EpisodeRecord:
     Units: delta_v m/s, time s, path_length m, min_clearance m (smallest surface gap to any
     body, chaser radius subtracted), decision times ms. ``task_score`` is the env's unshaped
     score of the episode (every reward term but the progress shaping, undiscounted);
-    ``episode_return`` the shaped return.
+    ``episode_return`` the shaped return. ``shield_*``: with the safety shield on
+    (``evaluate.py --shield``), the commands it replaced and the mean and largest change
+    (‖u_safe − u_cmd‖ / max_accel, a fraction of the thrust limit); 0 without it.
     """
 
     agent: str = _csv()
@@ -90,6 +93,9 @@ class EpisodeRecord:
     max_deceleration: float = _csv()
     total_curvature: float = _csv()
     scenario_id: str = _csv()
+    shield_interventions: int = _csv(default=0)
+    shield_size_mean: float = _csv(default=0.0)
+    shield_size_max: float = _csv(default=0.0)
     trajectory: Trajectory | None = field(default=None, repr=False)
     scenario: Scenario | None = field(default=None, repr=False)
 
@@ -116,6 +122,9 @@ RECORD_FIELDS: tuple[str, ...] = tuple(
 )
 """The :class:`EpisodeRecord` fields behind :data:`CSV_COLUMNS`, in the same order."""
 
+SHIELD_COLUMNS: tuple[str, ...] = ("shield_interventions", "shield_size_mean", "shield_size_max")
+"""The columns the safety shield fills (0 for an unshielded run)."""
+
 TIMING_COLUMNS: tuple[str, ...] = ("decision_ms_p50", "decision_ms_p95", "decision_ms_max")
 """The columns that measure wall-clock time (ms) and so differ between two runs of the same
 evaluation; every other column is a function of the seeds, the agents and the env."""
@@ -136,6 +145,7 @@ class EvaluationResults:
         suite_hash: the suite's content hash (:attr:`debris_gym.suites.Suite.content_hash`).
         suite_size: missions in the whole suite (``episodes`` flies its first ones).
         seeds: reset seed of each episode when they are not ``seed + i`` (a suite's), else None.
+        shield: the safety shield's parameters when every agent flew shielded, else None.
     """
 
     env_id: str
@@ -151,6 +161,7 @@ class EvaluationResults:
     suite_hash: str | None = None
     suite_size: int | None = None
     seeds: list[int] | None = None
+    shield: dict[str, Any] | None = None
 
     @property
     def reset_seeds(self) -> list[int]:

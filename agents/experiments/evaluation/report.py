@@ -65,7 +65,20 @@ def _with_ci(entry: dict[str, Any], key: str, digits: int = 3) -> str:
 
 
 def _title(summary: dict[str, Any]) -> str:
-    """The table's first line: what was flown (suite, env, options, episodes, seeds)."""
+    """The table's first line: what was flown (suite, env, options, episodes, seeds, shield)."""
+    shield = summary.get("shield")
+    if shield is None:
+        return _plain_title(summary)
+    margin = "the chaser's radius" if shield["margin"] is None else f"{shield['margin']} m"
+    return (
+        f"{_plain_title(summary)} **Shielded**: every agent flies behind the safety shield "
+        f"(run-time assurance: {shield['horizon_steps']}-step horizon, margin {margin} from "
+        f"debris, {shield['target_margin']} m from targets; docs/baselines.md)."
+    )
+
+
+def _plain_title(summary: dict[str, Any]) -> str:
+    """The title without the shield's note."""
     n = summary["episodes"]
     suite = summary.get("suite")
     env = f"env `{summary['env_id']}`" + (
@@ -135,6 +148,28 @@ def _paired_tables(summary: dict[str, Any], n: int) -> list[str]:
     return lines
 
 
+def _shield_table(summary: dict[str, Any]) -> list[str]:
+    """The shield's interventions per agent (nothing for an unshielded run)."""
+    if summary.get("shield") is None:
+        return []
+    lines = [
+        "",
+        "Safety shield: commands replaced per episode (95 % bootstrap interval), their share "
+        "of all decisions, and their size ‖u_safe − u_cmd‖ / max_accel (a fraction of the "
+        "thrust limit; decision times above include the shield).",
+        "",
+        "| agent | interventions / episode | share of decisions | mean size | max size |",
+        "|---|---|---|---|---|",
+    ]
+    for label, e in summary["agents"].items():
+        lines.append(
+            f"| {label} | {_with_ci(e, 'shield_interventions_mean')} "
+            f"| {format_number(e['shield_intervention_share'])} "
+            f"| {format_number(e['shield_size_mean'])} | {format_number(e['shield_size_max'])} |"
+        )
+    return lines
+
+
 def summary_markdown(summary: dict[str, Any]) -> str:
     """The summary as Markdown: one row per agent with 95 % intervals in brackets, then the
     paired comparisons with the reference agent."""
@@ -178,6 +213,7 @@ def summary_markdown(summary: dict[str, Any]) -> str:
             + "; ".join(f"{label}: {', '.join(cols)}" for label, cols in constant.items())
             + ".",
         ]
+    lines += _shield_table(summary)
     lines += _paired_tables(summary, n)
     for label, message in (summary.get("warnings") or {}).items():
         lines += ["", f"Warning — {label}: {message}"]

@@ -10,6 +10,10 @@ Decision time is measured with :func:`time.perf_counter` around each ``predict``
 classical agent plans inside its first ``predict`` of an episode, so that call includes planning.
 The accelerations recorded are the env's own ``info["applied_accel"]`` (after its thrust limit and
 Δv-budget cut), so the metrics see exactly what was flown.
+
+With ``shield`` every agent flies behind the safety shield
+(:class:`agents.policies.shielded.ShieldedAgent`): its decision time includes the shield's, and
+each record counts the commands the shield replaced.
 """
 
 from __future__ import annotations
@@ -40,6 +44,8 @@ from agents.experiments.evaluation.specs import (
     build_agent,
     parse_agent_specs,
 )
+from agents.policies.shield import ShieldParams
+from agents.policies.shielded import ShieldedAgent
 from debris_gym.scenario import Scenario
 from debris_gym.suites import Suite
 
@@ -111,6 +117,7 @@ def run_episode(
         trajectory.thrust_model,
     )
     ms = trajectory.decision_ms
+    stats = agent.stats if isinstance(agent, ShieldedAgent) else None
     return EpisodeRecord(
         agent=label,
         episode=episode,
@@ -136,6 +143,9 @@ def run_episode(
         max_deceleration=metrics.max_deceleration,
         total_curvature=metrics.total_curvature,
         scenario_id=scenario_fingerprint(scenario),
+        shield_interventions=0 if stats is None else stats.interventions,
+        shield_size_mean=0.0 if stats is None else stats.size_mean,
+        shield_size_max=0.0 if stats is None else stats.size_max,
         trajectory=trajectory,
         scenario=scenario,
     )
@@ -164,6 +174,7 @@ def evaluate_agents(
     finished: Sequence[EpisodeRecord] = (),
     on_episode: Callable[[EpisodeRecord], None] | None = None,
     suite: Suite | None = None,
+    shield: ShieldParams | None = None,
 ) -> EvaluationResults:
     """Fly every agent on the same ``episodes`` seeded scenarios.
 
@@ -193,6 +204,8 @@ def evaluate_agents(
             journal it; see :mod:`agents.experiments.evaluation.journal`).
         suite: a frozen suite whose first ``episodes`` missions are flown; ``env_id`` and
             ``env_kwargs`` must be the suite's, and ``seed`` is ignored.
+        shield: fly every agent behind the safety shield with these parameters
+            (:mod:`agents.policies.shield`); None: unshielded.
 
     Raises:
         ValueError: bad arguments (also: ``episodes`` beyond the suite's size, an env other
@@ -229,6 +242,8 @@ def evaluate_agents(
             todo = [i for i in range(episodes) if (spec.label, i) not in done]
             try:
                 agent = build_agent(spec, env) if todo else None
+                if agent is not None and shield is not None:
+                    agent = ShieldedAgent(agent, env, shield)
                 for i in range(episodes):
                     saved = done.get((spec.label, i))
                     if saved is not None:
@@ -263,6 +278,7 @@ def evaluate_agents(
         suite_hash=None if suite is None else suite.content_hash,
         suite_size=None if suite is None else len(suite),
         seeds=None if suite is None else seeds,
+        shield=None if shield is None else shield.to_dict(),
     )
 
 

@@ -310,6 +310,21 @@ def _suite_entry(results: EvaluationResults) -> dict[str, Any] | None:
     }
 
 
+def _shield_entry(recs: Sequence[Any], decisions: int) -> dict[str, Any]:
+    """An agent's shield interventions: per episode (mean, bootstrap interval), their share of
+    all decisions, and their size (‖u_safe − u_cmd‖ / max_accel) over all interventions."""
+    counts = [r.shield_interventions for r in recs]
+    total = sum(counts)
+    size_sum = sum(r.shield_size_mean * r.shield_interventions for r in recs)
+    return {
+        "shield_interventions_mean": _mean(counts),
+        "shield_interventions_mean_ci95": list(bootstrap_interval(counts, 0.0, None)),
+        "shield_intervention_share": total / decisions if decisions else None,
+        "shield_size_mean": size_sum / total if total else 0.0,
+        "shield_size_max": max((r.shield_size_max for r in recs), default=0.0),
+    }
+
+
 def summarize(results: EvaluationResults, reference: str | None = None) -> dict[str, Any]:
     """Per-agent summary (DESIGN §6 keys, confidence intervals) plus how the run was made, and
     the paired comparisons against ``reference`` (:func:`paired_success`,
@@ -320,7 +335,10 @@ def summarize(results: EvaluationResults, reference: str | None = None) -> dict[
     episode (their interval is the value itself). ``decision_ms_p50/p95`` are over all
     decisions of the agent, across episodes. ``delta_v_mean_success`` and
     ``time_mean_success`` average over successful episodes only (None without any): a failed
-    episode can be cheap because it ended early.
+    episode can be cheap because it ended early. With the safety shield on (``shield``: its
+    parameters) each agent also gets ``shield_interventions_mean`` (per episode, bootstrap
+    interval), ``shield_intervention_share`` (of all decisions) and ``shield_size_mean`` /
+    ``shield_size_max`` (‖u_safe − u_cmd‖ / max_accel over the interventions).
     """
     agents: dict[str, Any] = {}
     for spec in results.agents:
@@ -360,6 +378,8 @@ def summarize(results: EvaluationResults, reference: str | None = None) -> dict[
         entry["decision_ms_p95"] = float(np.percentile(ms, 95))
         entry["decision_ms_max"] = float(ms.max())
         entry["decisions"] = int(ms.size)
+        if results.shield is not None:
+            entry |= _shield_entry(recs, int(ms.size))
         agents[spec.label] = entry
     ci_method = {f"{k}_ci95": CI_METHODS["wilson"] for k in RATE_KEYS}
     ci_method |= {f"{k}_ci95": CI_METHODS["bootstrap"] for k in MEAN_KEYS}
@@ -377,6 +397,7 @@ def summarize(results: EvaluationResults, reference: str | None = None) -> dict[
     suite = _suite_entry(results)
     if suite is not None:
         summary["suite"] = suite
+    summary["shield"] = results.shield
     summary |= {
         "reset_seeds": results.reset_seeds,
         "scenario_ids": [scenario_fingerprint(s) for s in results.scenarios],

@@ -1,0 +1,147 @@
+"""The safety shield around an agent (:class:`ShieldedAgent`) or an env (:class:`ShieldWrapper`),
+with per-episode intervention counters (:class:`ShieldStats`).
+
+``ShieldedAgent`` filters a ``predict()`` agent's actions for evaluation (``evaluate.py
+--shield``); ``ShieldWrapper`` filters every action a learner sends to a single env, for
+training with the shield on, and reports the counters in ``info``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from agents.policies.base import unwrap
+from agents.policies.shield import SafetyShield, ShieldParams
+
+__all__ = ["ShieldStats", "ShieldWrapper", "ShieldedAgent"]
+
+
+@dataclass
+class ShieldStats:
+    """Interventions of one episode.
+
+    Attributes:
+        decisions: commands filtered.
+        interventions: commands replaced.
+        size_sum, size_max: sum and largest intervention size (‖u_safe − u_cmd‖ / max_accel,
+            a fraction of the thrust limit) over the replaced commands.
+    """
+
+    decisions: int = 0
+    interventions: int = 0
+    size_sum: float = 0.0
+    size_max: float = 0.0
+
+    @property
+    def size_mean(self) -> float:
+        """Mean intervention size over the replaced commands (0 without any)."""
+        return self.size_sum / self.interventions if self.interventions else 0.0
+
+    def add(self, intervened: bool, size: float) -> None:
+        """Count one decision."""
+        self.decisions += 1
+        if intervened:
+            self.interventions += 1
+            self.size_sum += size
+            self.size_max = max(self.size_max, size)
+
+    def as_info(self) -> dict[str, float | int]:
+        """The counters under the ``info`` keys :class:`ShieldWrapper` uses."""
+        return {
+            "shield_decisions": self.decisions,
+            "shield_interventions": self.interventions,
+            "shield_size_mean": self.size_mean,
+            "shield_size_max": self.size_max,
+        }
+
+
+class ShieldedAgent:
+    """Any ``predict()`` agent with its actions filtered by a :class:`SafetyShield`.
+
+    Counts per episode in :attr:`stats` (reset when ``episode_start`` says so, or when the env
+    was reset since the last call). Single observations only (the shield reads the one env it
+    was built with): a batch of one is answered as a batch, a larger batch is refused.
+
+    Args:
+        agent: anything with SB3's ``predict(obs, state, episode_start, deterministic)``.
+        env: the env the agent flies (wrapped or not).
+        params: the shield's tunables (None: defaults).
+    """
+
+    def __init__(self, agent: Any, env: Any, params: ShieldParams | None = None) -> None:
+        if not callable(getattr(agent, "predict", None)):
+            raise TypeError(f"agent must have a predict() method, got {type(agent).__name__}")
+        self.agent = agent
+        self.shield = SafetyShield(env, params)
+        self.stats = ShieldStats()
+        self._clock: tuple[Any, float] | None = None  # (scenario, elapsed) of the last call
+
+    def predict(
+        self,
+        observation: Any,
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[Any, Any]:
+        """The agent's action, filtered by the shield; same signature as SB3's ``predict``."""
+        env = self.shield.env
+        obs_shape = env.observation_space.shape
+        shape = np.shape(observation)
+        batch = shape != obs_shape
+        if batch and (shape[1:] != obs_shape or shape[0] != 1):
+            raise ValueError(
+                f"a shielded agent takes one observation of shape {obs_shape} (or a batch of "
+                f"one), got shape {shape}: the shield checks the one env it was built with"
+            )
+        action, state = self.agent.predict(
+            observation, state=state, episode_start=episode_start, deterministic=deterministic
+        )
+        clock = (env.scenario, env.elapsed)
+        fresh = self._clock is None or clock[0] is not self._clock[0] or clock[1] < self._clock[1]
+        if fresh or (episode_start is not None and bool(np.any(episode_start))):
+            self.stats = ShieldStats()
+        self._clock = clock
+        single = np.asarray(action)[0] if batch else action
+        decision = self.shield.decide(single)
+        self.stats.add(decision.intervened, decision.size)
+        if not decision.intervened:
+            return action, state
+        safe = decision.action
+        if batch:
+            safe = np.asarray([safe], dtype=np.asarray(action).dtype)
+        return safe, state
+
+
+class ShieldWrapper(gym.Wrapper):
+    """A single DebrisGym env whose actions pass through a :class:`SafetyShield` first: train
+    with the shield on. ``info`` gains ``shield_intervened`` (this step) and the episode's
+    counters (:meth:`ShieldStats.as_info`).
+
+    Args:
+        env: a DebrisGym env (``gym.make(...)``), not a vector env.
+        params: the shield's tunables (None: defaults).
+    """
+
+    def __init__(self, env: gym.Env, params: ShieldParams | None = None) -> None:
+        unwrap(env)  # a DebrisGym env, or a clear TypeError
+        super().__init__(env)
+        self.shield = SafetyShield(env, params)
+        self.stats = ShieldStats()
+
+    def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
+        """Reset the env and the episode's counters."""
+        obs, info = self.env.reset(**kwargs)
+        self.stats = ShieldStats()
+        return obs, {**info, "shield_intervened": False, **self.stats.as_info()}
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        """Step with the shield's action in place of ``action``."""
+        decision = self.shield.decide(action)
+        self.stats.add(decision.intervened, decision.size)
+        obs, reward, terminated, truncated, info = self.env.step(decision.action)
+        info = {**info, "shield_intervened": decision.intervened, **self.stats.as_info()}
+        return obs, reward, terminated, truncated, info
