@@ -71,11 +71,44 @@ def table(folders: list[Path]) -> str:
     return "\n".join(lines)
 
 
+def leg_table(folder: Path) -> str:
+    """Per-leg success of every agent in one evaluation: leg k (k = 1…n) is the flight to the
+    k-th target, counted over the missions that reached its start (k − 1 captures), and the
+    return leg the flight home after the n-th capture; a mission that stops on a leg (collision,
+    bounds, budget, time) fails that leg."""
+    rows_by_agent: dict[str, list[dict[str, str]]] = defaultdict(list)
+    with open(folder / "episodes.csv", newline="") as fh:
+        for row in csv.DictReader(fh):
+            rows_by_agent[row["agent"]].append(row)
+    n = max(int(r["n_targets"]) for rows in rows_by_agent.values() for r in rows)
+    header = "| agent | " + " | ".join(f"leg {k}" for k in range(1, n + 1)) + " | return |"
+    lines = [header, "|---|" + "---|" * (n + 1)]
+    for agent, rows in rows_by_agent.items():
+        captured = np.array([int(r["targets_captured"]) for r in rows])
+        success = np.array([r["success"] in ("1", "True", "true") for r in rows])
+        cells = []
+        for k in range(1, n + 1):
+            started = int(np.sum(captured >= k - 1))
+            done = int(np.sum(captured >= k))
+            cells.append(f"{done}/{started}" if started else "–")
+        home = int(np.sum(captured == n))
+        cells.append(f"{int(np.sum(success))}/{home}" if home else "–")
+        lines.append(f"| {agent} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("folders", nargs="+", type=Path, help="evaluate.py output directories")
+    parser.add_argument(
+        "--legs", action="store_true", help="per-leg success of each folder's agents instead"
+    )
     args = parser.parse_args(argv)
-    print(table(args.folders))
+    if args.legs:
+        for folder in args.folders:
+            print(f"{folder}:\n{leg_table(folder)}\n")
+    else:
+        print(table(args.folders))
     return 0
 
 

@@ -32,3 +32,32 @@ def test_every_option_and_id_is_in_the_docs():
 
 def test_every_option_has_a_meaning():
     assert all(opt.doc for opt in OPTIONS.values())
+
+
+def test_the_ladder_table_counts_success_returns_and_legs(tmp_path):
+    """docs/ladder_table.py on a hand-written evaluation: 3 missions of 2 targets."""
+    import csv as csv_module
+    import json
+
+    from tests.helpers import load_script
+
+    ladder = load_script("docs/ladder_table.py")
+    folder = tmp_path / "eval"
+    folder.mkdir()
+    (folder / "summary.json").write_text(json.dumps({"env_id": "DebrisGym/Rendezvous2D-Medium-v1"}))
+    rows = [  # agent, success, captured, return, task score
+        ("a", True, 2, 90.0, 68.0),
+        ("a", False, 1, -30.0, -40.0),
+        ("a", False, 2, 10.0, -20.0),
+    ]
+    with open(folder / "episodes.csv", "w", newline="") as fh:
+        writer = csv_module.writer(fh)
+        writer.writerow(
+            ["agent", "success", "targets_captured", "n_targets", "return", "task_score"]
+        )
+        for agent, success, captured, ret, score in rows:
+            writer.writerow([agent, success, captured, 2, ret, score])
+    text = ladder.table([folder])
+    assert "| a | 33% · 10.0 (23.3) · 2.7 |" in text
+    legs = ladder.leg_table(folder)
+    assert "| a | 3/3 | 2/3 | 1/2 |" in legs  # leg 1 all, leg 2 two of three, home one of two
