@@ -70,6 +70,7 @@ examples:
   python evaluate.py --suite standard-2d-v1 --agents apf-mpc,astar --episodes 10
   python evaluate.py --paper --out runs/paper          # [APF-MPC] Table I side by side
   python evaluate.py --agents apf,apf-mpc --shield     # every agent behind the safety shield
+  python evaluate.py --agents apf-mpc,pretrained --video 2   # mp4s of the first 2 episodes
   python evaluate.py --resume runs/cmp                 # finish a run stopped by Ctrl-C
 """
 
@@ -229,6 +230,14 @@ def build_parser() -> argparse.ArgumentParser:
         "checked against the bodies' predicted motion over a short horizon and replaced by "
         "the closest safe one; interventions are counted in episodes.csv, summary.json and "
         "the table (docs/baselines.md, 'The safety shield')",
+    )
+    parser.add_argument(
+        "--video",
+        type=int,
+        default=0,
+        metavar="N",
+        help="record each agent's first N episodes as mp4 in DIR/videos/<agent>/ "
+        "(gymnasium's RecordVideo; needs moviepy: pip install 'debris-gym[video]')",
     )
     parser.add_argument(
         "--no-progress",

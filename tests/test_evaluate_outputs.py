@@ -350,3 +350,27 @@ def test_resume_refuses_a_journal_of_another_evaluation(cli, capsys, monkeypatch
     journal.options_path.write_text("{not json")
     err = _usage_error(cli, capsys, ["--resume", str(out)])
     assert "argument --resume" in err and "options.json" in err
+
+
+def test_video_records_each_agents_first_episodes(cli, tmp_path):
+    """--video N: RecordVideo mp4s of the first N episodes of every agent, every frame of the
+    episode in them (the reset frame and one per step; moviepy may drop the last)."""
+    pytest.importorskip("moviepy", reason="--video needs moviepy: pip install -e '.[video]'")
+    from moviepy import VideoFileClip
+
+    out = tmp_path / "eval"
+    argv = ["--agents", "zero,apf", "--episodes", "2", "--max-steps", "12", "--video", "1"]
+    assert cli.main([*argv, "--out", str(out), "--plots", "0", "--no-progress"]) == 0
+    for agent in ("zero", "apf"):
+        videos = sorted((out / "videos" / agent).glob("*.mp4"))
+        assert [v.name for v in videos] == [f"{agent}-episode-0.mp4"]
+        rows = [r for r in _rows(out) if r["agent"] == agent and r["episode"] == "0"]
+        steps = int(rows[0]["steps"])
+        with VideoFileClip(str(videos[0])) as clip:
+            frames = sum(1 for _ in clip.iter_frames())
+        assert steps <= frames <= steps + 1
+
+
+def test_a_bad_video_count_is_a_usage_error(cli, capsys):
+    err = _usage_error(cli, capsys, ["--agents", "zero", "--video", "-1"])
+    assert "argument --video" in err and "must be an integer >= 0" in err

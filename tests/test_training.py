@@ -506,8 +506,9 @@ def test_the_shipped_pretrained_policy_flies_its_env():
     with pytest.raises(ValueError, match=re.escape("trained with env options {'obs_targets': 1")):
         agents.load_agent("pretrained", default)
     default.close()
-    with pytest.raises(ValueError, match="no pretrained policy for DebrisGym/Rendezvous2D-v1"):
-        agents.load_agent("pretrained", gym.make("DebrisGym/Rendezvous2D-v1"))
+    medium = "DebrisGym/Rendezvous2D-Medium-v1"
+    with pytest.raises(ValueError, match=f"no pretrained policy for {medium}"):
+        agents.load_agent("pretrained", gym.make(medium))
 
 
 def test_the_pretrained_easy_policy_is_the_one_made_for_the_easy_rung():
@@ -529,6 +530,34 @@ def test_the_pretrained_easy_policy_is_the_one_made_for_the_easy_rung():
         if terminated or truncated:
             break
     assert info["is_success"] and not info["collision"]
+    env.close()
+
+
+@pytest.mark.parametrize(
+    "env_id, name",
+    [
+        ("DebrisGym/Rendezvous2D-v1", "rendezvous2d_finetuned.zip"),
+        ("DebrisGym/Rendezvous3D-v1", "rendezvous3d_finetuned.zip"),
+    ],
+)
+def test_the_pretrained_v1_policies_are_the_fine_tuned_ones(env_id, name):
+    """On the v1 IDs `pretrained` is the RL-fine-tuned policy (imitation of APF-MPC, then PPO
+    from the reward): it flies with its run's observation options and completes a held-out
+    mission of the default difficulty (seed outside every training and evaluation range)."""
+    from agents import observation_options
+    from agents.policies.learned import pretrained_path
+
+    assert pretrained_path(env_id)[1].name == name
+    options = observation_options("pretrained", env_id)
+    assert options == {"obs_targets": 1, "obs_goal": True, "obs_other_targets": True}
+    env = gym.make(env_id, **options)
+    agent = agents.load_agent("pretrained", env)
+    obs, info = env.reset(seed=20_000_001)
+    for _ in range(1000):
+        obs, _, terminated, truncated, info = env.step(agent.predict(obs)[0])
+        if terminated or truncated:
+            break
+    assert info["is_success"] and info["targets_captured"] == 3 and not info["collision"]
     env.close()
 
 

@@ -18,6 +18,7 @@ resume); ``evaluate.py --resume DIR`` (:attr:`EvaluateOptions.resume`) continues
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import re
 import shlex
 import sys
@@ -71,6 +72,9 @@ DEFAULT_EPISODES = 20
 """Episodes per agent of a plain ``python evaluate.py``."""
 
 DEFAULT_OUT = Path("runs/eval")
+
+VIDEO_DIR = "videos"
+"""Where ``--video N`` puts each agent's recordings: ``DIR/videos/<agent>/``."""
 """Output directory of a plain ``python evaluate.py``."""
 
 AGENT_ERRORS = (ImportError, FileNotFoundError, NotImplementedError, TypeError, ValueError)
@@ -351,8 +355,17 @@ def _fresh_plan(options: EvaluateOptions) -> EvaluationPlan:
         raise UsageError("--plots", f"must be an integer >= 0, got {plots!r}")
     _check_env(env_id, env_kwargs, options.max_steps, seed, suite)
     specs, skipped, warned = _choose_agents(options, env_id, env_kwargs)
+    video = options.video
+    if isinstance(video, bool) or not isinstance(video, int) or video < 0:
+        raise UsageError("--video", f"must be an integer >= 0, got {video!r}")
+    if video and importlib.util.find_spec("moviepy") is None:
+        raise UsageError(
+            "--video", "needs moviepy (gymnasium's RecordVideo writes mp4 with it): "
+            "pip install 'debris-gym[video]'"
+        )  # fmt: skip
     return EvaluationPlan(
         shield=bool(options.shield),
+        video=video,
         out=Path(options.out if options.out is not None else DEFAULT_OUT),
         env_id=env_id,
         env_kwargs=env_kwargs,
@@ -376,7 +389,7 @@ def _resume_plan(options: EvaluateOptions) -> EvaluationPlan:
     assert options.resume is not None
     defaults = EvaluateOptions(progress=options.progress, resume=options.resume)
     for name in ("out", "env", "agents", "episodes", "seed", "plots", "env_kwargs", "max_steps",
-                 "reference", "paper", "suite", "shield"):  # fmt: skip
+                 "reference", "paper", "suite", "shield", "video"):  # fmt: skip
         if getattr(options, name) != getattr(defaults, name):
             flag = "--" + name.replace("_", "-")
             raise UsageError(
@@ -496,6 +509,7 @@ def _run_locked(plan: EvaluationPlan, resuming: bool, progress: bool) -> str:
                 on_episode=journal.append,
                 suite=_plan_suite(plan),
                 shield=ShieldParams() if plan.shield else None,
+                video=(plan.out / VIDEO_DIR, plan.video) if plan.video else None,
             )
         summary = summarize(results, reference=plan.reference)
         if plan.skipped:

@@ -44,6 +44,7 @@ class EvaluateOptions:
     resume: Path | None = None
     suite: str | None = None
     shield: bool = False
+    video: int = 0
 
 
 @dataclass(frozen=True)
@@ -69,6 +70,8 @@ class EvaluationPlan:
             whose content has changed since).
         shield: every agent flies behind the safety shield (default parameters,
             :class:`agents.policies.shield.ShieldParams`).
+        video: record the first ``video`` episodes of every agent as mp4 in
+            ``out/videos/<agent>/`` (gymnasium's ``RecordVideo``).
     """
 
     out: Path
@@ -86,6 +89,7 @@ class EvaluationPlan:
     suite: str | None = None
     suite_hash: str | None = None
     shield: bool = False
+    video: int = 0
 
     @property
     def specs(self) -> list[AgentSpec]:

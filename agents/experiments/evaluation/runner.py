@@ -19,10 +19,12 @@ each record counts the commands the shield replaced.
 from __future__ import annotations
 
 import math
+import re
 import sys
 import time
 import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -152,10 +154,15 @@ def run_episode(
 
 
 def make_env(
-    env_id: str, env_kwargs: dict[str, Any] | None = None, max_episode_steps: int | None = None
+    env_id: str,
+    env_kwargs: dict[str, Any] | None = None,
+    max_episode_steps: int | None = None,
+    render_mode: str | None = None,
 ) -> gym.Env:
     """``gym.make(env_id, **env_kwargs)``, with the time limit overridden if given."""
     kwargs = dict(env_kwargs or {})
+    if render_mode is not None:
+        kwargs["render_mode"] = render_mode
     if max_episode_steps is not None:
         if int(max_episode_steps) < 1:
             raise ValueError(f"max_episode_steps must be >= 1, got {max_episode_steps}")
@@ -175,6 +182,7 @@ def evaluate_agents(
     on_episode: Callable[[EpisodeRecord], None] | None = None,
     suite: Suite | None = None,
     shield: ShieldParams | None = None,
+    video: tuple[Path, int] | None = None,
 ) -> EvaluationResults:
     """Fly every agent on the same ``episodes`` seeded scenarios.
 
@@ -206,6 +214,9 @@ def evaluate_agents(
             ``env_kwargs`` must be the suite's, and ``seed`` is ignored.
         shield: fly every agent behind the safety shield with these parameters
             (:mod:`agents.policies.shield`); None: unshielded.
+        video: ``(folder, n)``: record the first ``n`` episodes this call flies for each agent
+            (replays of a resumed run count) as mp4 files in ``folder/<agent label>/``, with
+            gymnasium's ``RecordVideo`` on a ``render_mode="rgb_array"`` env (needs moviepy).
 
     Raises:
         ValueError: bad arguments (also: ``episodes`` beyond the suite's size, an env other
@@ -236,7 +247,10 @@ def evaluate_agents(
     try:
         for spec in specs:
             kwargs = {**env_kwargs, **agent_env_options(spec, env_id)}
-            env = make_env(env_id, kwargs, max_episode_steps)
+            if video is None:
+                env = make_env(env_id, kwargs, max_episode_steps)
+            else:
+                env = _recording_env(env_id, kwargs, max_episode_steps, spec.label, *video)
             if env.spec is not None:
                 time_limit = env.spec.max_episode_steps
             todo = [i for i in range(episodes) if (spec.label, i) not in done]
@@ -279,6 +293,28 @@ def evaluate_agents(
         suite_size=None if suite is None else len(suite),
         seeds=None if suite is None else seeds,
         shield=None if shield is None else shield.to_dict(),
+    )
+
+
+def _recording_env(
+    env_id: str,
+    kwargs: dict[str, Any],
+    max_episode_steps: int | None,
+    label: str,
+    folder: Path,
+    n: int,
+) -> gym.Env:
+    """The agent's env, rendering, its first ``n`` episodes recorded in ``folder/<label>/``."""
+    from gymnasium.wrappers import RecordVideo
+
+    env = make_env(env_id, kwargs, max_episode_steps, render_mode="rgb_array")
+    safe = re.sub(r"[^A-Za-z0-9_.#=-]+", "_", label)
+    return RecordVideo(
+        env,
+        video_folder=str(folder / safe),
+        episode_trigger=lambda episode: episode < n,
+        name_prefix=safe,
+        disable_logger=True,
     )
 
 
