@@ -63,6 +63,8 @@ PRETRAINED_DIR = Path(__file__).resolve().parent.parent / "pretrained"
 PRETRAINED_POLICIES: dict[str, tuple[str, str]] = {
     "DebrisGym/Rendezvous2D-v0": ("ppo", "rendezvous2d_dagger.zip"),
     "DebrisGym/Rendezvous2D-Easy-v1": ("ppo", "rendezvous2d-easy_ppo.zip"),
+    "DebrisGym/Rendezvous2D-v1": ("ppo", "rendezvous2d_finetuned.zip"),
+    "DebrisGym/Rendezvous3D-v1": ("ppo", "rendezvous3d_finetuned.zip"),
 }
 """Env ID → (algorithm, file in :data:`PRETRAINED_DIR`)."""
 
