@@ -199,8 +199,10 @@ def test_checked_in_recipe_loads():
     config = load_imitation_config(ENV_ID)
     assert config.expert == "apf-mpc" and config.expert_kwargs["ordering"] == "nearest"
     assert config.env_kwargs["obs_goal"] is True
+    three_d = load_imitation_config("DebrisGym/Rendezvous3D-v1")  # the 3D policy's start
+    assert three_d.env_id == "DebrisGym/Rendezvous3D-v1" and three_d.expert == "apf-mpc"
     with pytest.raises(FileNotFoundError, match="no imitation config"):
-        load_imitation_config("DebrisGym/Rendezvous3D-v0")
+        load_imitation_config("DebrisGym/PaperField2D-v0")
 
 
 def test_tiny_run_in_process_writes_a_policy_that_loads(tmp_path):
