@@ -44,7 +44,7 @@ from agents.planners.rrt import RRTParams
 from agents.policies.registry import make_agent
 from debris_gym.scenario import Scenario
 from debris_gym.suites import RESERVED_SEEDS, Mission, Suite, read_suite, write_suite
-from debris_gym.suites.build import _git_commit
+from debris_gym.suites.build import git_commit
 
 __all__ = [
     "ENV_ID",
@@ -349,7 +349,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         finally:
             if log is not None:
                 log.close()
-        write_suite(hard_suite(kept, command.strip(), _git_commit()), args.out)
+        write_suite(hard_suite(kept, command.strip(), git_commit()), args.out)
         print(f"wrote {len(kept)} missions to {args.out}")
         return 0
     suite = read_suite(args.suite)

@@ -287,14 +287,14 @@ class SESCPAgent(MPCPathAgent):
             return self._age >= self.fallback_every
         if self._age < 2:  # a fresh plan gets one decision before it is judged again
             return False
-        ref = self._ref
+        ref = self.reference
         if not isinstance(ref, TrajectoryReference):
             return True
         d = self.env.dim
         ahead = ref.states[min(ref.progress + 1, len(ref.states) - 1) :][: self.check_steps]
         dt = self.env.scenario.dt
         times = now + dt * np.arange(1, len(ahead) + 1)
-        frame = self._goal.index if self._goal.kind == "target" else None
+        frame = self.goal.index if self.goal.kind == "target" else None
         cfg = self.env.config
         margin = self.margin if self.margin is not None else self.tracker.keepout_margin
         need = cfg.chaser_radius + self.keep_fraction * margin

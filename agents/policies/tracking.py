@@ -105,6 +105,16 @@ class MPCPathAgent(ClassicalAgent):
 
     # --- hooks --------------------------------------------------------------------------------
 
+    @property
+    def reference(self) -> PathReference | None:
+        """The reference being flown (None between plans or at the mission's end)."""
+        return self._ref
+
+    @property
+    def goal(self) -> Goal | None:
+        """The goal the current plan leads to (None before the first plan)."""
+        return self._goal
+
     def prepare(self, scenario: Scenario) -> None:
         """Per-scenario planner set-up (e.g. a grid); called by :meth:`plan`."""
 

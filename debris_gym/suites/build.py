@@ -19,7 +19,7 @@ from typing import Any
 
 from debris_gym.suites import RESERVED_SEEDS, Mission, Suite, write_suite
 
-__all__ = ["STANDARD_SUITES", "StandardSuite", "build_suite", "main"]
+__all__ = ["STANDARD_SUITES", "StandardSuite", "build_suite", "git_commit", "main"]
 
 
 @dataclass(frozen=True)
@@ -72,7 +72,9 @@ STANDARD_SUITES: dict[str, StandardSuite] = {
 """The standard suites, by name."""
 
 
-def _git_commit() -> str:
+def git_commit() -> str:
+    """The checkout's commit (``git rev-parse HEAD``) for a suite's provenance, or "unknown"
+    outside a git checkout."""
     root = Path(__file__).resolve().parents[2]
     try:
         out = subprocess.run(
@@ -109,7 +111,7 @@ def build_suite(name: str, recipe: StandardSuite, command: str) -> Suite:
         description=recipe.description,
         env_kwargs=kwargs,
         missions=tuple(missions),
-        provenance={"command": command, "git": _git_commit()},
+        provenance={"command": command, "git": git_commit()},
     )
 
 
