@@ -238,8 +238,7 @@ class DebrisFieldEnv(gym.Env):
         """The batch of one mission for fields of this physics and size (made again when they
         change)."""
         m = self._missions
-        if m is None or (m.config, m.physics, m.n_targets, m.field.n_bodies) != (
-            self.config,
+        if m is None or (m.physics, m.n_targets, m.field.n_bodies) != (
             physics,
             n_targets,
             n_bodies,
@@ -314,12 +313,12 @@ class DebrisFieldEnv(gym.Env):
         options = checked_reset_options(options)
         saved = self._np_random, self._np_random_seed
         saved_state = None if saved[0] is None else saved[0].bit_generator.state
-        saved_mission = self.config, self._field_spec, self._drawer
+        saved_mission = self.config, self._field_spec, self._drawer, self._missions
         try:
             if options.get("mission") is not None:
                 config = checked_mission(self._made_config, options["mission"])
-                if config != self.config:
-                    self.config, self._drawer = config, None
+                if config != self.config:  # a new batch, ruled by the new mission
+                    self.config, self._drawer, self._missions = config, None, None
                     self._field_spec = field_spec(config)
             super().reset(seed=seed)
             drawn = None
@@ -349,7 +348,7 @@ class DebrisFieldEnv(gym.Env):
                 if options.get("scenario") is not None:
                     check_dock_clear(scenario, self.config.chaser_radius)
         except BaseException:  # nothing of the env changed but its generator: put it back
-            self.config, self._field_spec, self._drawer = saved_mission
+            self.config, self._field_spec, self._drawer, self._missions = saved_mission
             self._np_random, self._np_random_seed = saved
             if saved_state is not None:
                 saved[0].bit_generator.state = saved_state
