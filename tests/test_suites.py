@@ -158,7 +158,7 @@ def test_suite_seeds_are_disjoint_from_default_training_and_evaluation_seeds():
 
 
 def test_training_refuses_seeds_that_are_a_suites(monkeypatch, tmp_path):
-    from agents.experiments.training import run
+    from agents.experiments.training import resolve
     from agents.policies.model_files import load_config_file
 
     # a suite whose seeds sit where training would seed its envs
@@ -169,8 +169,8 @@ def test_training_refuses_seeds_that_are_a_suites(monkeypatch, tmp_path):
     data, _ = load_config_file(CONFIG_DIR / "rendezvous2d_ppo.yaml")
     config = TrainConfig.from_dict(data, source="ppo")
     with pytest.raises(ValueError, match=r"training .*evaluation suite.*fake: 3.*evaluation-only"):
-        run._refuse_suite_seeds(0, config)
-    run._refuse_suite_seeds(10, config)  # clear of seed 3: accepted
+        resolve.refuse_suite_seeds_of(0, config)
+    resolve.refuse_suite_seeds_of(10, config)  # clear of seed 3: accepted
 
 
 def test_imitation_refuses_seeds_that_are_a_suites():

@@ -12,8 +12,12 @@ import re
 from pathlib import Path
 from typing import Any
 
-ALGOS = ("ppo", "sac", "td3", "dqn")
-"""Algorithms ``train.py`` trains (the SB3 classes of the same name)."""
+ALGOS = ("ppo", "sac", "td3", "dqn", "recurrent_ppo")
+"""Algorithms ``train.py`` trains: the SB3 classes of the same name, and sb3-contrib's
+``RecurrentPPO`` (an LSTM policy)."""
+
+ON_POLICY_ALGOS = ("ppo", "recurrent_ppo")
+"""Algorithms that learn from rollouts (``n_steps`` × envs samples per update)."""
 
 FINAL_MODEL = "model.zip"
 """File name of a run's final model inside its directory."""
@@ -27,9 +31,22 @@ class ConfigError(ValueError):
 
 
 def algo_class(algo: str) -> type:
-    """The Stable-Baselines3 class of ``algo`` (one of :data:`ALGOS`)."""
+    """The Stable-Baselines3 class of ``algo`` (one of :data:`ALGOS`).
+
+    Raises:
+        ConfigError: ``recurrent_ppo`` without the sb3-contrib package installed.
+    """
     import stable_baselines3 as sb3
 
+    if algo == "recurrent_ppo":
+        try:
+            from sb3_contrib import RecurrentPPO
+        except ImportError:
+            raise ConfigError(
+                "algo 'recurrent_ppo' needs the sb3-contrib package: pip install sb3-contrib "
+                '(or pip install -e ".[rl]")'
+            ) from None
+        return RecurrentPPO
     return {"ppo": sb3.PPO, "sac": sb3.SAC, "td3": sb3.TD3, "dqn": sb3.DQN}[algo]
 
 

@@ -24,7 +24,7 @@ from agents.experiments.training.validation import (
     validate_curriculum,
     validate_policy_kwargs,
 )
-from agents.policies.model_files import ALGOS, algo_class
+from agents.policies.model_files import ALGOS, ON_POLICY_ALGOS, algo_class
 
 OFF_POLICY = ("sac", "td3", "dqn")
 """Algorithms with a replay buffer."""
@@ -100,6 +100,27 @@ class CheckpointConfig:
 
 
 @dataclass(frozen=True)
+class EncoderConfig:
+    """How the policy reads the observation before its MLP layers.
+
+    Attributes:
+        kind: ``"flat"`` (SB3's flatten, the default) or ``"set"``: a permutation-invariant
+            encoder of the body slots (:class:`agents.policies.set_encoder.SlotSetExtractor`).
+        embed_dim: ``set``: output size of the per-slot network (each slot kind adds twice as
+            many features: a mean and a max).
+        hidden_dim: ``set``: hidden width of the per-slot network.
+    """
+
+    kind: str = "flat"
+    embed_dim: int = 64
+    hidden_dim: int = 64
+
+
+ENCODERS = ("flat", "set")
+"""``encoder.kind`` values."""
+
+
+@dataclass(frozen=True)
 class InitConfig:
     """RL fine-tuning: start PPO from another run's policy (``train.py --init DIR``).
 
@@ -150,6 +171,7 @@ class TrainConfig:
             top-level ones. Observation and action spaces must not change; evaluation always
             flies the final task.
         init: RL fine-tuning from another run's policy (:class:`InitConfig`; ppo only).
+        encoder: how the policy reads the observation (:class:`EncoderConfig`).
         notes: free text (what the recipe is for, what it was tuned on).
     """
 
@@ -167,6 +189,7 @@ class TrainConfig:
     checkpoint: CheckpointConfig = field(default_factory=CheckpointConfig)
     curriculum: list[dict[str, Any]] = field(default_factory=list)
     init: InitConfig = field(default_factory=InitConfig)
+    encoder: EncoderConfig = field(default_factory=EncoderConfig)
     notes: str = ""
 
     def stage(self, timesteps: int) -> int:
@@ -269,7 +292,7 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
         data.get("policy_kwargs"), cls.policy_aliases[policy], source
     )
     algo_kwargs = validate_algo_kwargs(data.get("algo_kwargs"), cls, algo, source)
-    if algo == "ppo":  # SB3 asserts a rollout of at least 2 samples
+    if algo in ON_POLICY_ALGOS:  # SB3 asserts a rollout of at least 2 samples
         n_steps = algo_kwargs.get(
             "n_steps", inspect.signature(cls.__init__).parameters["n_steps"].default
         )
@@ -305,6 +328,7 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
         data.get("curriculum"), env_kwargs, spec.kwargs, env_config, source
     )
     init = _validate_init(data.get("init"), algo, normalize, source)
+    encoder = _validate_encoder(data.get("encoder"), init, source)
     return TrainConfig(
         version=version,
         env_id=env_id,
@@ -320,8 +344,24 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
         checkpoint=checkpoint,
         curriculum=curriculum,
         init=init,
+        encoder=encoder,
         notes=notes,
     )
+
+
+def _validate_encoder(data: Any, init: InitConfig, source: str) -> EncoderConfig:
+    encoder = section(EncoderConfig, data, "encoder.", source)
+    if encoder.kind not in ENCODERS:
+        raise config_error(
+            source, "encoder.kind", f"must be one of {', '.join(ENCODERS)}, got {encoder.kind!r}"
+        )
+    at_least(encoder.embed_dim, 1, "encoder.embed_dim", source)
+    at_least(encoder.hidden_dim, 1, "encoder.hidden_dim", source)
+    if encoder.kind != "flat" and init.path is not None:
+        raise config_error(
+            source, "encoder.kind", "must be 'flat' with init (fine-tuning keeps the init's net)"
+        )
+    return encoder
 
 
 def _validate_init(data: Any, algo: str, normalize: NormalizeConfig, source: str) -> InitConfig:

@@ -25,6 +25,7 @@ __all__ = [
     "make_train_env",
     "policy_kwargs",
     "resolve_device",
+    "set_encoder_kwargs",
     "tensorboard_dir",
 ]
 
@@ -103,7 +104,33 @@ def policy_kwargs(config: TrainConfig) -> dict[str, Any]:
             "gelu": nn.GELU,
             "silu": nn.SiLU,
         }[kwargs["activation_fn"]]
+    if config.encoder.kind == "set":
+        kwargs.update(set_encoder_kwargs(config))
     return kwargs
+
+
+def set_encoder_kwargs(config: TrainConfig) -> dict[str, Any]:
+    """``policy_kwargs`` of a set encoder over the slots of the run's observation (its layout
+    from the env's ``observation_names()``, stored in the model file with the weights)."""
+    import gymnasium as gym
+
+    from agents.policies.set_encoder import SlotSetExtractor, slot_layout
+
+    options = {k: v for k, v in config.env_kwargs.items() if k != "max_episode_steps"}
+    env = gym.make(config.env_id, **options)
+    try:
+        context, slots = slot_layout(env.unwrapped.observation_names())
+    finally:
+        env.close()
+    return {
+        "features_extractor_class": SlotSetExtractor,
+        "features_extractor_kwargs": {
+            "context": context,
+            "slots": slots,
+            "embed_dim": config.encoder.embed_dim,
+            "hidden_dim": config.encoder.hidden_dim,
+        },
+    }
 
 
 def algo_kwargs(config: TrainConfig, action_dim: int) -> dict[str, Any]:

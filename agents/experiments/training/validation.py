@@ -269,6 +269,7 @@ null; SAC's ``ent_coef`` may also be ``auto`` or ``auto_<initial value > 0>``.""
 
 ALGO_RANGE_OVERRIDES: dict[str, dict[str, Range]] = {
     "ppo": {"batch_size": Range(int, 2)},  # SB3 normalises advantages per minibatch
+    "recurrent_ppo": {"batch_size": Range(int, 2)},
 }
 """Per-algorithm ranges that differ from :data:`ALGO_KWARG_RANGES`."""
 
