@@ -36,7 +36,8 @@ them and prints the command that finishes the run, `python evaluate.py --resume 
 
 Agents (--agents, comma-separated):
   apf, astar, ...           a baseline by name
-  ALGO=PATH or ALGO:PATH    a policy trained by train.py, ALGO one of ppo, sac, td3, dqn
+  ALGO=PATH or ALGO:PATH    a policy trained by train.py, ALGO one of ppo, sac, td3, dqn,
+                            recurrent_ppo
                             (models restore their VecNormalize statistics)
   pretrained                the policy shipped for the env (see docs/training.md)
   LABEL=MODULE:ATTR         your own policy, labelled LABEL: ATTR in module MODULE (a dotted
@@ -44,9 +45,9 @@ Agents (--agents, comma-separated):
                             a file path) is a policy object with SB3's predict(obs, state,
                             episode_start, deterministic), or a factory ATTR(env) -> policy
   MODULE:ATTR               the same, labelled ATTR
-The colon of ALGO:PATH and MODULE:ATTR is told apart by the word before it: ppo, sac, td3 and dqn
-name an algorithm, anything else a module. From Python, evaluate_agents() also takes policy
-objects: see agents.experiments.evaluation and docs/training.md.
+The colon of ALGO:PATH and MODULE:ATTR is told apart by the word before it: ppo, sac, td3, dqn
+and recurrent_ppo name an algorithm, anything else a module. From Python, evaluate_agents() also
+takes policy objects: see agents.experiments.evaluation and docs/training.md.
 """
 
 from __future__ import annotations
@@ -136,6 +137,7 @@ def _suite_names() -> list[str]:
 def build_parser() -> argparse.ArgumentParser:
     from agents import BASELINES
     from agents.experiments.evaluation.command import DEFAULT_ENV, DEFAULT_EPISODES, DEFAULT_OUT
+    from agents.experiments.evaluation.specs import LEARNED_ALGOS
 
     parser = cli.script_parser("evaluate.py", __doc__, EXAMPLES)
     parser.add_argument(
@@ -150,7 +152,9 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="LIST",
         help="comma-separated agents: baselines "
         + ", ".join(BASELINES)
-        + "; ALGO=PATH for a learned policy (ppo, sac, td3, dqn); 'pretrained'; "
+        + "; ALGO=PATH for a learned policy ("
+        + ", ".join(LEARNED_ALGOS)
+        + "); 'pretrained'; "
         "LABEL=MODULE:ATTR for your own policy object or factory (see above). Default: every "
         "baseline, plus 'pretrained' when a pretrained policy is available",
     )

@@ -17,8 +17,6 @@ DEBRIS_IDS = tuple(debris_gym.ENV_SPECS)
 CARTPOLE = "CartPole-v1"
 ID_2D = "DebrisGym/Rendezvous2D-v1"
 ID_3D = "DebrisGym/Rendezvous3D-v1"
-PRETRAINED_ENV = "DebrisGym/Rendezvous2D-v0"
-"""The env the shipped pretrained policy flies (no policy trained on v1 ships yet)."""
 SCALING_COUNTS = (10, 50, 100, 200)
 """Debris counts of the single-env scaling rows (the vector rows take theirs from the sizes)."""
 DEFAULT_OBSTACLES = 20

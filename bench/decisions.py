@@ -1,4 +1,5 @@
-"""Section ``decisions``: decision times of every baseline and of the pretrained policy.
+"""Section ``decisions``: decision times of every baseline and of the pretrained policy, and of
+APF-MPC and the pretrained policy behind the safety shield (``evaluate.py --shield``).
 
 Every agent flies the same seeded missions of the default evaluation (``python evaluate.py``,
 reset seeds :data:`DECISION_SEED`, +1, …) through the evaluation's own loop
@@ -25,7 +26,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from bench.config import DEFAULT_OBSTACLES, ID_2D, PRETRAINED_ENV
+from bench.config import DEFAULT_OBSTACLES, ID_2D
 from bench.harness import interleave
 from bench.single import Measurement, step_measurement
 
@@ -47,6 +48,7 @@ class AgentsAPI(NamedTuple):
     make_env: Callable[..., Any]
     parse_agent_spec: Callable[[str], Any]
     run_episode: Callable[..., Any]
+    shielded: Callable[[Any, Any], Any]  # (agent, env) -> the agent behind the default shield
 
 
 @functools.cache
@@ -61,6 +63,7 @@ def agents_api() -> AgentsAPI:
     """
     from agents import BASELINES
     from agents.experiments import evaluation
+    from agents.policies.shielded import ShieldedAgent
 
     return AgentsAPI(
         baselines=tuple(BASELINES),
@@ -70,20 +73,30 @@ def agents_api() -> AgentsAPI:
         make_env=evaluation.make_env,
         parse_agent_spec=evaluation.parse_agent_spec,
         run_episode=evaluation.run_episode,
+        shielded=ShieldedAgent,
     )
 
 
+SHIELD_SUFFIX = "+shield"
+"""Label suffix of an agent flown behind the safety shield."""
+
+
 def decision_agents() -> list[str]:
-    """Every baseline of ``agents.BASELINES`` and the shipped pretrained policy."""
+    """Every baseline of ``agents.BASELINES``, the shipped pretrained policy, then APF-MPC and the
+    pretrained policy behind the shield (``NAME+shield``)."""
     api = agents_api()
-    return [*api.baselines, api.pretrained]
+    return [
+        *api.baselines,
+        api.pretrained,
+        *(f"{name}{SHIELD_SUFFIX}" for name in ("apf-mpc", api.pretrained)),
+    ]
 
 
 @dataclass
 class DecisionMeasurement:
     """One agent flying whole missions, every ``predict`` call timed."""
 
-    spec: str  # an evaluate.py agent spec: a baseline name or "pretrained"
+    spec: str  # an evaluate.py agent spec (a baseline name, "pretrained"), optionally +shield
     label: str = ""
     env_id: str = ID_2D  # the env it flies
     max_steps: int | None = None  # time limit of a mission (None: the env's)
@@ -102,14 +115,16 @@ class DecisionMeasurement:
         calls so compilation and loading stay out of the timed calls."""
         api = agents_api()
         start = time.perf_counter()
-        spec = api.parse_agent_spec(self.spec)
-        # the shipped policy flies the frozen world it was trained in; the baselines the default
-        self.env_id = PRETRAINED_ENV if self.spec == api.pretrained else ID_2D
-        self.label = spec.label
+        name = self.spec.removesuffix(SHIELD_SUFFIX)
+        spec = api.parse_agent_spec(name)
+        self.env_id = ID_2D
+        self.label = self.spec if name != self.spec else spec.label
         self.env = api.make_env(
             self.env_id, api.agent_env_options(spec, self.env_id), self.max_steps
         )
         self.agent = api.build_agent(spec, self.env)
+        if name != self.spec:
+            self.agent = api.shielded(self.agent, self.env)
         obs, _ = self.env.reset(seed=DECISION_WARMUP_SEED)
         state = None
         for k in range(DECISION_WARMUP_CALLS):

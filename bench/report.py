@@ -367,7 +367,10 @@ def _decision_lines(decisions: list[dict[str, Any]]) -> list[str]:
         "(compilation, model loading). A classical agent plans inside the first call of a "
         "mission (APF-MPC and A* plan again after each capture, or when the chaser strays from "
         "the path), so *p95* and *max* include planning; *first call* is the median over the "
-        "missions' first calls, *later calls* the median of all the others. *p50 in env "
+        "missions' first calls, *later calls* the median of all the others. `NAME+shield` "
+        "flies behind the safety shield (`evaluate.py --shield`): its calls include the "
+        "shield's check of each command and, when one is unsafe, its search for a safe one. "
+        "*p50 in env "
         "steps* = p50 over the median "
         "`env.step` of the same env through `gym.make`"
         + (f" ({step_us:.1f} µs)" if step_us is not None else "")

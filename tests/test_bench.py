@@ -232,6 +232,8 @@ def test_decision_rows(all_rows):
     timed = [r for r in all_rows if r["section"] == "decisions"]
     assert [r["agent"] for r in timed] == decisions.decision_agents()
     assert "pretrained" in decisions.decision_agents() and "apf-mpc" in decisions.decision_agents()
+    assert decisions.decision_agents()[-2:] == ["apf-mpc+shield", "pretrained+shield"]
+    assert {r["env_id"] for r in timed} == {config.ID_2D}  # v1 has its own pretrained policy
     limit = TINY["decision_max_steps"]
     for row in timed:
         assert row["error"] is None, row["error"]

@@ -466,7 +466,7 @@ def load_agent(spec: str, env: Any, device: str = "cpu") -> LearnedAgent:
     """Load a learned policy for ``env``.
 
     Args:
-        spec: ``"ALGO:PATH"`` or ``"ALGO=PATH"`` (ALGO in ppo, sac, td3, dqn; PATH an SB3 zip
+        spec: ``"ALGO:PATH"`` or ``"ALGO=PATH"`` (ALGO in :data:`ALGOS`; PATH an SB3 zip
             written by ``train.py``, e.g. ``runs/ppo/model.zip``), or ``"pretrained"``.
         env: the env it will fly (gymnasium env, SB3 VecEnv or gymnasium VectorEnv); only its
             spaces (and, for ``pretrained``, its ID) are used.
