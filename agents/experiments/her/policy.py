@@ -94,12 +94,18 @@ class GoalPolicy:
 def load_policy(path: str | os.PathLike[str]) -> Callable[[gym.Env[Any, Any]], GoalPolicy]:
     """A factory ``f(env) -> GoalPolicy`` for the SAC model saved at ``path`` (a ``.zip``).
 
-    The model is loaded once, on CPU, when the factory is made.
+    The model is loaded once, on CPU, when the factory is made, without its replay buffer.
     """
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"path: no model file at {str(path)!r}")
-    model = SAC.load(path, device="cpu")
+    # Only the policy flies: no replay buffer (a HER buffer would need the training env, and
+    # a full-size one the memory), so SB3 picks a one-transition plain buffer.
+    model = SAC.load(
+        path,
+        device="cpu",
+        custom_objects={"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1},
+    )
 
     def factory(env: gym.Env[Any, Any]) -> GoalPolicy:
         return GoalPolicy(model, env)
