@@ -9,11 +9,13 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from agents.experiments.config_files import CONFIG_DIR, env_stub
+from agents.experiments.config_files import CONFIG_DIR, apply_overrides, env_stub
+from agents.experiments.training.sweep_config import SweepConfig, validate_sweep
 from agents.experiments.training.validation import (
     at_least,
     check_keys,
@@ -150,6 +152,9 @@ class TrainConfig:
             top-level ones. Observation and action spaces must not change; evaluation always
             flies the final task.
         init: RL fine-tuning from another run's policy (:class:`InitConfig`; ppo only).
+        sweep: the search space of a hyper-parameter sweep over this recipe
+            (:class:`~agents.experiments.training.sweep_config.SweepConfig`, ``sweep.py``);
+            None: none. A plain ``train.py`` run ignores it.
         notes: free text (what the recipe is for, what it was tuned on).
     """
 
@@ -167,6 +172,7 @@ class TrainConfig:
     checkpoint: CheckpointConfig = field(default_factory=CheckpointConfig)
     curriculum: list[dict[str, Any]] = field(default_factory=list)
     init: InitConfig = field(default_factory=InitConfig)
+    sweep: SweepConfig | None = None
     notes: str = ""
 
     def stage(self, timesteps: int) -> int:
@@ -198,7 +204,9 @@ class TrainConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain nested dict (what ``config.yaml`` holds, without the ``run`` section)."""
-        return dataclasses.asdict(self)
+        data = dataclasses.asdict(self)
+        data["sweep"] = None if self.sweep is None else self.sweep.to_dict()
+        return data
 
     @property
     def gamma(self) -> float:
@@ -305,6 +313,12 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
         data.get("curriculum"), env_kwargs, spec.kwargs, env_config, source
     )
     init = _validate_init(data.get("init"), algo, normalize, source)
+    recipe = {key: value for key, value in data.items() if key != "sweep"}
+
+    def check_values(key: str, value: Any) -> None:  # the recipe with one swept value set
+        _validate(apply_overrides(recipe, [f"{key}={json.dumps(value)}"]), source)
+
+    sweep = validate_sweep(data.get("sweep"), check_values, source)
     return TrainConfig(
         version=version,
         env_id=env_id,
@@ -320,6 +334,7 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
         checkpoint=checkpoint,
         curriculum=curriculum,
         init=init,
+        sweep=sweep,
         notes=notes,
     )
 
