@@ -34,6 +34,11 @@ longer plotted, say) are removed. One run at a time may use a directory (a secon
 While it runs, DIR/unfinished/ holds the run's options and every finished episode; Ctrl-C keeps
 them and prints the command that finishes the run, `python evaluate.py --resume DIR`.
 
+With --backend ray the episodes are flown by Ray workers (a local Ray, or the cluster given by
+--address), each holding one env and agent per agent; the results are the local run's (apart
+from decision times), the journal and --resume work the same (a resumed run may change
+--backend, --address and --workers). See docs/distributed.md.
+
 Agents (--agents, comma-separated):
   apf, astar, ...           a baseline by name
   ALGO=PATH or ALGO:PATH    a policy trained by train.py, ALGO one of ppo, sac, td3, dqn,
@@ -73,6 +78,8 @@ examples:
   python evaluate.py --agents apf,apf-mpc --shield     # every agent behind the safety shield
   python evaluate.py --agents apf-mpc,pretrained --video 2   # mp4s of the first 2 episodes
   python evaluate.py --resume runs/cmp                 # finish a run stopped by Ctrl-C
+  python evaluate.py --backend ray --workers 2 --episodes 200    # episodes on a local Ray
+  python evaluate.py --backend ray --address auto ...  # on the Ray cluster this node is part of
 """
 
 
@@ -242,6 +249,28 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="N",
         help="record each agent's first N episodes as mp4 in DIR/videos/<agent>/ "
         "(gymnasium's RecordVideo; needs moviepy: pip install 'debris-gym[video]')",
+    )
+    parser.add_argument(
+        "--backend",
+        choices=("local", "ray"),
+        default="local",
+        help="where the episodes run: local (this process, default) or ray (fanned out to Ray "
+        "workers, one env and agent each; the same results; needs pip install "
+        "'debris-gym[distributed]'; docs/distributed.md)",
+    )
+    parser.add_argument(
+        "--address",
+        default=None,
+        metavar="ADDR",
+        help="with --backend ray: the Ray cluster to join (auto, HOST:6379, ray://HOST:10001); "
+        "default: start a local Ray for the run",
+    )
+    parser.add_argument(
+        "--workers",
+        type=_positive_int,
+        default=None,
+        metavar="N",
+        help="with --backend ray: Ray workers, >= 1 (default: one per CPU of the cluster)",
     )
     parser.add_argument(
         "--no-progress",

@@ -47,6 +47,11 @@ class ClassicalAgent:
 
     name = "classical"
 
+    episode_independent = True
+    """Whether an episode's actions depend only on that episode (:meth:`plan` starts every
+    episode afresh, random generators reseeded): episodes may then be flown in any order, by
+    any copy of the agent (the Ray backend does; :mod:`agents.experiments.distributed`)."""
+
     def __init__(self, env: Any) -> None:
         self.env = unwrap(env)
         if self.env.config.action != "continuous":

@@ -83,6 +83,9 @@ class LearnedAgent:
             discrete action k; else None.
     """
 
+    episode_independent = True
+    """A feed-forward policy with frozen statistics: an episode depends on nothing before it."""
+
     def __init__(
         self,
         model: Any,

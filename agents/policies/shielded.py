@@ -80,6 +80,11 @@ class ShieldedAgent:
         self.stats = ShieldStats()
         self._clock: tuple[Any, float] | None = None  # (scenario, elapsed) of the last call
 
+    @property
+    def episode_independent(self) -> bool:
+        """The wrapped agent's (the shield keeps nothing from one episode to the next)."""
+        return bool(getattr(self.agent, "episode_independent", False))
+
     def predict(
         self,
         observation: Any,

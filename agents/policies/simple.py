@@ -28,6 +28,8 @@ class RandomAgent(ClassicalAgent):
 
     name = "random"
 
+    episode_independent = False  # one generator runs on from episode to episode
+
     def __init__(self, env: Any, seed: int = 0) -> None:
         super().__init__(env)
         self.rng = np.random.default_rng(seed)

@@ -37,9 +37,19 @@ from agents.experiments.evaluation.paper import (
     paper_table,
     paper_table_markdown,
 )
-from agents.experiments.evaluation.plan import EvaluateOptions, EvaluationPlan, UsageError
+from agents.experiments.evaluation.plan import (
+    BACKENDS,
+    EvaluateOptions,
+    EvaluationPlan,
+    UsageError,
+)
 from agents.experiments.evaluation.report import summary_markdown, to_json, write_outputs
-from agents.experiments.evaluation.runner import evaluate_agents, index_finished, make_env
+from agents.experiments.evaluation.runner import (
+    EpisodeBackend,
+    evaluate_agents,
+    index_finished,
+    make_env,
+)
 from agents.experiments.evaluation.specs import (
     PRETRAINED,
     AgentSpec,
@@ -454,13 +464,44 @@ def run_evaluation(options: EvaluateOptions) -> str:
             are journaled in the output directory for ``--resume``.
     """
     resuming = options.resume is not None
+    backend = _backend(options)
     plan = _resume_plan(options) if resuming else _fresh_plan(options)
+    if backend is not None and plan.video:
+        raise UsageError("--video", "records on the local backend only; drop --backend ray")
     flag = "--resume" if resuming else "--out"
     lock = _lock(plan, flag)
     try:
-        return _run_locked(plan, resuming, options.progress)
+        return _run_locked(plan, resuming, options.progress, backend)
     finally:
         lock.release()
+
+
+def _backend(options: EvaluateOptions) -> EpisodeBackend | None:
+    """The backend ``options`` ask for (None: the local loop), checked before anything runs.
+
+    Raises:
+        UsageError: an unknown backend, ``--address`` / ``--workers`` without ``--backend ray``,
+            a bad worker count, or Ray not installed.
+    """
+    if options.backend not in BACKENDS:
+        choices = ", ".join(BACKENDS)
+        raise UsageError("--backend", f"must be one of {choices}, got {options.backend!r}")
+    if options.backend == "local":
+        for flag, value in (("--address", options.address), ("--workers", options.workers)):
+            if value is not None:
+                raise UsageError(flag, "needs --backend ray (the local backend runs here)")
+        return None
+    from agents.experiments.distributed import INSTALL_HINT
+    from agents.experiments.distributed.evaluation import RayBackend
+
+    if importlib.util.find_spec("ray") is None:
+        raise UsageError("--backend", f"ray needs Ray, which is not installed: {INSTALL_HINT}")
+    if options.address is not None and not options.address.strip():
+        raise UsageError("--address", "must name a Ray cluster (e.g. auto, HOST:6379), got ''")
+    try:
+        return RayBackend(options.address, options.workers)
+    except ValueError as exc:
+        raise UsageError("--workers", str(exc)) from exc
 
 
 def _plan_seeds(plan: EvaluationPlan) -> list[int]:
@@ -471,8 +512,11 @@ def _plan_seeds(plan: EvaluationPlan) -> list[int]:
     return list(suite.seeds[: plan.episodes])
 
 
-def _run_locked(plan: EvaluationPlan, resuming: bool, progress: bool) -> str:
-    """Run ``plan`` in its directory (whose lock the caller holds)."""
+def _run_locked(
+    plan: EvaluationPlan, resuming: bool, progress: bool, backend: EpisodeBackend | None
+) -> str:
+    """Run ``plan`` in its directory (whose lock the caller holds), on ``backend`` (None: in
+    this process)."""
     journal = EvaluationJournal(plan.out)
     total = len(plan.agents) * plan.episodes
     if resuming:
@@ -510,6 +554,7 @@ def _run_locked(plan: EvaluationPlan, resuming: bool, progress: bool) -> str:
                 suite=_plan_suite(plan),
                 shield=ShieldParams() if plan.shield else None,
                 video=(plan.out / VIDEO_DIR, plan.video) if plan.video else None,
+                backend=backend,
             )
         summary = summarize(results, reference=plan.reference)
         if plan.skipped:

@@ -11,7 +11,7 @@ from typing import Any
 
 from agents.experiments.evaluation.specs import AgentSpec, parse_agent_spec
 
-__all__ = ["EvaluateOptions", "EvaluationPlan", "UsageError"]
+__all__ = ["BACKENDS", "EvaluateOptions", "EvaluationPlan", "UsageError"]
 
 
 class UsageError(ValueError):
@@ -27,7 +27,14 @@ class EvaluateOptions:
     """The arguments of ``evaluate.py`` (see its ``--help``); None means the default.
 
     With ``resume`` (a directory holding an unfinished evaluation) every other option but
-    ``progress`` must keep its default: the run's own options are read from the directory.
+    ``progress`` and the backend options must keep its default: the run's own options are read
+    from the directory.
+
+    ``backend`` is ``"local"`` (this process) or ``"ray"`` (episodes fanned out to Ray actors,
+    :mod:`agents.experiments.distributed.evaluation`; the same records); ``address`` the Ray
+    cluster to join (None: a local Ray) and ``workers`` the number of Ray workers (None: one
+    per CPU of the cluster), both for ``"ray"`` only. They say where episodes run, not what the
+    evaluation is, so they are not part of the :class:`EvaluationPlan`.
     """
 
     out: Path | None = None
@@ -45,6 +52,13 @@ class EvaluateOptions:
     suite: str | None = None
     shield: bool = False
     video: int = 0
+    backend: str = "local"
+    address: str | None = None
+    workers: int | None = None
+
+
+BACKENDS = ("local", "ray")
+"""Where ``evaluate.py`` flies its episodes (``--backend``)."""
 
 
 @dataclass(frozen=True)

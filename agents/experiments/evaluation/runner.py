@@ -24,8 +24,9 @@ import sys
 import time
 import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import gymnasium as gym
 import numpy as np
@@ -51,7 +52,75 @@ from agents.policies.shielded import ShieldedAgent
 from debris_gym.scenario import Scenario
 from debris_gym.suites import Suite
 
-__all__ = ["episode_resets", "evaluate_agents", "index_finished", "make_env", "run_episode"]
+__all__ = [
+    "EpisodeBackend",
+    "EvaluationJob",
+    "build_agent_env",
+    "check_replay",
+    "episode_resets",
+    "evaluate_agents",
+    "index_finished",
+    "make_env",
+    "run_episode",
+]
+
+
+@dataclass(frozen=True)
+class EvaluationJob:
+    """Everything needed to fly any episode of an evaluation, on this machine or another.
+
+    Attributes:
+        env_id: the env every agent flies; ``env_kwargs`` its ``gym.make`` options.
+        max_episode_steps: time-limit override (steps), or None for the registered one.
+        specs: the agents, in order.
+        resets: ``(reset seed, pinned scenario or None)`` of each episode
+            (:func:`episode_resets`).
+        shield: fly every agent behind the safety shield with these parameters, or None.
+    """
+
+    env_id: str
+    env_kwargs: dict[str, Any]
+    max_episode_steps: int | None
+    specs: tuple[AgentSpec, ...]
+    resets: tuple[tuple[int, Scenario | None], ...]
+    shield: ShieldParams | None = None
+
+    @property
+    def episodes(self) -> int:
+        """Episodes per agent."""
+        return len(self.resets)
+
+
+class EpisodeBackend(Protocol):
+    """Flies an evaluation's unfinished episodes somewhere else (the Ray backend:
+    :class:`agents.experiments.distributed.evaluation.RayBackend`)."""
+
+    def fly(
+        self,
+        job: EvaluationJob,
+        done: Mapping[tuple[str, int], EpisodeRecord],
+        on_record: Callable[[EpisodeRecord], None],
+    ) -> None:
+        """Fly every (agent, episode) of ``job`` not in ``done``, calling ``on_record`` in this
+        process with each record as it arrives. The records must equal those of the local loop
+        apart from :data:`TIMING_COLUMNS` (so an agent whose episodes depend on earlier ones
+        must fly them in order, replaying finished ones as the local loop does)."""
+        ...
+
+
+def build_agent_env(job: EvaluationJob, spec: AgentSpec) -> tuple[gym.Env, Any]:
+    """The env ``spec`` flies in (with the observation options it was trained with) and the
+    agent built for it, behind the shield if ``job`` asks for one."""
+    kwargs = {**job.env_kwargs, **agent_env_options(spec, job.env_id)}
+    env = make_env(job.env_id, kwargs, job.max_episode_steps)
+    try:
+        agent = build_agent(spec, env)
+        if job.shield is not None:
+            agent = ShieldedAgent(agent, env, job.shield)
+    except BaseException:
+        env.close()
+        raise
+    return env, agent
 
 
 def _outcome(info: dict[str, Any], truncated: bool) -> str:
@@ -183,6 +252,7 @@ def evaluate_agents(
     suite: Suite | None = None,
     shield: ShieldParams | None = None,
     video: tuple[Path, int] | None = None,
+    backend: EpisodeBackend | None = None,
 ) -> EvaluationResults:
     """Fly every agent on the same ``episodes`` seeded scenarios.
 
@@ -217,6 +287,8 @@ def evaluate_agents(
         video: ``(folder, n)``: record the first ``n`` episodes this call flies for each agent
             (replays of a resumed run count) as mp4 files in ``folder/<agent label>/``, with
             gymnasium's ``RecordVideo`` on a ``render_mode="rgb_array"`` env (needs moviepy).
+        backend: fly the episodes elsewhere (:class:`EpisodeBackend`, e.g. on Ray) instead of
+            in this process; the records are the same. Not combinable with ``video``.
 
     Raises:
         ValueError: bad arguments (also: ``episodes`` beyond the suite's size, an env other
@@ -232,8 +304,16 @@ def evaluate_agents(
     resets = episode_resets(episodes, seed, suite, env_id, env_kwargs)
     seeds = [s for s, _ in resets]
     done = index_finished(finished, specs, episodes, seeds)
-    records: list[EpisodeRecord] = []
-    time_limit = max_episode_steps
+    if backend is not None and video is not None:
+        raise ValueError("video recording needs the local backend (backend=None)")
+    job = EvaluationJob(
+        env_id=env_id,
+        env_kwargs=env_kwargs,
+        max_episode_steps=max_episode_steps,
+        specs=tuple(specs),
+        resets=tuple(resets),
+        shield=shield,
+    )
     start = time.perf_counter()
     bar = tqdm(
         total=len(specs) * episodes,
@@ -245,36 +325,10 @@ def evaluate_agents(
         dynamic_ncols=True,
     )
     try:
-        for spec in specs:
-            kwargs = {**env_kwargs, **agent_env_options(spec, env_id)}
-            if video is None:
-                env = make_env(env_id, kwargs, max_episode_steps)
-            else:
-                env = _recording_env(env_id, kwargs, max_episode_steps, spec.label, *video)
-            if env.spec is not None:
-                time_limit = env.spec.max_episode_steps
-            todo = [i for i in range(episodes) if (spec.label, i) not in done]
-            try:
-                agent = build_agent(spec, env) if todo else None
-                if agent is not None and shield is not None:
-                    agent = ShieldedAgent(agent, env, shield)
-                for i in range(episodes):
-                    saved = done.get((spec.label, i))
-                    if saved is not None:
-                        if todo and i < todo[-1]:  # bring the agent to the state it had
-                            bar.set_postfix_str(f"{spec.label} ep {i} (replay)", refresh=False)
-                            replay = run_episode(env, agent, spec.label, i, *resets[i])
-                            _check_replay(saved, replay)
-                        records.append(saved)
-                        continue
-                    bar.set_postfix_str(f"{spec.label} ep {i}", refresh=False)
-                    record = run_episode(env, agent, spec.label, i, *resets[i])
-                    records.append(record)
-                    if on_episode is not None:
-                        on_episode(record)
-                    bar.update()
-            finally:
-                env.close()
+        if backend is None:
+            records, time_limit = _fly_local(job, done, on_episode, bar, video)
+        else:
+            records, time_limit = _fly_backend(job, done, on_episode, bar, backend)
     finally:
         bar.close()
     scenarios = _check_same_scenarios(records, episodes)
@@ -294,6 +348,95 @@ def evaluate_agents(
         seeds=None if suite is None else seeds,
         shield=None if shield is None else shield.to_dict(),
     )
+
+
+def _fly_local(
+    job: EvaluationJob,
+    done: Mapping[tuple[str, int], EpisodeRecord],
+    on_episode: Callable[[EpisodeRecord], None] | None,
+    bar: Any,
+    video: tuple[Path, int] | None,
+) -> tuple[list[EpisodeRecord], int | None]:
+    """Fly ``job`` in this process, agent after agent; return every record (agent-major, in
+    episode order) and the time limit the envs had."""
+    records: list[EpisodeRecord] = []
+    time_limit = job.max_episode_steps
+    for spec in job.specs:
+        if video is None:
+            env, agent = None, None
+        else:
+            kwargs = {**job.env_kwargs, **agent_env_options(spec, job.env_id)}
+            env = _recording_env(job.env_id, kwargs, job.max_episode_steps, spec.label, *video)
+        todo = [i for i in range(job.episodes) if (spec.label, i) not in done]
+        try:
+            if env is None:
+                if todo:
+                    env, agent = build_agent_env(job, spec)
+                else:
+                    env = make_env(job.env_id, job.env_kwargs, job.max_episode_steps)
+            elif todo:
+                agent = build_agent(spec, env)
+                if job.shield is not None:
+                    agent = ShieldedAgent(agent, env, job.shield)
+            if env.spec is not None:
+                time_limit = env.spec.max_episode_steps
+            for i in range(job.episodes):
+                saved = done.get((spec.label, i))
+                if saved is not None:
+                    if todo and i < todo[-1]:  # bring the agent to the state it had
+                        bar.set_postfix_str(f"{spec.label} ep {i} (replay)", refresh=False)
+                        replay = run_episode(env, agent, spec.label, i, *job.resets[i])
+                        check_replay(saved, replay)
+                    records.append(saved)
+                    continue
+                bar.set_postfix_str(f"{spec.label} ep {i}", refresh=False)
+                record = run_episode(env, agent, spec.label, i, *job.resets[i])
+                records.append(record)
+                if on_episode is not None:
+                    on_episode(record)
+                bar.update()
+        finally:
+            if env is not None:
+                env.close()
+    return records, time_limit
+
+
+def _fly_backend(
+    job: EvaluationJob,
+    done: Mapping[tuple[str, int], EpisodeRecord],
+    on_episode: Callable[[EpisodeRecord], None] | None,
+    bar: Any,
+    backend: EpisodeBackend,
+) -> tuple[list[EpisodeRecord], int | None]:
+    """Fly ``job`` with ``backend``; return every record in the local loop's order (agent-major,
+    episode order) and the time limit the envs have."""
+    flown: dict[tuple[str, int], EpisodeRecord] = {}
+
+    def arrived(record: EpisodeRecord) -> None:
+        key = (record.agent, record.episode)
+        if key in flown or key in done:
+            raise RuntimeError(f"the backend returned agent {key[0]!r}, episode {key[1]} twice")
+        flown[key] = record
+        if on_episode is not None:
+            on_episode(record)
+        bar.set_postfix_str(f"{record.agent} ep {record.episode}", refresh=False)
+        bar.update()
+
+    backend.fly(job, done, arrived)
+    records = []
+    for spec in job.specs:
+        for i in range(job.episodes):
+            key = (spec.label, i)
+            record = done.get(key) or flown.get(key)
+            if record is None:
+                raise RuntimeError(f"the backend did not fly agent {key[0]!r}, episode {i}")
+            records.append(record)
+    env = make_env(job.env_id, job.env_kwargs, job.max_episode_steps)
+    try:
+        time_limit = env.spec.max_episode_steps if env.spec is not None else None
+    finally:
+        env.close()
+    return records, time_limit
 
 
 def _recording_env(
@@ -385,8 +528,9 @@ def index_finished(
     return done
 
 
-def _check_replay(saved: EpisodeRecord, replayed: EpisodeRecord) -> None:
-    """Warn if a re-flown episode differs from its saved record beyond timing."""
+def check_replay(saved: EpisodeRecord, replayed: EpisodeRecord) -> None:
+    """Warn (``RuntimeWarning``) if a re-flown episode differs from its saved record beyond
+    timing: the agent is not deterministic, so a resumed run may differ."""
     fields = [f for f in RECORD_FIELDS if f not in TIMING_COLUMNS]
     if any(getattr(saved, f) != getattr(replayed, f) for f in fields):
         warnings.warn(

@@ -9,11 +9,13 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from agents.experiments.config_files import CONFIG_DIR, env_stub
+from agents.experiments.config_files import CONFIG_DIR, apply_overrides, env_stub
+from agents.experiments.training.sweep_config import SweepConfig, validate_sweep
 from agents.experiments.training.validation import (
     at_least,
     check_keys,
@@ -172,6 +174,9 @@ class TrainConfig:
             flies the final task.
         init: RL fine-tuning from another run's policy (:class:`InitConfig`; ppo only).
         encoder: how the policy reads the observation (:class:`EncoderConfig`).
+        sweep: the search space of a hyper-parameter sweep over this recipe
+            (:class:`~agents.experiments.training.sweep_config.SweepConfig`, ``sweep.py``);
+            None: none. A plain ``train.py`` run ignores it.
         notes: free text (what the recipe is for, what it was tuned on).
     """
 
@@ -190,6 +195,7 @@ class TrainConfig:
     curriculum: list[dict[str, Any]] = field(default_factory=list)
     init: InitConfig = field(default_factory=InitConfig)
     encoder: EncoderConfig = field(default_factory=EncoderConfig)
+    sweep: SweepConfig | None = None
     notes: str = ""
 
     def stage(self, timesteps: int) -> int:
@@ -221,7 +227,9 @@ class TrainConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain nested dict (what ``config.yaml`` holds, without the ``run`` section)."""
-        return dataclasses.asdict(self)
+        data = dataclasses.asdict(self)
+        data["sweep"] = None if self.sweep is None else self.sweep.to_dict()
+        return data
 
     @property
     def gamma(self) -> float:
@@ -329,6 +337,12 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
     )
     init = _validate_init(data.get("init"), algo, normalize, source)
     encoder = _validate_encoder(data.get("encoder"), init, source)
+    recipe = {key: value for key, value in data.items() if key != "sweep"}
+
+    def check_values(key: str, value: Any) -> None:  # the recipe with one swept value set
+        _validate(apply_overrides(recipe, [f"{key}={json.dumps(value)}"]), source)
+
+    sweep = validate_sweep(data.get("sweep"), check_values, source)
     return TrainConfig(
         version=version,
         env_id=env_id,
@@ -345,6 +359,7 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
         curriculum=curriculum,
         init=init,
         encoder=encoder,
+        sweep=sweep,
         notes=notes,
     )
 

@@ -1,0 +1,132 @@
+"""Sweep a train.py recipe's hyper-parameters with Ray Tune; export the best trial's model.
+
+The search space is the recipe's `sweep:` section (agents/configs/<env>_<algo>.yaml or --config
+FILE; docs/distributed.md explains it). Each trial is a normal train.py run in
+OUT/trials/<trial id>/ (model.zip, vecnormalize.pkl, config.yaml, checkpoints/, tb/), trained
+with the same seed, and reports the success rate and mean return of its final evaluation
+(held-out seeds) to Tune. Outputs in --out OUT:
+
+  best/model.zip (+ vecnormalize.pkl, config.yaml)   the best trial's model
+  sweep.json                                          every trial: values, metrics, run dir
+  trials/<trial id>/                                  each trial's train.py run directory
+  tune/                                               Ray Tune's own records
+
+Needs Ray: pip install 'debris-gym[distributed]'. A local Ray is started for the sweep unless
+--address names a cluster (then OUT must be on a file system every node sees).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from agents.experiments import cli
+
+EXAMPLES = """\
+examples:
+  python sweep.py --env DebrisGym/Rendezvous2D-Easy-v1 --samples 4 --timesteps 20000 \\
+      --n-envs 4 --out runs/sweep                    # 4 trials on a local Ray
+  python sweep.py --config my_recipe.yaml --address auto --out /shared/sweep   # a cluster
+  python evaluate.py --env DebrisGym/Rendezvous2D-Easy-v1 --agents apf,ppo=runs/sweep/best/model.zip
+"""
+
+
+def _int(text: str, low: int) -> int:
+    try:
+        value = int(float(text)) if "e" in text.lower() else int(text.replace("_", ""))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
+    if value < low:
+        raise argparse.ArgumentTypeError(f"must be >= {low}, got {value}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from agents.policies.model_files import ALGOS
+
+    parser = cli.script_parser("sweep.py", __doc__, EXAMPLES)
+    parser.add_argument(
+        "--env",
+        dest="env_id",
+        metavar="ID",
+        help="environment ID (picks the "
+        "checked-in recipe with --algo; default: DebrisGym/Rendezvous2D-v1)",
+    )
+    parser.add_argument("--algo", choices=ALGOS, help="algorithm (default: ppo)")
+    cli.add_config_options(parser, "agents/configs/<env>_<algo>.yaml", "--set eval.n_episodes=8")
+    parser.add_argument("--out", required=True, metavar="DIR", help="the sweep's directory")
+    parser.add_argument(
+        "--samples",
+        type=lambda t: _int(t, 1),
+        metavar="N",
+        help="trials, >= 1 (default: the recipe's sweep.num_samples)",
+    )
+    parser.add_argument(
+        "--timesteps",
+        type=lambda t: _int(t, 1),
+        metavar="N",
+        help="training budget of every trial (default: the recipe's)",
+    )
+    parser.add_argument(
+        "--n-envs",
+        type=lambda t: _int(t, 1),
+        metavar="N",
+        help="training envs of every trial (default: the recipe's)",
+    )
+    parser.add_argument(
+        "--seed",
+        type=lambda t: _int(t, 0),
+        default=0,
+        metavar="S",
+        help="base seed of every trial (default: 0)",
+    )
+    parser.add_argument(
+        "--address",
+        metavar="ADDR",
+        help="the Ray cluster to join (auto, HOST:6379); default: a local Ray for the sweep",
+    )
+    parser.add_argument(
+        "--workers",
+        type=lambda t: _int(t, 1),
+        metavar="N",
+        help="trials at once, >= 1 (default: one per CPU of the cluster)",
+    )
+    parser.add_argument(
+        "--threads",
+        type=lambda t: _int(t, 1),
+        default=1,
+        metavar="N",
+        help="torch CPU threads per trial (default: 1)",
+    )
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    from agents.experiments.distributed.sweep import SweepOptions, run_sweep
+    from agents.experiments.run_directory import OutputDirError
+
+    try:
+        result = run_sweep(SweepOptions(**vars(args)))
+    except OutputDirError as exc:
+        parser.error(f"argument {exc.flag}: {exc}")
+    except (FileNotFoundError, ValueError, ImportError) as exc:
+        parser.error(str(exc))
+    print(
+        f"{len(result.trials)} trials in {result.wall_time_s:.1f} s; by {result.metric} "
+        f"({result.mode}):"
+    )
+    for trial in sorted(result.trials, key=lambda t: t.trial_id):
+        shown = trial.error or ", ".join(f"{k} {v:.4g}" for k, v in trial.metrics.items())
+        mark = "*" if trial is result.best else " "
+        print(f" {mark} {trial.trial_id}  {trial.params}  {shown}")
+    print(
+        f"best: {result.best.run_dir}\nexported: {result.best_dir}/model.zip\n"
+        f"evaluate with: python evaluate.py --agents ppo={result.best_dir}/model.zip"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
