@@ -31,16 +31,6 @@ examples:
 """
 
 
-def _int(text: str, low: int) -> int:
-    try:
-        value = int(float(text)) if "e" in text.lower() else int(text.replace("_", ""))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
-    if value < low:
-        raise argparse.ArgumentTypeError(f"must be >= {low}, got {value}")
-    return value
-
-
 def build_parser() -> argparse.ArgumentParser:
     from agents.policies.model_files import ALGOS
 
@@ -57,25 +47,25 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--out", required=True, metavar="DIR", help="the sweep's directory")
     parser.add_argument(
         "--samples",
-        type=lambda t: _int(t, 1),
+        type=lambda t: cli.int_at_least(t, 1),
         metavar="N",
         help="trials, >= 1 (default: the recipe's sweep.num_samples)",
     )
     parser.add_argument(
         "--timesteps",
-        type=lambda t: _int(t, 1),
+        type=lambda t: cli.int_at_least(t, 1),
         metavar="N",
         help="training budget of every trial (default: the recipe's)",
     )
     parser.add_argument(
         "--n-envs",
-        type=lambda t: _int(t, 1),
+        type=lambda t: cli.int_at_least(t, 1),
         metavar="N",
         help="training envs of every trial (default: the recipe's)",
     )
     parser.add_argument(
         "--seed",
-        type=lambda t: _int(t, 0),
+        type=lambda t: cli.int_at_least(t, 0),
         default=0,
         metavar="S",
         help="base seed of every trial (default: 0)",
@@ -87,13 +77,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--workers",
-        type=lambda t: _int(t, 1),
+        type=lambda t: cli.int_at_least(t, 1),
         metavar="N",
         help="trials at once, >= 1 (default: one per CPU of the cluster)",
     )
     parser.add_argument(
         "--threads",
-        type=lambda t: _int(t, 1),
+        type=lambda t: cli.int_at_least(t, 1),
         default=1,
         metavar="N",
         help="torch CPU threads per trial (default: 1)",

@@ -30,16 +30,6 @@ examples:
 """
 
 
-def _int(text: str, low: int) -> int:
-    try:
-        value = int(float(text)) if "e" in text.lower() else int(text.replace("_", ""))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
-    if value < low:
-        raise argparse.ArgumentTypeError(f"must be >= {low}, got {value}")
-    return value
-
-
 def build_parser() -> argparse.ArgumentParser:
     from agents.experiments.training.config import available_configs
     from agents.policies.model_files import ALGOS
@@ -55,17 +45,20 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--algo", choices=ALGOS, help="algorithm (default: ppo)")
     parser.add_argument(
         "--timesteps",
-        type=lambda t: _int(t, 1),
+        type=lambda t: cli.int_at_least(t, 1),
         metavar="N",
         help="training budget in env steps (default: the config's); with --resume: steps to add "
         "(default: finish the run's budget)",
     )
     parser.add_argument(
-        "--n-envs", type=lambda t: _int(t, 1), metavar="N", help="training envs (default: config)"
+        "--n-envs",
+        type=lambda t: cli.int_at_least(t, 1),
+        metavar="N",
+        help="training envs (default: config)",
     )
     parser.add_argument(
         "--seed",
-        type=lambda t: _int(t, 0),
+        type=lambda t: cli.int_at_least(t, 0),
         metavar="S",
         help="base seed; training sub-env i is seeded with S + i (default: 0)",
     )
@@ -97,7 +90,7 @@ def build_parser() -> argparse.ArgumentParser:
     cli.add_suite_refusal(parser)
     parser.add_argument(
         "--threads",
-        type=lambda t: _int(t, 1),
+        type=lambda t: cli.int_at_least(t, 1),
         default=1,
         metavar="N",
         help="torch CPU threads (default: 1; more threads compete with the envs for the cores, "

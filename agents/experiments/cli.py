@@ -9,7 +9,28 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-__all__ = ["add_config_options", "command_words", "interrupt_on_signals", "script_parser"]
+__all__ = [
+    "add_config_options",
+    "command_words",
+    "int_at_least",
+    "interrupt_on_signals",
+    "script_parser",
+]
+
+
+def int_at_least(text: str, low: int) -> int:
+    """An integer option's value (``1_000_000`` and ``1e6`` read too), at least ``low``.
+
+    Raises:
+        argparse.ArgumentTypeError: not an integer, or below ``low``.
+    """
+    try:
+        value = int(float(text)) if "e" in text.lower() else int(text.replace("_", ""))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
+    if value < low:
+        raise argparse.ArgumentTypeError(f"must be >= {low}, got {value}")
+    return value
 
 
 def script_parser(prog: str, doc: str | None, epilog: str) -> argparse.ArgumentParser:
