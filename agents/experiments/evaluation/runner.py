@@ -111,16 +111,29 @@ class EpisodeBackend(Protocol):
 def build_agent_env(job: EvaluationJob, spec: AgentSpec) -> tuple[gym.Env, Any]:
     """The env ``spec`` flies in (with the observation options it was trained with) and the
     agent built for it, behind the shield if ``job`` asks for one."""
-    kwargs = {**job.env_kwargs, **agent_env_options(spec, job.env_id)}
-    env = make_env(job.env_id, kwargs, job.max_episode_steps)
+    env = _agent_env(job, spec)
     try:
-        agent = build_agent(spec, env)
-        if job.shield is not None:
-            agent = ShieldedAgent(agent, env, job.shield)
+        return env, _job_agent(job, spec, env)
     except BaseException:
         env.close()
         raise
-    return env, agent
+
+
+def _agent_env(
+    job: EvaluationJob, spec: AgentSpec, video: tuple[Path, int] | None = None
+) -> gym.Env:
+    """The env ``spec`` flies in: the job's options and the agent's observation options; with
+    ``video``, rendering and recording (:func:`_recording_env`)."""
+    kwargs = {**job.env_kwargs, **agent_env_options(spec, job.env_id)}
+    if video is None:
+        return make_env(job.env_id, kwargs, job.max_episode_steps)
+    return _recording_env(job.env_id, kwargs, job.max_episode_steps, spec.label, *video)
+
+
+def _job_agent(job: EvaluationJob, spec: AgentSpec, env: gym.Env) -> Any:
+    """The agent of ``spec`` for ``env``, behind the shield if ``job`` asks for one."""
+    agent = build_agent(spec, env)
+    return agent if job.shield is None else ShieldedAgent(agent, env, job.shield)
 
 
 def _outcome(info: dict[str, Any], truncated: bool) -> str:
@@ -362,22 +375,10 @@ def _fly_local(
     records: list[EpisodeRecord] = []
     time_limit = job.max_episode_steps
     for spec in job.specs:
-        if video is None:
-            env, agent = None, None
-        else:
-            kwargs = {**job.env_kwargs, **agent_env_options(spec, job.env_id)}
-            env = _recording_env(job.env_id, kwargs, job.max_episode_steps, spec.label, *video)
         todo = [i for i in range(job.episodes) if (spec.label, i) not in done]
+        env = _agent_env(job, spec, video)
         try:
-            if env is None:
-                if todo:
-                    env, agent = build_agent_env(job, spec)
-                else:
-                    env = make_env(job.env_id, job.env_kwargs, job.max_episode_steps)
-            elif todo:
-                agent = build_agent(spec, env)
-                if job.shield is not None:
-                    agent = ShieldedAgent(agent, env, job.shield)
+            agent = _job_agent(job, spec, env) if todo else None
             if env.spec is not None:
                 time_limit = env.spec.max_episode_steps
             for i in range(job.episodes):
@@ -396,8 +397,7 @@ def _fly_local(
                     on_episode(record)
                 bar.update()
         finally:
-            if env is not None:
-                env.close()
+            env.close()
     return records, time_limit
 
 

@@ -131,6 +131,16 @@ class GoalLayout:
         desired[..., 2 * d] = obs[..., self.target_radius]
         return achieved, desired
 
+    def goal_observation(self, obs: np.ndarray) -> dict[str, np.ndarray]:
+        """The Dict observation (observation, achieved_goal, desired_goal) of flat
+        observation(s) ``obs``."""
+        achieved, desired = self.goals(obs)
+        return {
+            "observation": np.asarray(obs, dtype=np.float32),
+            "achieved_goal": achieved,
+            "desired_goal": desired,
+        }
+
 
 def _crash_flags(info: Any, batch_shape: tuple[int, ...]) -> np.ndarray:
     """Boolean array of ``batch_shape``: the step ended in a collision or out of bounds."""
@@ -188,12 +198,7 @@ class GoalConditionedEnv(gym.Wrapper[dict[str, np.ndarray], np.ndarray, np.ndarr
 
     def goal_observation(self, obs: np.ndarray) -> dict[str, np.ndarray]:
         """The Dict observation of a flat observation (or a batch of them)."""
-        achieved, desired = self.layout.goals(obs)
-        return {
-            "observation": np.asarray(obs, dtype=np.float32),
-            "achieved_goal": achieved,
-            "desired_goal": desired,
-        }
+        return self.layout.goal_observation(obs)
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None

@@ -68,12 +68,7 @@ class GoalPolicy:
         """What the model is fed for flat observation(s) ``obs``."""
         if self.layout is None:
             return np.asarray(obs, dtype=np.float32)
-        achieved, desired = self.layout.goals(obs)
-        return {
-            "observation": np.asarray(obs, dtype=np.float32),
-            "achieved_goal": achieved,
-            "desired_goal": desired,
-        }
+        return self.layout.goal_observation(obs)
 
     def predict(
         self,
