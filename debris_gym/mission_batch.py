@@ -17,6 +17,7 @@ reference (numpy and pymunk, one env at a time). No gymnasium import.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -43,7 +44,19 @@ from debris_gym.observation import (
     observe_all_threaded,
 )
 
-__all__ = ["OBS_LIMIT", "MissionBatch", "check_threads"]
+__all__ = ["OBS_LIMIT", "MissionBatch", "Physics", "check_threads"]
+
+
+class Physics(NamedTuple):
+    """The physics of a batch's fields, held here once (the kernels read them from
+    :class:`~debris_gym.mission_data.Rules`, which is built from this)."""
+
+    mean_motion: float
+    """n (rad/s) of the reference orbit; 0 is free space."""
+    dt: float
+    """Decision step (s)."""
+    max_accel: float
+    """Thrust limit (m/s²)."""
 
 
 def check_transition(phi: np.ndarray) -> np.ndarray:
@@ -100,7 +113,7 @@ class MissionBatch:
         num: number of missions N.
         n_targets: targets per field T (the first T bodies).
         n_bodies: bodies per field B (targets and obstacles).
-        mean_motion: n (rad/s), ``dt`` (s), ``max_accel`` (m/s²): the fields' physics.
+        physics: the fields' mean motion, step and thrust limit (:class:`Physics`).
         polygon_start: first body index that may be a convex polygon (default: T).
         max_episode_steps: truncation limit per episode, or None (the single env leaves it to
             gymnasium's ``TimeLimit``).
@@ -124,9 +137,7 @@ class MissionBatch:
         n_targets: int,
         n_bodies: int,
         *,
-        mean_motion: float,
-        dt: float,
-        max_accel: float,
+        physics: Physics,
         polygon_start: int | None = None,
         max_episode_steps: int | None = None,
         threads: int = 1,
@@ -135,9 +146,8 @@ class MissionBatch:
         self.threads = check_threads(threads)
         self.config = cfg
         self.num, self.dim, self.n_targets = n, d, t
-        self.physics = (mean_motion, dt, max_accel)
-        self.max_accel = max_accel
-        self.dt = dt
+        self.physics = physics = Physics(*map(float, physics))
+        mean_motion, dt, max_accel = physics
         start = t if polygon_start is None else polygon_start
         self.field = FieldBatch(n, n_bodies, d, MAX_POLYGON_VERTICES, polygon_start=start)
         model = discretize(mean_motion, dt, d)
@@ -251,7 +261,7 @@ class MissionBatch:
             return
         step, sub = self._turn_angles
         polygon_turns(
-            np.asarray(rows, dtype=np.int64), self.field.spins, self.physics[0], step, sub,
+            np.asarray(rows, dtype=np.int64), self.field.spins, self.physics.mean_motion, step, sub,
             self.turns,
         )  # fmt: skip
 
@@ -261,7 +271,7 @@ class MissionBatch:
         self.low[rows] = low
         self.high[rows] = high
         self.length_scale[rows] = length_scale
-        self.speed_scale[rows] = math.sqrt(self.max_accel * length_scale)
+        self.speed_scale[rows] = math.sqrt(self.physics.max_accel * length_scale)
 
     def begin(self, rows: np.ndarray, states: np.ndarray | None = None) -> None:
         """Start new episodes in ``rows`` (fields loaded): chaser at ``states`` (R, 2·dim) or at

@@ -13,9 +13,11 @@ One row (mission) of a step is::
 
 Each phase is an inlined compiled function; :func:`step_rows` reads as that list.
 :func:`begin_rows` starts episodes. The kernels take the named structures of
-:mod:`debris_gym.mission_data` and unpack the structures of arrays (``Missions``, ``Field``,
-``StepOutputs``) once, at their top, handing each phase the arrays it reads or writes; scalars
-(``Rules``, ``Shaping``) are read from their structures anywhere.
+:mod:`debris_gym.mission_data` and read the arrays of ``Missions``, ``Field``, ``StepOutputs``
+and ``StepScratch`` by name, once, at their top, handing each phase the arrays it reads or
+writes; scalars (``Rules``, ``Shaping``) are read from their structures anywhere. Nothing is
+unpacked by position, so a record's field order can change without changing what a kernel
+reads.
 
 The row loop :func:`step_rows` is compiled without numba's reference counting
 (:data:`debris_gym.jit.borrowing`): with it, every array handed to an inlined phase costs an
@@ -403,10 +405,15 @@ def sort_by_gap(gaps, order):
 def begin_rows(rows, states, rules, shaping, missions, field):
     """Start new episodes in ``rows``: the chaser at ``states`` (R, 2·dim) or, if None, at rest
     at the dock; clocks, Δv and flags cleared; gaps, clearance and potential computed."""
-    (state, time, steps, delta_v, captured, collision, out_of_bounds, success, gaps, nearest,
-     min_clearance, potentials, applied, hold, score) = missions  # fmt: skip
-    (centers, radii, polygon_start, polygons, n_vertices, vertices, _velocities, attitude,
-     _turns, dock, _low, _high, length_scale, speed_scale) = field  # fmt: skip
+    state, time, steps, delta_v = missions.state, missions.time, missions.steps, missions.delta_v
+    captured, hold, score = missions.captured, missions.hold, missions.score
+    collision, out_of_bounds, success = missions.collision, missions.out_of_bounds, missions.success
+    gaps, nearest, min_clearance = missions.gaps, missions.nearest, missions.min_clearance
+    potential_of, accel = missions.potential, missions.accel
+    centers, radii, polygon_start = field.centers, field.radii, field.polygon_start
+    polygons, n_vertices, vertices = field.polygons, field.n_vertices, field.vertices
+    attitude, dock = field.attitude, field.dock
+    length_scale, speed_scale = field.length_scale, field.speed_scale
     dim = dock.shape[1]
     n_targets = rules.n_targets
     order = np.empty(n_targets, dtype=np.int64)  # scratch of the tour potential
@@ -422,7 +429,7 @@ def begin_rows(rows, states, rules, shaping, missions, field):
             else:
                 state[i, a] = states[r, a]
                 state[i, dim + a] = states[r, dim + a]
-            applied[i, a] = 0.0
+            accel[i, a] = 0.0
         time[i] = 0.0
         steps[i] = 0
         delta_v[i] = 0.0
@@ -439,12 +446,12 @@ def begin_rows(rows, states, rules, shaping, missions, field):
         )  # fmt: skip
         min_clearance[i] = nearest_obstacle(i, n_targets, gaps, math.inf)
         if rules.tour_potential:
-            potentials[i] = tour_potential(
+            potential_of[i] = tour_potential(
                 i, rules, shaping, state, gaps, captured, centers, radii, dock, length_scale,
                 speed_scale, order, counters,
             )  # fmt: skip
         else:
-            potentials[i] = potential(
+            potential_of[i] = potential(
                 i, rules, shaping, state, gaps, captured, centers, dock, length_scale, speed_scale
             )
 
@@ -487,15 +494,23 @@ def step_scratch(rules, field):
 def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out, scratch):
     """One step of the missions ``lo … hi − 1`` that are ``live``: the phases in order
     (``scratch``: a :class:`StepScratch` of this loop's own)."""
-    (state, time, steps, delta_v, captured, collision, out_of_bounds, success, gaps, nearest,
-     min_clearance, potentials, applied, hold, score) = missions  # fmt: skip
-    (centers, radii, polygon_start, polygons, n_vertices, vertices, velocities, attitude, turns,
-     dock, low, high, length_scale, speed_scale) = field  # fmt: skip
-    rewards, terminated, truncated, terms = out
+    state, time, steps, delta_v = missions.state, missions.time, missions.steps, missions.delta_v
+    captured, hold, score = missions.captured, missions.hold, missions.score
+    collision, out_of_bounds, success = missions.collision, missions.out_of_bounds, missions.success
+    gaps, nearest, min_clearance = missions.gaps, missions.nearest, missions.min_clearance
+    potential_of, applied = missions.potential, missions.accel
+    centers, radii, polygon_start = field.centers, field.radii, field.polygon_start
+    polygons, n_vertices, vertices = field.polygons, field.n_vertices, field.vertices
+    velocities, attitude, turns = field.velocities, field.attitude, field.turns
+    dock, low, high = field.dock, field.low, field.high
+    length_scale, speed_scale = field.length_scale, field.speed_scale
+    rewards, terminated, truncated, terms = out.reward, out.terminated, out.truncated, out.terms
     matrix_t = rules.step_matrix_t
     body_matrix_t = rules.body_matrix_t
     n_targets = rules.n_targets
-    path, start, accel, touched, rel, order, counters = scratch
+    path, start, accel = scratch.path, scratch.start, scratch.accel
+    touched, rel = scratch.touched, scratch.relative_path
+    order, counters = scratch.order, scratch.counters
     for i in range(lo, hi):
         if not live[i]:
             for k in range(terms.shape[1]):
@@ -549,8 +564,8 @@ def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out, scrat
             phi = potential(
                 i, rules, shaping, state, gaps, captured, centers, dock, length_scale, speed_scale
             )
-        before = potentials[i]
-        potentials[i] = phi
+        before = potential_of[i]
+        potential_of[i] = phi
         rewards[i] = reward(
             i, new, dv, ended, phi, before, rules, success, collision, out_of_bounds, terms
         )

@@ -124,8 +124,9 @@ def test_the_single_env_turns_its_polygons_at_spin_minus_n():
     for seed in (0, 1):
         env.reset(seed=seed)
         spins = env.scenario.bodies
-        turns = env._missions.turns[0]
-        for j, body in enumerate(spins):
+        turns = env.batch.turns[0]  # the bodies from the batch's polygon_start on
+        start = env.batch.field.polygon_start
+        for j, body in enumerate(spins[start:]):
             rate = body.spin - cfg.n
             sub = cfg.dt / cfg.collision_substeps
             expected = [
@@ -143,7 +144,7 @@ def test_the_single_env_keeps_the_world_of_each_field():
     small = drawn([9]).scenario(0, mean_motion=cfg.n, dt=cfg.dt, max_accel=cfg.max_accel)
     for options in (None, {"scenario": small}, None, None):
         env.reset(seed=3, options=options)
-        m = env._missions
+        m = env.batch
         limit = small.high if options else np.full(2, half)
         np.testing.assert_array_equal(m.high[0], limit)
         np.testing.assert_array_equal(m.low[0], -limit)

@@ -19,7 +19,7 @@ from debris_gym.config import EnvConfig
 from debris_gym.envs import DebrisFieldEnv
 from debris_gym.generators import FieldSpec, random_field
 from debris_gym.goal import DOCK_GOAL, NO_GOAL, current_goal
-from debris_gym.mission_batch import MissionBatch
+from debris_gym.mission_batch import MissionBatch, Physics
 from debris_gym.mission_step import sort_by_gap
 from debris_gym.observation import observation_names
 from debris_gym.scenario import Body
@@ -248,8 +248,9 @@ def test_every_observation_element_is_written(kwargs):
         for k in range(5)
     ]
     batch = MissionBatch(
-        cfg, 5, 3, len(fields[0].bodies), max_episode_steps=40, polygon_start=0, **physics
-    )
+        cfg, 5, 3, len(fields[0].bodies), physics=Physics(**physics), max_episode_steps=40,
+        polygon_start=0,
+    )  # fmt: skip
     for k, scen in enumerate(fields):
         batch.field.load(k, scen)
         batch.set_world(np.array([k]), scen.dock, scen.low, scen.high, scen.size / 2.0)

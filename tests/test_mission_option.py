@@ -1,5 +1,5 @@
 """The difficulty rungs of v1 and the ``reset(options={"mission": ...})`` that moves an env
-between them (issue 21, item 1): a curriculum is an env feature of the single env, the native
+between them: a curriculum is an env feature of the single env, the native
 vector env and its SB3 adapter."""
 
 from __future__ import annotations
@@ -210,3 +210,27 @@ def test_set_mission_reaches_the_adapter_through_sb3_wrappers():
 
 def test_every_rung_is_documented_with_its_mission():
     assert set(RUNGS) <= set(debris_gym.ENV_SPECS)
+
+
+def test_a_mission_where_it_cannot_apply_is_refused_not_ignored():
+    """Regression: a mission on the paper world or beside a pinned field was accepted and
+    ignored, while ``config`` reported a mission the field did not have."""
+    paper = gym.make("DebrisGym/PaperField2D-v0")
+    with pytest.raises(ValueError, match="paper world"):
+        paper.reset(seed=0, options={"mission": {"n_targets": 1}})
+    assert paper.unwrapped.config == paper.unwrapped.made_config
+    paper.reset(seed=0, options={"mission": {}})  # the env's own mission: nothing to refuse
+    vector = gym.make_vec(
+        "DebrisGym/PaperField2D-v0", num_envs=2, vectorization_mode="vector_entry_point"
+    )
+    with pytest.raises(ValueError, match="paper world"):
+        vector.reset(seed=0, options={"mission": {"n_targets": 1}})
+    adapter = NativeVecEnv("DebrisGym/PaperField2D-v0", num_envs=2)
+    with pytest.raises(ValueError, match="paper world"):
+        adapter.set_mission({"n_targets": 1})
+    env = gym.make(V1)
+    env.reset(seed=0)
+    pinned = env.unwrapped.scenario
+    with pytest.raises(ValueError, match="one or the other"):
+        env.reset(options={"scenario": pinned, "mission": EASY_MISSION})
+    assert env.unwrapped.config == env.unwrapped.made_config

@@ -268,9 +268,9 @@ def test_a_random_field_after_a_pinned_one_gets_the_random_world():
         np.testing.assert_array_equal(getattr(m, name), getattr(f, name), err_msg=name)
 
 
-def test_pinned_scenario_must_match_the_batch():
-    """Regression: a field with the same number of bodies but other targets was accepted (and
-    then read with the wrong target count)."""
+def test_a_pinned_field_of_other_targets_gets_a_batch_of_its_own():
+    """Regression: a field with the same number of bodies but other targets was read with the
+    batch's target count; a reset of every sub-env now makes the batch for the field's shape."""
     env = DebrisFieldVectorEnv(num_envs=2)
     env.reset(seed=0)
     scen = env.scenarios[0]
@@ -286,8 +286,27 @@ def test_pinned_scenario_must_match_the_batch():
         max_accel=scen.max_accel,
     )
     assert len(moved.bodies) == len(scen.bodies)
-    with pytest.raises(ValueError, match="numbers of targets and bodies"):
-        env.reset(options={"scenario": moved})
+    _, info = env.reset(options={"scenario": moved})
+    assert env.batch.n_targets == 2
+    np.testing.assert_array_equal(info["n_targets"], [2, 2])
+
+
+def test_a_pinned_field_flies_through_autoresets_until_the_next_reset():
+    """Regression: a fresh vector env took a pinned field of other sizes, and the first
+    autoreset drew a field of the env's own sizes into its batch and raised mid-step. A field
+    pinned by ``reset`` is now every sub-env's field until the next ``reset``."""
+    env = DebrisFieldVectorEnv(num_envs=2, max_episode_steps=3, delta_v_budget=None)
+    scen = simple_scenario()
+    with pytest.warns(UserWarning, match="physics differ"):
+        env.reset(seed=0, options={"scenario": scen})
+    for _ in range(6):  # a truncation, its autoreset, two steps of the next episode
+        env.step(np.zeros((2, 2), dtype=np.float32))
+    assert all(s is scen for s in env.scenarios)
+    assert env.batch.time[0] > 0.0
+    env.reset(seed=0)
+    fresh = DebrisFieldVectorEnv(num_envs=2, max_episode_steps=3, delta_v_budget=None)
+    fresh.reset(seed=0)
+    assert env.scenarios[1] == fresh.scenarios[1]  # the random fields of the seeds again
 
 
 def test_pinned_polygons_with_many_vertices_load():
@@ -436,3 +455,37 @@ def test_lidar_culling_changes_no_range():
                             entry = max(proj - half, 0.0) if hit else math.inf
                         best = min(best, entry)
                     assert ranges[i, r] == min(best, max_range), (scale, i, r)
+
+
+def test_fields_drawn_ahead_are_the_fields_drawn_at_reset_time():
+    """The moving world's fields are drawn ahead on a worker thread; every episode must get the
+    field a draw at its reset gives: the same observations, rewards and fields as with
+    ``draw_ahead=False``, across autoresets, a failed reset, a mission change and reseeding."""
+    n, rng = 16, np.random.default_rng(5)
+    v1 = debris_gym.ENV_SPECS["DebrisGym/Rendezvous2D-v1"]["kwargs"]
+    kwargs = dict(num_envs=n, max_episode_steps=25, **v1)
+    ahead = DebrisFieldVectorEnv(**kwargs, draw_ahead=True)
+    plain = DebrisFieldVectorEnv(**kwargs, draw_ahead=False)
+    easy = {"n_targets": 1, "n_obstacles": 5, "return_to_dock": False}
+    resets = {
+        0: dict(seed=3),
+        60: dict(options={"mission": easy}),  # the same pending words, the new mission's fields
+        90: dict(options={"mission": {}}),
+        130: dict(seed=[7] * n),
+        150: dict(),
+    }
+    for t in range(200):
+        if t in resets:
+            got = ahead.reset(**resets[t])[0], plain.reset(**resets[t])[0]
+            np.testing.assert_array_equal(*got)
+            with pytest.raises(ValueError, match="chaser_state"):
+                ahead.reset(options={"chaser_state": [0.0, 0.0]})  # fails: nothing changes
+            continue
+        actions = rng.uniform(-1, 1, (n, 2))
+        a, p = ahead.step(actions), plain.step(actions)
+        for x, y in zip(a[:4], p[:4]):
+            np.testing.assert_array_equal(x, y)
+    assert ahead.scenarios[:] == plain.scenarios[:]
+    assert ahead.shell.supply.moving  # the fields were drawn ahead
+    ahead.close()
+    plain.close()

@@ -11,28 +11,20 @@ import numpy as np
 
 from debris_gym.config import EnvConfig
 from debris_gym.envs.common import (
-    check_motion_matches,
-    checked_chaser_states,
     checked_continuous_actions,
     checked_discrete_action,
-    checked_mission,
-    checked_reset_options,
     checked_seed,
     discrete_action_table,
-    field_spec,
     observation_names,
     registered_horizon,
     single_spaces,
-    warn_if_physics_differ,
 )
-from debris_gym.generators import FieldArrays, paper_field, random_fields
+from debris_gym.envs.shell import MissionShell
 from debris_gym.geometry import FieldGeometry
 from debris_gym.goal import DOCK_GOAL, Goal, current_goal
 from debris_gym.mission_batch import MissionBatch
-from debris_gym.orbit_fields import OrbitDrawer, orbit_drawer
 from debris_gym.rewards import REWARD_TERMS
-from debris_gym.scenario import Scenario, as_scenario
-from debris_gym.scenario_checks import check_dock_clear
+from debris_gym.scenario import Scenario
 
 TRAIL_LENGTH = 4096
 """Chaser positions the env keeps for :attr:`DebrisFieldEnv.trail` and rendering: the last
@@ -46,109 +38,150 @@ class DebrisFieldEnv(gym.Env):
     ## Description
 
     A chaser spacecraft starts at rest at the dock, at the origin of the LVLH (Hill) frame of a
-    circular reference orbit, and must rendezvous with every target — come within
-    ``capture_radius`` of its surface at a relative speed of at most ``capture_speed`` — without
-    touching any other debris, then (if ``return_to_dock``) come back to the dock the same way.
-    Motion follows the Clohessy-Wiltshire-Hill equations ([Clohessy60], [Hill1878]; keys of
-    docs/references.md), propagated exactly (zero-order hold) over each step; collisions are
-    checked continuously along the path, not only at step ends. Debris is frozen in LVLH (exact
-    only for ``mean_motion = 0``; see ``docs/environments.md``).
+    circular reference orbit (x radial, y along-track, z cross-track), and must rendezvous with
+    every target — hold position beside it, matching its velocity — without touching any body,
+    then (if ``return_to_dock``) come back to the dock and stop there. Motion follows the
+    Clohessy-Wiltshire-Hill equations ([Clohessy60], [Hill1878]; keys of docs/references.md),
+    propagated exactly (zero-order hold) over each step. In the v1 world every body — debris
+    and targets — flies its own unforced relative orbit (bounded, drift-free), 2D polygons keep
+    an inertially fixed attitude (turning at −n in LVLH), every body is solid, and contacts are
+    found continuously along the path relative to each moving body. The registered default,
+    ``DebrisGym/Rendezvous2D-v1``: a 1 km square at 400 km altitude (n ≈ 1.131e-3 rad/s), 3
+    targets of 3–10 m and 20 other debris of 2–25 m (circles and convex polygons),
+    ``dt`` = 10 s, ``max_accel`` = 0.05 m/s², a Δv budget of 100 m/s, 1000 steps.
 
     ## Action Space
 
-    ``action="continuous"``: ``Box(-1, 1, (dim,), float32)``, the commanded acceleration as a
-    fraction of ``max_accel`` (m/s²); ``thrust_model="box"`` clips each axis, ``"ball"`` scales
-    vectors longer than 1 onto the unit ball. ``action="discrete"``: ``Discrete(2·dim + 1)``:
-    0 coast, then +x, −x, +y, −y (, +z, −z) at full thrust. NaN or infinite actions, wrong
-    shapes, and complex, string, boolean or masked-array actions raise ``ValueError`` naming
-    ``action`` (docs/validation.md).
+    ``action="continuous"`` (default): ``Box(-1, 1, (dim,), float32)``, the commanded
+    acceleration as a fraction of ``max_accel`` (m/s²); ``thrust_model="box"`` clips each axis,
+    ``"ball"`` scales vectors longer than 1 onto the unit ball. ``action="discrete"``:
+    ``Discrete(2·dim + 1)`` (0 coast, then +x, −x, +y, −y (, +z, −z) at full thrust), and with
+    ``fine_thrust`` = f > 0 (v1: 0.1) ``Discrete(4·dim + 1)``, the same directions again at
+    f·``max_accel``. NaN or infinite actions, wrong shapes, and complex, string, boolean or
+    masked-array actions raise ``ValueError`` naming ``action``.
 
     ## Observation Space
 
-    ``observation="kinematics"``: a float32 vector, normalised to about [−1, 1] (length scale
-    L = half the world size, speed scale V = sqrt(max_accel · L)) and clipped to ±10:
-    chaser position / L, velocity / V; K target slots (relative position / L, relative velocity / V,
-    radius / L, captured flag); dock relative position / L; M nearest-obstacle slots (relative
-    position / L, bounding radius / L, surface gap / L); Δv remaining fraction; time remaining
-    fraction. ``observation="lidar"`` replaces the obstacle slots with ``lidar_rays`` ranges /
-    ``lidar_range``. :meth:`observation_names` names every element; docs/environments.md has the
-    table with units.
+    ``Box(-10, 10, (74,), float32)`` for ``Rendezvous2D-v1`` (99 elements in 3D): positions
+    divided by L = half the world size (500 m), velocities by V = sqrt(max_accel·L) (5 m/s),
+    every element clipped to ±10. :meth:`observation_names` names each element;
+    docs/environments.md lists them one by one.
+
+    ======  =====================================================  ======  ========  ===  ===
+    index   meaning                                                unit    scale     min  max
+    ======  =====================================================  ======  ========  ===  ===
+    0–1     chaser position x, y                                   m       L         −10  10
+    2–3     chaser velocity x, y                                   m/s     V         −10  10
+    4–21    3 target slots (uncaptured first, nearest first),      m, m/s  L, V, 1   −10  10
+            6 each: target − chaser position (2), velocity (2),
+            radius, captured flag (1 also for an empty slot)
+    22–23   dock − chaser position                                 m       L         −10  10
+    24–55   8 nearest obstacles by surface gap, 4 each: centre −   m       L         −10  10
+            chaser position (2), bounding radius, gap from the
+            chaser's centre to the surface (empty slot: 0, 0, 0, 1)
+    56–71   the same 8 obstacles' velocity − chaser velocity (2)   m/s     V         −10  10
+    72      Δv budget remaining (fraction)                         –       1         −10  10
+    73      time remaining (fraction of the registered limit)      –       1         −10  10
+    ======  =====================================================  ======  ========  ===  ===
+
+    ``observation="lidar"`` replaces the obstacle blocks with ``lidar_rays`` ranges divided by
+    ``lidar_range``; ``obs_goal`` adds the current goal's relative state.
 
     ## Rewards
 
-    A sum of named terms, each reported in ``info["reward_terms"]`` and weighted by the config key
-    ``reward_<term>``: capture, success, progress (potential-based shaping), delta_v, collision,
-    out_of_bounds, time. See :mod:`debris_gym.rewards`.
+    A sum of named terms, each reported in ``info["reward_terms"]`` and weighted by the config
+    key ``reward_<term>``: ``capture`` (+10 per target captured), ``success`` (+50),
+    ``progress`` (potential-based shaping on the shortest remaining mission / L, undiscounted
+    in v1), ``delta_v`` (−0.05 per m/s), ``collision`` (−50), ``out_of_bounds`` (−50) and
+    ``time`` (−0.01 per step). ``info["task_score"]`` sums every term but the shaping: what
+    tables rank by. See :mod:`debris_gym.rewards` and docs/environments.md, "Rewards".
 
     ## Starting State
 
     The chaser at rest at the dock, unless ``reset(options={"chaser_state": ...})`` says
     otherwise. A new random field each reset (from the reset seed), unless
-    ``options={"scenario": ...}`` pins one or ``scenario="paper"`` selects the [APF-MPC] world.
+    ``options={"scenario": ...}`` pins one or ``scenario="paper"`` selects the [APF-MPC] world;
+    ``options={"mission": ...}`` moves the env to another rung of the difficulty ladder.
 
     ## Episode End
 
-    Terminated on success, collision, leaving the bounds, or spending the whole Δv budget.
-    Truncated by the registration's ``max_episode_steps`` (``TimeLimit``).
+    Terminated on success (every target captured, then back at the dock, within
+    ``capture_radius`` at ≤ ``capture_speed``), a collision with any body, leaving the bounds,
+    or spending the whole Δv budget. A target is captured when at each of
+    1 + ⌈``capture_hold`` / ``dt``⌉ consecutive step ends (v1: 4, over 30 s) the chaser's
+    surface is within ``capture_radius`` (5 m) of the target's and its velocity relative to the
+    target is at most ``capture_speed`` (0.2 m/s). Truncated at the registration's
+    ``max_episode_steps`` (1000 steps) by gymnasium's ``TimeLimit``; the env itself never
+    truncates.
 
     ## Arguments
 
-    Every key of :class:`debris_gym.config.EnvConfig` (see ``docs/environments.md``), plus
+    Every key of :class:`debris_gym.config.EnvConfig` (units, defaults and ranges in
+    docs/environments.md, "Options"; a bad key or value raises ``ValueError`` naming it), plus
     ``render_mode`` ("rgb_array" or "human").
 
     ## Version History
 
-    * v0: initial release.
+    * v1: the physical world — every body on its natural CWH relative orbit, solid targets,
+      capture as a 30 s hold at ≤ 0.2 m/s relative to the target, fine discrete thrust, a
+      potential on the shortest remaining mission; the Easy and Medium rungs.
+    * v0: the frozen world — debris fixed in LVLH (exact only for ``mean_motion`` = 0), capture
+      at one step end at ≤ 0.5 m/s, targets touched gently are not a collision. Kept for
+      reproducing earlier numbers.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 15}
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
-        self.config = EnvConfig.from_kwargs(**kwargs)
-        self._made_config = self.config  # what a {"mission": {}} reset option returns to
+        config = EnvConfig.from_kwargs(**kwargs)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode={render_mode!r} is not supported; use one of "
                 f"{self.metadata['render_modes']} or None"
             )
         self.render_mode = render_mode
-        cfg = self.config
-        self.dim = d = cfg.dim
-        self.observation_space, self.action_space = single_spaces(cfg)
-        self._discrete_actions = discrete_action_table(d, cfg.fine_thrust)
-        self._obs_names = observation_names(cfg)
-        self._field_spec = field_spec(cfg)
-        self._scenario: Scenario | None = None
-        self._drawn: FieldArrays | None = None  # a random field, until it is asked for
-        self._drawer: OrbitDrawer | None = None  # draws the moving fields (spec checked once)
-        self._world_drawn = False  # the batch holds a random field's world (dock, bounds, L)
-        self._row = np.zeros(1, dtype=np.int64)  # the rows of the batch of one
-        self._missions: MissionBatch | None = None  # this env's mission, a batch of one
-        self._field_geometry: FieldGeometry | None = None
+        self.dim = d = config.dim
+        # one row; no autoreset and no step limit of its own (gymnasium's TimeLimit owns it)
+        self._shell = MissionShell(config, 1)
+        self.observation_space, self.action_space = single_spaces(config)
+        self._discrete_actions = discrete_action_table(d, config.fine_thrust)
+        self._obs_names = observation_names(config)
         self._obs_buffer = np.zeros((1, len(self._obs_names)), dtype=np.float32)
-        self._live = np.ones(1, dtype=bool)
-        self._horizon: int | None = None
+        self._field_geometry: FieldGeometry | None = None
+        self._trail: deque[np.ndarray] = deque(maxlen=TRAIL_LENGTH)
         self._renderer = None
 
     # --- state accessors --------------------------------------------------------------------
 
     @property
+    def config(self) -> EnvConfig:
+        """The config in force (a ``{"mission": ...}`` reset option changes its mission keys)."""
+        return self._shell.config
+
+    @property
     def made_config(self) -> EnvConfig:
         """The config the env was made with: what ``reset(options={"mission": {...}})`` changes
         keys of (``self.config`` is the one in force)."""
-        return self._made_config
+        return self._shell.made_config
+
+    @property
+    def shell(self) -> MissionShell:
+        """The :class:`~debris_gym.envs.shell.MissionShell` this env is the one-row view of."""
+        return self._shell
+
+    @property
+    def batch(self) -> MissionBatch | None:
+        """This env's mission and field as a :class:`~debris_gym.mission_batch.MissionBatch`
+        of one row (None before the first reset). Read it; writing to it bypasses the env's
+        checks."""
+        return self._shell.batch
 
     @property
     def scenario(self) -> Scenario | None:
         """The current field (None before the first reset). A random field is drawn as arrays
-        and loaded as they are; its :class:`Scenario` is built when first asked for here (the
-        same object a :func:`~debris_gym.generators.random_field` draw gives)."""
-        if self._scenario is None and self._drawn is not None:
-            cfg = self.config
-            self._scenario = self._drawn.scenario(
-                0, mean_motion=cfg.n, dt=cfg.dt, max_accel=cfg.max_accel
-            )
-        return self._scenario
+        and loaded as they are; its :class:`Scenario` is built when asked for here (the same
+        object a :func:`~debris_gym.generators.random_field` draw gives)."""
+        return self._shell.scenario(0)
 
     @property
     def chaser_state(self) -> np.ndarray:
@@ -189,11 +222,12 @@ class DebrisFieldEnv(gym.Env):
         """Geometry of the current field as it is now (bodies where they are at the env's
         time), inflated by the chaser radius (built on first use, again when the bodies have
         moved): the clearance and collision queries planners share with the env."""
-        t = self.elapsed if self.scenario.moving else 0.0
+        scenario = self.scenario
+        t = self.elapsed if scenario.moving else 0.0
         geometry = self._field_geometry
-        if geometry is None or geometry.time != t:
+        if geometry is None or geometry.time != t or geometry.scenario is not scenario:
             geometry = self._field_geometry = FieldGeometry(
-                self.scenario, inflate=self.config.chaser_radius, time=t
+                scenario, inflate=self.config.chaser_radius, time=t
             )
         return geometry
 
@@ -218,71 +252,12 @@ class DebrisFieldEnv(gym.Env):
         """Name of every observation element, in order."""
         return list(self._obs_names)
 
-    # --- scenario -----------------------------------------------------------------------------
-
-    def _draw(self) -> FieldArrays:
-        cfg = self.config
-        if self._field_spec.motion == "frozen":
-            return random_fields(
-                [self.np_random], self._field_spec, capture_radius=cfg.capture_radius
-            )
-        if self._drawer is None:  # checks the spec (raises ValueError naming what is wrong)
-            self._drawer = orbit_drawer(self._field_spec, cfg.capture_radius)
-        return self._drawer.draw((self.np_random,))
-
-    def _check_dim(self, scenario: Scenario) -> None:
-        if scenario.dim != self.dim:
-            raise ValueError(f"scenario has dim={scenario.dim} but the env has dim={self.dim}")
-
-    def _batch_for(self, physics: tuple[float, float, float], n_targets: int, n_bodies: int):
-        """The batch of one mission for fields of this physics and size (made again when they
-        change)."""
-        m = self._missions
-        if m is None or (m.physics, m.n_targets, m.field.n_bodies) != (
-            physics,
-            n_targets,
-            n_bodies,
-        ):
-            mean_motion, dt, max_accel = physics
-            m = self._missions = MissionBatch(
-                self.config, 1, n_targets, n_bodies, mean_motion=mean_motion, dt=dt,
-                max_accel=max_accel, polygon_start=0,
-            )  # fmt: skip
-            self._world_drawn = False
-        return m
-
-    def _set_drawn(self, fields: FieldArrays) -> None:
-        """Load a random field drawn as arrays (its Scenario is built only when asked for)."""
-        self._scenario, self._drawn, self._field_geometry = None, fields, None
-        cfg = self.config
-        t = fields.n_targets
-        m = self._batch_for((cfg.n, cfg.dt, cfg.max_accel), t, fields.radii.shape[1])
-        # the batch of the single env lets any body be a polygon (pinned fields may have
-        # polygon targets): the drawn vertices are the obstacles', from body t on
-        spins = None if fields.spins is None else fields.spins[:, m.field.polygon_start :]
-        m.load_arrays(
-            self._row, fields.centers, fields.radii, fields.vertices, fields.n_vertices,
-            fields.velocities, spins, vertex_start=t,
-        )  # fmt: skip
-        if not self._world_drawn:  # every random field has the same world
-            half = fields.half_size
-            m.set_world(self._row, 0.0, -half, half, half)
-            self._world_drawn = True
-
-    def _set_scenario(self, scenario: Scenario) -> None:
-        self._scenario, self._drawn, self._field_geometry = scenario, None, None
-        n_targets, n_bodies = len(scenario.targets), len(scenario.bodies)
-        physics = (scenario.mean_motion, scenario.dt, scenario.max_accel)
-        m = self._batch_for(physics, n_targets, n_bodies)
-        self._world_drawn = False
-        m.load_scenario(np.zeros(1, dtype=np.int64), scenario)
-        m.set_world(
-            np.zeros(1, dtype=np.int64),
-            scenario.dock,
-            scenario.low,
-            scenario.high,
-            scenario.size / 2.0,
-        )
+    @property
+    def _missions(self) -> MissionBatch:
+        batch = self._shell.batch
+        if batch is None:
+            raise RuntimeError("call reset() first")
+        return batch
 
     # --- gymnasium API ------------------------------------------------------------------------
 
@@ -310,65 +285,22 @@ class DebrisFieldEnv(gym.Env):
             ValueError: naming the bad option; the env is unchanged.
         """
         seed = checked_seed(seed)
-        options = checked_reset_options(options)
         saved = self._np_random, self._np_random_seed
-        saved_state = None if saved[0] is None else saved[0].bit_generator.state
-        saved_mission = self.config, self._field_spec, self._drawer, self._missions
         try:
-            if options.get("mission") is not None:
-                config = checked_mission(self._made_config, options["mission"])
-                if config != self.config:  # a new batch, ruled by the new mission
-                    self.config, self._drawer, self._missions = config, None, None
-                    self._field_spec = field_spec(config)
             super().reset(seed=seed)
-            drawn = None
-            if options.get("scenario") is not None:
-                scenario = as_scenario(options["scenario"])
-                self._check_dim(scenario)
-                warn_if_physics_differ(self.config, scenario)
-                check_motion_matches(self.config, scenario)
-            elif self.config.scenario == "paper":
-                scenario = paper_field(dt=self.config.dt, max_accel=self.config.max_accel)
-            else:
-                drawn = self._draw()
-                scenario = None
-            if options.get("chaser_state") is not None:
-                if scenario is None:  # the initial state is checked against the field itself
-                    cfg = self.config
-                    scenario = drawn.scenario(
-                        0, mean_motion=cfg.n, dt=cfg.dt, max_accel=cfg.max_accel
-                    )
-                state = checked_chaser_states(
-                    options["chaser_state"], 1, scenario.low, scenario.high,
-                    scenario.size / scenario.dt, FieldGeometry(scenario).signed_distance,
-                    self.config.chaser_radius,
-                )[0]  # fmt: skip
-            else:  # the chaser starts at the dock (random fields keep it clear by construction)
-                state = None
-                if options.get("scenario") is not None:
-                    check_dock_clear(scenario, self.config.chaser_radius)
-        except BaseException:  # nothing of the env changed but its generator: put it back
-            self.config, self._field_spec, self._drawer, self._missions = saved_mission
+            self._shell.horizon = registered_horizon(self.spec)
+            self._shell.reset([self.np_random], options)
+        except BaseException:  # the shell put itself back; gymnasium's seeding goes back too
             self._np_random, self._np_random_seed = saved
-            if saved_state is not None:
-                saved[0].bit_generator.state = saved_state
             raise
-        # commit: the field and state are valid, nothing below raises on them
-        if drawn is not None:
-            self._set_drawn(drawn)
-            if scenario is not None:
-                self._scenario = scenario
-        else:
-            self._set_scenario(scenario)
-        d = self.dim
-        if state is None:  # at rest at the dock
-            state = np.concatenate([self._missions.dock[0], np.zeros(d)])
-        self._missions.begin(np.zeros(1, dtype=np.int64), state[None])
-        self._trail = deque([state[:d].copy()], maxlen=TRAIL_LENGTH)
-        terms = dict.fromkeys(REWARD_TERMS, 0.0)
+        self._field_geometry = None
+        state = self._missions.state[0]
+        self._trail.clear()
+        self._trail.append(state[: self.dim].copy())
+        terms = (0.0,) * len(REWARD_TERMS)
         if self.render_mode == "human":
             self.render()
-        return self._observe(), self._info(terms)
+        return self._observe(), self._shell.row_info(0, terms)
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Apply one thrust command for ``dt`` seconds.
@@ -377,15 +309,14 @@ class DebrisFieldEnv(gym.Env):
             observation, reward, terminated, truncated (always False: the time limit belongs to
             the ``TimeLimit`` wrapper), info.
         """
-        if self._missions is None:
-            raise RuntimeError("call reset() before step()")
-        m = self._missions
-        reward, terminated, _, terms = m.step(self._action(action), self._live)
+        shell = self._shell
+        result = shell.step(self._action(action))
+        m = shell.batch
         self._trail.append(m.state[0, : self.dim].copy())
         if self.render_mode == "human":
             self.render()
-        info = self._info(dict(zip(REWARD_TERMS, terms[0].tolist())))
-        return self._observe(), float(reward[0]), bool(terminated[0]), False, info
+        info = shell.row_info(0, result.terms[0].tolist())
+        return self._observe(), float(result.reward[0]), bool(result.terminated[0]), False, info
 
     # --- step hooks ---------------------------------------------------------------------------
 
@@ -397,28 +328,7 @@ class DebrisFieldEnv(gym.Env):
         return checked_continuous_actions(action, (self.dim,))[None]
 
     def _observe(self) -> np.ndarray:
-        if self._horizon is None:
-            self._horizon = registered_horizon(self.spec)
-        return self._missions.observe(self._obs_buffer, self._horizon)[0].copy()
-
-    def _info(self, terms: dict[str, float]) -> dict[str, Any]:
-        m = self._missions
-        captured = m.captured[0].copy()
-        return {
-            "chaser_state": m.state[0].copy(),
-            "time": float(m.time[0]),
-            "delta_v": float(m.delta_v[0]),
-            "targets_captured": int(np.count_nonzero(captured)),
-            "n_targets": m.n_targets,
-            "captured": captured,
-            "min_clearance": float(m.min_clearance[0]) - self.config.chaser_radius,
-            "collision": bool(m.collision[0]),
-            "out_of_bounds": bool(m.out_of_bounds[0]),
-            "is_success": bool(m.success[0]),
-            "applied_accel": m.accel[0].copy(),
-            "task_score": float(m.score[0]),
-            "reward_terms": terms,
-        }
+        return self._shell.observe(self._obs_buffer)[0].copy()
 
     # --- rendering ----------------------------------------------------------------------------
 
@@ -427,7 +337,7 @@ class DebrisFieldEnv(gym.Env):
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode= to make()")
             return None
-        if self._missions is None:
+        if self._shell.batch is None:
             raise RuntimeError("call reset() before render()")
         from debris_gym.envs.rendering import Renderer
 
@@ -445,6 +355,7 @@ class DebrisFieldEnv(gym.Env):
         return frame if self.render_mode == "rgb_array" else None
 
     def close(self) -> None:
+        self._shell.close()
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None

@@ -18,8 +18,6 @@ import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode
 
-from debris_gym.envs.common import checked_mission
-
 try:
     from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 except ImportError as exc:  # pragma: no cover - exercised only without SB3
@@ -81,7 +79,7 @@ class NativeVecEnv(VecEnv):
         Raises:
             ValueError: now, naming the bad key or value (checked against the env's options).
         """
-        checked_mission(self.venv.unwrapped.made_config, mission)
+        self.venv.unwrapped.shell.checked_mission(mission)
         self._new_mission = dict(mission)
 
     def step_async(self, actions: np.ndarray) -> None:

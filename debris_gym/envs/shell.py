@@ -1,0 +1,481 @@
+"""The mission shell: N missions of one env, with everything around the compiled step written once.
+
+Every env of the package is a view of a :class:`MissionShell`: the single env
+(:class:`~debris_gym.envs.DebrisFieldEnv`) its one row, the native vector env
+(:class:`~debris_gym.envs.vector.DebrisFieldVectorEnv`) all of its rows. The shell owns
+
+* **field supply** — a random field per row from the row's generator, a pinned field, or the
+  paper world (:class:`~debris_gym.envs.field_supply.FieldSupply`, which draws moving fields
+  ahead on a worker thread);
+* **the transactional reset** — seeds, options, the fields and the initial states are all
+  checked before anything changes, then committed; a reset that raises leaves the shell as it
+  was (fields, states, clocks, generators, pending autoresets);
+* **the step boundary** — one call of the compiled kernel
+  (:meth:`~debris_gym.mission_batch.MissionBatch.step`, named records in and out);
+* **truncation** — the mission's step count against ``max_episode_steps``, in the kernel (the
+  single env leaves the limit to gymnasium's ``TimeLimit``, as every gymnasium env does: made
+  by ``gym.make`` it has no limit of its own);
+* **autoreset** — the next-step and same-step modes of gymnasium's vector envs;
+* **the info dict** — one table of keys (:data:`INFO_KEYS`), read per row or for all rows.
+
+No view repeats any of it; docs/architecture.md shows where a view with several chasers per
+field plugs in.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Sequence
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from debris_gym.batch_geometry import FieldBatch
+from debris_gym.config import EnvConfig
+from debris_gym.envs.common import (
+    DEFAULT_HORIZON_STEPS,
+    check_motion_matches,
+    checked_chaser_states,
+    checked_mission,
+    checked_reset_options,
+    observation_names,
+    warn_if_physics_differ,
+)
+from debris_gym.envs.field_supply import FieldSupply
+from debris_gym.generators import MAX_POLYGON_VERTICES, FieldArrays, scenario_from_arrays
+from debris_gym.geometry import FieldGeometry
+from debris_gym.mission_batch import MissionBatch, Physics, check_threads
+from debris_gym.rewards import REWARD_TERMS
+from debris_gym.scenario import Scenario, as_scenario
+from debris_gym.scenario_checks import check_dock_clear
+
+__all__ = ["INFO_KEYS", "Autoreset", "FieldShape", "MissionShell", "StepResult"]
+
+
+class Autoreset(enum.Enum):
+    """When a shell's ended missions restart."""
+
+    NEVER = "never"
+    """Never by themselves: the next :meth:`MissionShell.reset` starts them (a single env)."""
+    NEXT_STEP = "next_step"
+    """The step after a mission ends restarts it (its action ignored, reward 0)."""
+    SAME_STEP = "same_step"
+    """The step that ends a mission restarts it; the last observation and info are kept."""
+
+
+INFO_KEYS = (
+    "chaser_state",
+    "time",
+    "delta_v",
+    "targets_captured",
+    "n_targets",
+    "captured",
+    "min_clearance",
+    "collision",
+    "out_of_bounds",
+    "is_success",
+    "applied_accel",
+    "task_score",
+    "reward_terms",
+)
+"""The keys of every step's and reset's ``info`` (docs/environments.md, "Info")."""
+
+
+class FieldShape(NamedTuple):
+    """What a batch must be made for to hold a field: its physics and sizes."""
+
+    physics: Physics
+    n_targets: int
+    n_bodies: int
+    polygon_targets: bool
+    """Some target is a polygon (the batch must let every body be one)."""
+
+
+class StepResult(NamedTuple):
+    """A shell step's outputs (new arrays, row i = mission i)."""
+
+    reward: np.ndarray
+    terminated: np.ndarray
+    truncated: np.ndarray
+    terms: np.ndarray
+    """(N, 7) reward terms, columns in :data:`~debris_gym.rewards.REWARD_TERMS` order."""
+    final_observation: np.ndarray | None = None
+    """Same-step autoreset: the ended missions' last observations (rows of ``ended``)."""
+    final_info: dict[str, Any] | None = None
+    """Same-step autoreset: the info of the step that ended them (all rows; read ``ended``)."""
+    ended: np.ndarray | None = None
+    """Same-step autoreset: the missions that ended and restarted in this step."""
+
+
+class MissionShell:
+    """N missions with one config, their fields, resets, steps and infos.
+
+    Args:
+        config: the env configuration (validated).
+        num: number of missions N.
+        autoreset: when ended missions restart (:class:`Autoreset`).
+        max_episode_steps: the step limit that truncates a mission, or None.
+        threads: threads that step and observe the missions (results do not depend on it).
+        draw_ahead: draw each row's next moving field on a worker thread
+            (:class:`~debris_gym.envs.field_supply.FieldSupply`).
+
+    Raises:
+        ValueError: a random-field config whose fields can never be placed; a bad ``threads``.
+    """
+
+    def __init__(
+        self,
+        config: EnvConfig,
+        num: int,
+        *,
+        autoreset: Autoreset = Autoreset.NEVER,
+        max_episode_steps: int | None = None,
+        threads: int = 1,
+        draw_ahead: bool = False,
+    ) -> None:
+        self.threads = check_threads(threads)
+        self.made_config = self.config = config
+        self.num, self.dim = num, config.dim
+        self.autoreset = autoreset
+        self.max_episode_steps = max_episode_steps
+        self.horizon = DEFAULT_HORIZON_STEPS
+        """Steps the ``time_remaining`` observation counts down from (the views set it)."""
+        self.supply = FieldSupply(config, num, ahead=draw_ahead)
+        self.batch: MissionBatch | None = None
+        """The missions and fields as arrays (None before the first reset)."""
+        self.pinned: list[Scenario | None] = [None] * num
+        """Each row's field when it was not drawn (pinned or the paper world), else None."""
+        self._pin: Scenario | None = None  # pinned by the last reset: autoresets fly it again
+        self._built: list[Scenario | None] = [None] * num  # random fields' Scenarios, once built
+        self._random_world = np.zeros(num, dtype=bool)  # the row has the random fields' world
+        self._restart = np.zeros(num, dtype=bool)  # next-step autoreset: rows to restart
+        self._obs_size = len(observation_names(config))
+        self._all_rows = np.arange(num, dtype=np.int64)
+        self._live = np.ones(num, dtype=bool)
+
+    # --- reading ------------------------------------------------------------------------------
+
+    def scenario(self, i: int) -> Scenario | None:
+        """Row ``i``'s field as a :class:`Scenario` (a pinned one as given; a random one built
+        from its arrays, as drawn at t = 0, when first asked for), or None before the first
+        reset."""
+        batch = self.batch
+        if batch is None:
+            return None
+        known = self.pinned[i] or self._built[i]
+        if known is not None:
+            return known
+        self._built[i] = built = self._build_scenario(i, batch)
+        return built
+
+    def _build_scenario(self, i: int, batch: MissionBatch) -> Scenario:
+        cfg, field, d = self.config, batch.field, self.dim
+        t = batch.n_targets
+        vertices, counts = field.vertex_arrays(i)
+        counts = counts[t - field.polygon_start :]
+        vertices = vertices[t - field.polygon_start :]
+        n_obstacles = field.n_bodies - t
+        if counts.shape[0] != n_obstacles:  # 3D: spheres only, the batch keeps no polygon slots
+            vertices, counts = np.zeros((n_obstacles, 0, 2)), np.zeros(n_obstacles, dtype=int)
+        half = self.supply.spec.field_size / 2.0
+        moving = cfg.debris_motion != "frozen"
+        start = field.start_states[i]  # the field as drawn: the bodies have moved since
+        spins = np.zeros(field.n_bodies)
+        spins[field.polygon_start :] = field.spins[i]
+        return scenario_from_arrays(
+            start[:, :d], field.radii[i], vertices, counts, t, ((-half, half),) * d,
+            mean_motion=cfg.n, dt=cfg.dt, max_accel=cfg.max_accel,
+            velocities=start[:, d:] if moving else None, spins=spins if moving else None,
+        )  # fmt: skip
+
+    def observe(self, out: np.ndarray | None = None) -> np.ndarray:
+        """Every mission's observation, into ``out`` (N, size) float32 or a new array."""
+        if out is None:
+            out = np.empty((self.num, self._obs_size), dtype=np.float32)
+        return self.batch.observe(out, self.horizon)
+
+    def info(self, terms: np.ndarray) -> dict[str, Any]:
+        """The :data:`INFO_KEYS` of every mission as new arrays (row i = mission i);
+        ``terms`` (N, 7) the step's reward terms (by term name under ``"reward_terms"``)."""
+        m = self.batch
+        return {
+            "chaser_state": m.state.copy(),
+            "time": m.time.copy(),
+            "delta_v": m.delta_v.copy(),
+            "targets_captured": m.captured_counts(),
+            "n_targets": np.full(self.num, m.n_targets),
+            "captured": m.captured.copy(),
+            "min_clearance": m.min_clearance - self.config.chaser_radius,
+            "collision": m.collision.copy(),
+            "out_of_bounds": m.out_of_bounds.copy(),
+            "is_success": m.success.copy(),
+            "applied_accel": m.accel.copy(),
+            "task_score": m.score.copy(),
+            "reward_terms": dict(zip(REWARD_TERMS, terms.T.copy())),
+        }
+
+    def row_info(self, i: int, terms: Sequence[float]) -> dict[str, Any]:
+        """The :data:`INFO_KEYS` of mission ``i`` as Python scalars and arrays of its own;
+        ``terms`` its 7 reward terms."""
+        m = self.batch
+        captured = m.captured[i].copy()
+        return {
+            "chaser_state": m.state[i].copy(),
+            "time": float(m.time[i]),
+            "delta_v": float(m.delta_v[i]),
+            "targets_captured": int(np.count_nonzero(captured)),
+            "n_targets": m.n_targets,
+            "captured": captured,
+            "min_clearance": float(m.min_clearance[i]) - self.config.chaser_radius,
+            "collision": bool(m.collision[i]),
+            "out_of_bounds": bool(m.out_of_bounds[i]),
+            "is_success": bool(m.success[i]),
+            "applied_accel": m.accel[i].copy(),
+            "task_score": float(m.score[i]),
+            "reward_terms": dict(zip(REWARD_TERMS, terms)),
+        }
+
+    # --- reset --------------------------------------------------------------------------------
+
+    def reset(
+        self,
+        generators: Sequence[np.random.Generator | None] | None = None,
+        options: Any = None,
+    ) -> None:
+        """Start a new episode in every row, as a transaction.
+
+        Args:
+            generators: per row, a new generator (a seeded reset) or None (the row's own goes
+                on); None for all rows going on.
+            options: ``reset``'s options (:data:`~debris_gym.envs.common.RESET_OPTIONS`):
+                ``scenario`` pins one field in every row, ``chaser_state`` sets the initial
+                states ((2·dim,) or (N, 2·dim)), ``mission`` changes what the missions ask
+                from now on (``{}``: the env's own again).
+
+        Raises:
+            ValueError: naming the bad option; nothing changed.
+        """
+        options = checked_reset_options(options)
+        rows = self._all_rows
+        saved_supply = self.supply.save()
+        saved = self.config, self.batch
+        try:
+            if options.get("mission") is not None:
+                config = self.checked_mission(options["mission"])
+                if options["mission"] and options.get("scenario") is not None:
+                    raise ValueError(
+                        "options['mission'] changes the random fields and options['scenario'] "
+                        "pins the field: give one or the other"
+                    )
+                if config != self.config:  # a new batch, sized and ruled by the new mission
+                    self.supply.configure(config)
+                    self.config, self.batch = config, None
+            if generators is not None:
+                self.supply.set_generators(
+                    rows, [g if g is not None else self.supply.generators[i]
+                           for i, g in enumerate(generators)],
+                )  # fmt: skip
+            pinned = options.get("scenario")
+            fields = None
+            if pinned is not None:
+                pinned = self._checked_pinned(as_scenario(pinned))
+            else:
+                fields = self.supply.take(rows)
+                if fields is None:
+                    self._fit(self._shape_of(self.supply.paper_field()))
+                else:
+                    self._fit(self._drawn_shape(fields))
+            states = options.get("chaser_state")
+            if states is not None:
+                states = self._checked_states(states, pinned, fields)
+            elif pinned is not None:
+                check_dock_clear(pinned, self.config.chaser_radius)  # every row at the dock
+        except BaseException:
+            self.supply.restore(saved_supply)
+            self.config, self.batch = saved
+            raise
+        # commit: everything is valid, nothing below raises on it
+        self._pin = pinned
+        if pinned is not None:
+            self._install_scenario(rows, pinned)
+        else:
+            self._install(rows, fields)
+        self.batch.begin(rows, states)
+        self._restart[:] = False
+        if pinned is None:
+            self.supply.draw_ahead(rows)
+
+    def checked_mission(self, mission: Any) -> EnvConfig:
+        """The config a ``{"mission": ...}`` reset option gives
+        (:func:`~debris_gym.envs.common.checked_mission`).
+
+        Raises:
+            ValueError: naming the bad key or value; for an env that flies the paper world,
+                whose mission is fixed.
+        """
+        config = checked_mission(self.made_config, mission)
+        if mission and self.made_config.scenario == "paper":
+            raise ValueError(
+                "options['mission'] changes the random fields; this env flies the paper world "
+                "(scenario='paper'), whose mission is fixed"
+            )
+        return config
+
+    def _checked_pinned(self, scenario: Scenario) -> Scenario:
+        """A pinned field, checked against the env (dim, motion; physics warned) and the
+        batch."""
+        if scenario.dim != self.dim:
+            raise ValueError(f"scenario has dim={scenario.dim} but the env has dim={self.dim}")
+        warn_if_physics_differ(self.config, scenario)
+        check_motion_matches(self.config, scenario)
+        self._fit(self._shape_of(scenario))
+        return scenario
+
+    def _checked_states(
+        self, value: Any, pinned: Scenario | None, fields: FieldArrays | None
+    ) -> np.ndarray:
+        """Initial chaser states checked against the fields this reset installs."""
+        n, cfg = self.num, self.config
+        if fields is None:
+            scenario = pinned if pinned is not None else self.supply.paper_field()
+            geometry = FieldGeometry(scenario)
+            return checked_chaser_states(
+                value, n, scenario.low, scenario.high, scenario.size / scenario.dt,
+                geometry.signed_distance, cfg.chaser_radius,
+            )  # fmt: skip
+        # the drawn fields in a batch of their own: the gaps the shell's batch would give
+        bodies = fields.radii.shape[1]
+        check = FieldBatch(n, bodies, self.dim, MAX_POLYGON_VERTICES, fields.n_targets)
+        check.load_arrays(
+            self._all_rows, fields.centers, fields.radii, fields.vertices, fields.n_vertices
+        )
+        low, high = np.array(fields.bounds).T
+        return checked_chaser_states(
+            value, n, low, high, self.supply.spec.field_size / cfg.dt, check.gaps,
+            cfg.chaser_radius,
+        )  # fmt: skip
+
+    # --- the batch and its fields -------------------------------------------------------------
+
+    def _shape_of(self, scenario: Scenario) -> FieldShape:
+        return FieldShape(
+            Physics(scenario.mean_motion, scenario.dt, scenario.max_accel),
+            len(scenario.targets),
+            len(scenario.bodies),
+            any(t.vertices is not None for t in scenario.targets),
+        )
+
+    def _drawn_shape(self, fields: FieldArrays) -> FieldShape:
+        cfg = self.config
+        physics = Physics(cfg.n, cfg.dt, cfg.max_accel)
+        return FieldShape(physics, fields.n_targets, fields.radii.shape[1], False)
+
+    def _fit(self, shape: FieldShape) -> MissionBatch:
+        """The batch, made (again) for fields of ``shape`` when it cannot hold them (only a
+        reset of every row calls this: the rows that restart by themselves later get fields of
+        the same shape, drawn by the same config or pinned)."""
+        batch = self.batch
+        if batch is not None and _holds(batch, shape):
+            return batch
+        self.batch = MissionBatch(
+            self.config, self.num, shape.n_targets, shape.n_bodies, physics=shape.physics,
+            polygon_start=0 if shape.polygon_targets else None,
+            max_episode_steps=self.max_episode_steps, threads=self.threads,
+        )  # fmt: skip
+        self._random_world[:] = False
+        return self.batch
+
+    def _install(self, rows: np.ndarray, fields: FieldArrays | None) -> None:
+        """Load the drawn ``fields`` (None: the paper world) into the rows ``rows``."""
+        if fields is None:
+            self._install_scenario(rows, self.supply.paper_field())
+            return
+        batch = self.batch
+        t = fields.n_targets
+        start = batch.field.polygon_start
+        spins = None if fields.spins is None else fields.spins[:, start:]
+        batch.load_arrays(
+            rows, fields.centers, fields.radii, fields.vertices, fields.n_vertices,
+            fields.velocities, spins, vertex_start=t,
+        )  # fmt: skip
+        for i in rows.tolist():
+            self.pinned[i] = self._built[i] = None
+        stale = rows[~self._random_world[rows]]
+        if len(stale):  # every random field has the same world: set it where it changed
+            half = fields.half_size
+            batch.set_world(stale, 0.0, -half, half, half)
+            self._random_world[stale] = True
+
+    def _install_scenario(self, rows: np.ndarray, scenario: Scenario) -> None:
+        """Load ``scenario`` into the rows ``rows``."""
+        batch = self.batch
+        batch.load_scenario(rows, scenario)
+        for i in rows.tolist():
+            self.pinned[i], self._built[i] = scenario, None
+        batch.set_world(rows, scenario.dock, scenario.low, scenario.high, scenario.size / 2.0)
+        self._random_world[rows] = False
+
+    # --- step ---------------------------------------------------------------------------------
+
+    def step(self, actions: np.ndarray) -> StepResult:
+        """One step of every mission (validated normalised thrust commands (N, dim)); ended
+        missions restart as :attr:`autoreset` says.
+
+        Raises:
+            RuntimeError: before the first reset.
+        """
+        batch = self.batch
+        if batch is None:
+            raise RuntimeError("call reset() before step()")
+        if self.autoreset is Autoreset.NEVER:
+            out = batch.step(actions, self._live)
+            return StepResult(out.reward, out.terminated, out.truncated, out.terms)
+        restart = self._restart
+        out = batch.step(actions, ~restart)
+        reward, terminated = out.reward.copy(), out.terminated.copy()
+        truncated, terms = out.truncated.copy(), out.terms
+        ended = terminated | truncated
+        if self.autoreset is Autoreset.SAME_STEP:
+            if not ended.any():
+                return StepResult(reward, terminated, truncated, terms)
+            final_obs, final_info = self.observe(), self.info(terms)
+            self.restart(ended)
+            terms[ended] = 0.0
+            return StepResult(reward, terminated, truncated, terms, final_obs, final_info, ended)
+        if restart.any():
+            self.restart(restart)
+        self._restart = ended
+        return StepResult(reward, terminated, truncated, terms)
+
+    def restart(self, mask: np.ndarray) -> None:
+        """New episodes for the rows in ``mask`` (an autoreset): in a field pinned by the last
+        reset again, else in the next field of each row's supply; the chaser at the dock."""
+        rows = np.flatnonzero(mask)
+        if self._pin is not None:
+            self._install_scenario(rows, self._pin)
+            self.batch.begin(rows)
+            return
+        self._install(rows, self.supply.take(rows))
+        self.batch.begin(rows)
+        self.supply.draw_ahead(rows)
+
+    def close(self) -> None:
+        """Stop the field supply's worker thread."""
+        self.supply.close()
+
+
+def _holds(batch: MissionBatch, shape: FieldShape) -> bool:
+    return (
+        batch.physics == shape.physics
+        and batch.n_targets == shape.n_targets
+        and batch.field.n_bodies == shape.n_bodies
+        and (not shape.polygon_targets or batch.field.polygon_start == 0)
+    )
+
+
+def _describe(shape: FieldShape) -> str:
+    n, dt, accel = shape.physics
+    return (
+        f"mean_motion={n!r}, dt={dt!r}, max_accel={accel!r}, {shape.n_targets} targets of "
+        f"{shape.n_bodies} bodies"
+    )
