@@ -98,23 +98,41 @@ def calibrated(per_item: float, seconds: float, low: int, high: int) -> int:
     return int(min(high, max(low, round(seconds / max(per_item, 1e-9)))))
 
 
+ACTION_KINDS = ("gentle", "random")
+"""How a bench draws actions: ``"gentle"`` small thrusts that rarely end an episode, ``"random"``
+uniformly random actions over the whole action space, as an exploring policy gives them (about
+3 % of episodes end every step, so resets weigh in)."""
+
+
+RANDOM = "actions=random"
+"""The variant label of the rows timed with uniformly random actions."""
+
+
 def draw_actions(
-    space: gym.Space, env_id: str, lead: tuple[int, ...], rng: np.random.Generator
+    space: gym.Space,
+    env_id: str,
+    lead: tuple[int, ...],
+    rng: np.random.Generator,
+    kind: str = "gentle",
 ) -> np.ndarray:
     """Valid actions of shape ``(*lead, *space.shape)``, drawn up front so sampling is not timed.
 
-    Continuous DebrisGym actions are small thrusts, uniform in [-THRUST, THRUST] (a fraction of
-    ``max_accel``); discrete ones coast with probability DISCRETE_COAST and fire a random
-    thruster otherwise; CartPole's are uniform {0, 1}.
+    ``kind="gentle"``: continuous DebrisGym actions are small thrusts, uniform in
+    [-THRUST, THRUST] (a fraction of ``max_accel``); discrete ones coast with probability
+    DISCRETE_COAST and fire a random thruster otherwise. ``kind="random"``: uniform over the
+    whole space. CartPole's are uniform {0, 1} either way.
     """
+    if kind not in ACTION_KINDS:
+        raise ValueError(f"kind must be one of {ACTION_KINDS}, got {kind!r}")
     if isinstance(space, gym.spaces.Discrete):
-        if env_id == CARTPOLE:
+        if env_id == CARTPOLE or kind == "random":
             return rng.integers(0, int(space.n), size=lead)
         thrust = rng.integers(1, int(space.n), size=lead)
         return np.where(rng.random(lead) < DISCRETE_COAST, 0, thrust)
     if not isinstance(space, gym.spaces.Box):
         raise ValueError(f"action space must be Discrete or Box, got {space}")
-    return rng.uniform(-THRUST, THRUST, size=(*lead, *space.shape)).astype(space.dtype)
+    high = 1.0 if kind == "random" else THRUST
+    return rng.uniform(-high, high, size=(*lead, *space.shape)).astype(space.dtype)
 
 
 def paired_ratio(

@@ -10,6 +10,7 @@ large instance minus that of a small one, per sub-env. Rows have section "memory
 
 from __future__ import annotations
 
+import dataclasses
 import gc
 import json
 import math
@@ -28,9 +29,6 @@ RUN_SCRIPT = Path(__file__).resolve().with_name("run.py")
 """The script a memory child runs (``--memory-child N``)."""
 CHILD_TIMEOUT = 1800
 """Seconds a memory child may take before the row reports a timeout."""
-
-OBSERVATION_BUFFERS = ("_obs",)
-"""Array attributes of the native vector env that only hold the observation being built."""
 
 
 def rss_bytes() -> int:
@@ -99,24 +97,23 @@ def memory_child(num_envs: int, env_id: str = ID_2D) -> dict[str, Any]:
     gc.collect()
     rss_steps = rss_bytes()
     un = env.unwrapped
-    # An inventory of what the env holds looks at every attribute of the env and of its batch,
-    # arrays inside named structures included; the per-sub-env generators are private by design.
+    # An inventory of what the env holds looks at every attribute of the env, its shell, the
+    # shell's field supply (the fields drawn ahead), its batch and field, arrays inside named
+    # structures included.
     arrays = []
     seen: set[int] = set()  # an array held by two attributes counts once
-    for owner, obj in (("env", un), ("field", un.batch.field), ("missions", un.batch)):
+    shell = un.shell
+    owners = [("env", un), ("shell", shell), ("supply", shell.supply)]
+    owners += [("field", un.batch.field), ("missions", un.batch)]
+    for owner, obj in owners:
         for name, value in _named_values(obj):
             if isinstance(value, np.ndarray) and id(value) not in seen:
                 seen.add(id(value))
-                arrays.append(
-                    {
-                        "owner": owner,
-                        "name": name,
-                        "shape": list(value.shape),
-                        "dtype": str(value.dtype),
-                        "nbytes": int(value.nbytes),
-                        "observation_buffer": owner == "env" and name in OBSERVATION_BUFFERS,
-                    }
-                )
+                arrays.append(_array_entry(owner, name, value, observation=False))
+    # the env holds no observation buffer: each step returns a new (N, size) array
+    observation = np.zeros(env.observation_space.shape, dtype=env.observation_space.dtype)
+    arrays.append(_array_entry("env", "observation", observation, observation=True))
+    arrays.sort(key=lambda a: a["nbytes"], reverse=True)
     return {
         "num_envs": num_envs,
         "env_id": env_id,
@@ -127,22 +124,45 @@ def memory_child(num_envs: int, env_id: str = ID_2D) -> dict[str, Any]:
         "arrays": arrays,
         "python_bytes": {
             "scenarios": deep_size(list(un.scenarios)),
-            "rngs": deep_size(list(un._rngs)),
+            "rngs": deep_size(list(shell.supply.generators)),
         },
     }
 
 
+def _array_entry(owner: str, name: str, value: np.ndarray, *, observation: bool) -> dict:
+    return {
+        "owner": owner,
+        "name": name,
+        "shape": list(value.shape),
+        "dtype": str(value.dtype),
+        "nbytes": int(value.nbytes),
+        "observation_buffer": observation,
+    }
+
+
 def _named_values(obj: Any) -> list[tuple[str, Any]]:
-    """``obj``'s attributes as (name, value), then the fields of its named-tuple attributes
-    spelled ``attribute.field`` (the compiled core keeps some arrays only in such structures)."""
-    plain = [(name, value) for name, value in vars(obj).items() if not hasattr(value, "_fields")]
+    """``obj``'s attributes as (name, value), then the fields of its named-tuple and dataclass
+    attributes spelled ``attribute.field`` (the compiled core keeps some arrays only in such
+    structures; the field supply keeps the fields drawn ahead in a dataclass)."""
+    plain = [(name, value) for name, value in vars(obj).items() if not _is_record(value)]
     nested = [
         (f"{name}.{field}", v)
         for name, value in vars(obj).items()
-        if isinstance(value, tuple) and hasattr(value, "_fields")
-        for field, v in zip(value._fields, value)
+        if _is_record(value)
+        for field, v in _record_items(value)
     ]
     return plain + nested
+
+
+def _is_record(value: Any) -> bool:
+    named_tuple = isinstance(value, tuple) and hasattr(value, "_fields")
+    return named_tuple or (dataclasses.is_dataclass(value) and not isinstance(value, type))
+
+
+def _record_items(value: Any) -> list[tuple[str, Any]]:
+    if isinstance(value, tuple):
+        return list(zip(value._fields, value))
+    return [(f.name, getattr(value, f.name)) for f in dataclasses.fields(value)]
 
 
 def _memory_child_run(num_envs: int) -> dict[str, Any]:

@@ -13,10 +13,16 @@ from typing import Any
 
 from bench.config import CARTPOLE, DEFAULT_OBSTACLES, ID_2D, field_size_for
 from bench.decisions import DECISION_SEED
+from bench.harness import RANDOM
 from bench.machine import machine_description
 
 GOAL_CARTPOLE = 0.075
 """Goal: native 2D env-steps/s at CartPole's N ≥ this × CartPole-v1's native vector env."""
+GOAL_CARTPOLE_RANDOM = 0.06
+"""Goal: the same with uniformly random actions (episodes end often; resets included)."""
+GOAL_SINGLE_RANDOM = 0.33
+"""Goal: single 2D env steps/s through ``gym.make`` with uniformly random actions, resets
+included, ≥ this × CartPole-v1's."""
 GOAL_SYNC = 25.0
 """Goal: native env-steps/s ≥ this × gymnasium's SyncVectorEnv."""
 GOAL_MEMORY = 10 * 1024
@@ -97,6 +103,20 @@ def _single_lines(rows: list[dict[str, Any]]) -> list[str]:
             continue
         wrappers = "gym.make" if row["level"] == "make" else "unwrapped"
         lines.append(_step_line(row, [_env_name(row), wrappers], _ratio(row)))
+    explored = [
+        r for r in rows
+        if r["section"] == "step" and r["variant"] == RANDOM and math.isfinite(r["ratio_wall"])
+    ]  # fmt: skip
+    if explored:
+        lines.append("")
+    for r in explored:
+        low, high = r["ratio_wall_range"]
+        speed = 1.0 / r["ratio_wall"]
+        lines.append(
+            f"- uniformly random actions, resets included, `{r['env_id']}` through gym.make: "
+            f"{speed:.3f}× CartPole's steps/s [{1.0 / high:.3f}, {1.0 / low:.3f}] "
+            f"(goal ≥ {GOAL_SINGLE_RANDOM}×): {_verdict(speed, GOAL_SINGLE_RANDOM)}"
+        )
     lines += [
         "",
         f"## Scaling with debris count (`{ID_2D}`, unwrapped)",
@@ -146,7 +166,7 @@ def _vector_lines(vec: list[dict[str, Any]]) -> list[str]:
     """The vector throughput table and the goals it is held against."""
     warm = max(r["warmup_steps"] for r in vec)
     repeats = max(r["repeats"] for r in vec)
-    sync = next((r for r in vec if r["level"] == "sync"), None)
+    sync = next((r for r in vec if r["level"] == "sync" and not r["variant"]), None)
     cart = next((r for r in vec if r["env_id"] == CARTPOLE), None)
     sync_n = sync["num_envs"] if sync else "–"
     cart_n = cart["num_envs"] if cart else "–"
@@ -155,7 +175,9 @@ def _vector_lines(vec: list[dict[str, Any]]) -> list[str]:
         f"env-steps/s = vector steps × N / seconds; {repeats} interleaved repeats after {warm} "
         "warm-up steps from `reset(seed=0)` (steady state: episodes end and autoreset all the "
         "time). Autoresets run inside `step` and are included. Actions: uniform in [-0.05, 0.05] "
-        "of `max_accel` (DebrisGym), uniform {0, 1} (CartPole). `SubprocVecEnv` runs one process "
+        "of `max_accel` (DebrisGym), uniform {0, 1} (CartPole); rows `actions=random`: uniform "
+        "in [-1, 1], as an exploring policy acts, so episodes end often (their × Sync is "
+        "against Sync with random actions too). `SubprocVecEnv` runs one process "
         "per env (on 2 cores). *× Sync* is env-steps/s over `SyncVectorEnv`'s at "
         f"N={sync_n}: at equal N where N={sync_n}, otherwise against Sync's per-env rate (Sync "
         "steps its envs one after the other, so its env-steps/s does not depend on N). *× "
@@ -185,6 +207,19 @@ def _vector_lines(vec: list[dict[str, Any]]) -> list[str]:
         ]  # fmt: skip
 
     lines += ["", "Goals (2D, 20 debris, kinematics observations):", ""]
+    explored = [
+        r for r in vec
+        if r["level"] == "native" and r["env_id"] == ID_2D and r["variant"] == RANDOM
+        and math.isfinite(r["env_steps_per_s"])
+    ]  # fmt: skip
+    for r in explored:
+        lines.append(
+            f"- uniformly random actions, native N={r['num_envs']} / CartPole native "
+            f"N={cart_n}: {r['ratio_cartpole']:.4f}× (goal ≥ {GOAL_CARTPOLE_RANDOM}×): "
+            f"{_verdict(r['ratio_cartpole'], GOAL_CARTPOLE_RANDOM)}; / SyncVectorEnv's per-env "
+            f"rate, random actions too: {r['ratio_sync']:.1f}× (goal ≥ {GOAL_SYNC:.0f}×): "
+            f"{_verdict(r['ratio_sync'], GOAL_SYNC)}"
+        )
     at_cart = native(cart["num_envs"]) if cart else []
     if at_cart:
         r = at_cart[0]

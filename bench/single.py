@@ -38,7 +38,7 @@ from bench.config import (
     SCALING_COUNTS,
     field_size_for,
 )
-from bench.harness import NAN_RANGE, calibrated, draw_actions, interleave
+from bench.harness import NAN_RANGE, RANDOM, calibrated, draw_actions, interleave
 
 WARMUP_STEPS = 200
 """Untimed steps that calibrate the count per repeat (at most 20 when the count is fixed)."""
@@ -56,6 +56,7 @@ class Measurement:
     kwargs: dict[str, Any] = field(default_factory=dict)
     level: str = "make"  # "make" (default wrappers) or "unwrapped"
     n_obstacles: int | None = None
+    action_kind: str = "gentle"  # bench.harness.ACTION_KINDS
     fixed: int | None = None  # steps (resets) per repeat; None: calibrated to ``seconds``
     seconds: float = 0.0  # wall time a calibrated repeat aims at
     min_steps: int = 1  # fewest steps per calibrated repeat
@@ -112,7 +113,7 @@ class Measurement:
             env.close()
 
     def _actions(self, n: int, rng: np.random.Generator) -> list[Any]:
-        values = draw_actions(self.env.action_space, self.env_id, (n,), rng)
+        values = draw_actions(self.env.action_space, self.env_id, (n,), rng, self.action_kind)
         if isinstance(self.env.action_space, gym.spaces.Discrete):
             return [int(v) for v in values]
         return list(values)
@@ -159,6 +160,7 @@ def step_measurement(
     kwargs: dict[str, Any] | None = None,
     level: str = "make",
     n_obstacles: int | None = None,
+    action_kind: str = "gentle",
 ) -> Measurement:
     """A step measurement of ``env_id`` sized by ``cfg`` (``step_seconds``, ``min_steps``).
 
@@ -171,6 +173,7 @@ def step_measurement(
         kwargs: keyword arguments of ``gym.make``.
         level: "make" (default wrappers) or "unwrapped".
         n_obstacles: debris count of a scaling row.
+        action_kind: "gentle" or "random" (:data:`bench.harness.ACTION_KINDS`).
     """
     return Measurement(
         section,
@@ -179,6 +182,7 @@ def step_measurement(
         kwargs or {},
         level,
         n_obstacles,
+        action_kind,
         fixed=steps,
         seconds=cfg["step_seconds"],
         min_steps=cfg["min_steps"],
@@ -205,6 +209,9 @@ def measurements(
             out.append(
                 step_measurement(env_id, cfg, steps, label=label, kwargs=kwargs, level=level)
             )
+    # uniformly random actions, as an exploring policy acts: episodes end often, and the
+    # resets count (CartPole's actions are uniform already: its default row is the reference)
+    out.append(step_measurement(ID_2D, cfg, steps, label=RANDOM, action_kind="random"))
     for n in SCALING_COUNTS:
         kwargs = {"n_obstacles": n, "field_size": field_size_for(n)}
         out.append(
@@ -243,7 +250,9 @@ def single_rows(todo: list[Measurement]) -> list[dict[str, Any]]:
     wrapper level), ``ratio`` (cost relative to CartPole at the same wrapper level for "step"
     rows; relative to the 20-debris default for "scaling" rows; to CartPole's reset for "reset"
     rows) with ``ratio_range`` (the smallest and largest ratio of two measurements of the same
-    round), and ``error`` (None, or the message if the env could not be built or stepped).
+    round), ``ratio_wall`` / ``ratio_wall_range`` (step rows: the cost relative to CartPole
+    with the resets included on both sides), and ``error`` (None, or the message if the env
+    could not be built or stepped).
     """
     rows = []
     for m in todo:
@@ -264,8 +273,11 @@ def single_rows(todo: list[Measurement]) -> list[dict[str, Any]]:
             "loop_reset_ms": math.nan,
             "ratio": math.nan,
             "ratio_range": NAN_RANGE,
+            "ratio_wall": math.nan,
+            "ratio_wall_range": NAN_RANGE,
             "error": m.error,
             "_per_item": [],
+            "_per_wall": [],
         }
         if m.times and m.count:
             per = [t / m.count for t in m.times]
@@ -273,6 +285,7 @@ def single_rows(todo: list[Measurement]) -> list[dict[str, Any]]:
             row["median_us"] = statistics.median(per) * 1e6
             row["min_us"] = min(per) * 1e6
             if m.section != "reset":
+                row["_per_wall"] = [w / m.count for w in m.walls]
                 row["steps_per_s"] = 1.0 / statistics.median(per)
                 row["steps_per_s_wall"] = m.count / statistics.median(m.walls)
                 row["resets_per_1000"] = 1000.0 * m.resets / (m.count * len(m.times))
@@ -281,7 +294,7 @@ def single_rows(todo: list[Measurement]) -> list[dict[str, Any]]:
         rows.append(row)
     _add_ratios(rows)
     for row in rows:
-        del row["_per_item"]
+        del row["_per_item"], row["_per_wall"]
     return rows
 
 
@@ -299,9 +312,19 @@ def _add_ratios(rows: list[dict[str, Any]]) -> None:
         paired = [a / b for a, b in zip(row["_per_item"], ref["_per_item"], strict=False)]
         row["ratio_range"] = (min(paired), max(paired))
 
+    def fill_wall(row: dict[str, Any], ref: dict[str, Any] | None) -> None:
+        if ref is None or not row["_per_wall"] or not ref["_per_wall"]:
+            return
+        row["ratio_wall"] = statistics.median(row["_per_wall"]) / statistics.median(
+            ref["_per_wall"]
+        )
+        paired = [a / b for a, b in zip(row["_per_wall"], ref["_per_wall"], strict=False)]
+        row["ratio_wall_range"] = (min(paired), max(paired))
+
     for row in rows:
         if row["section"] == "step":
             fill(row, find("step", CARTPOLE, row["level"]))
+            fill_wall(row, find("step", CARTPOLE, row["level"]))
         elif row["section"] == "scaling":
             fill(row, find("step", ID_2D, "unwrapped"))
         elif row["section"] == "reset":

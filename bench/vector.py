@@ -6,7 +6,9 @@ CartPole-v1's native vector env; the 3D env and lidar observations at one N; and
 use two threads, the default env stepped by two threads.
 
 What is timed: ``venv.step(actions)`` with actions pre-generated as for the single env, one
-(N, …) batch per step. Autoresets happen inside ``step`` and are part of the time (they cannot be
+(N, …) batch per step: gentle thrusts, and for the default 2D env (native at CartPole's N, and
+``SyncVectorEnv``) also uniformly random actions (rows ``actions=random``), which end episodes
+about 30 times as often. Autoresets happen inside ``step`` and are part of the time (they cannot be
 clocked apart); the rows count the episodes that ended in the timed windows. Every vector env
 first runs ``warmup_steps`` steps from ``reset(seed=0)``, so the timed windows are in the steady
 state where episodes end and restart all the time: all sub-envs start at the dock together, and
@@ -31,6 +33,7 @@ import numpy as np
 from bench.config import CARTPOLE, ID_2D, ID_3D, MAX_VECTOR_STEPS, MIN_VECTOR_STEPS
 from bench.harness import (
     NAN_RANGE,
+    RANDOM,
     calibrated,
     draw_actions,
     drop_rates,
@@ -54,6 +57,7 @@ class VecMeasurement:
     kwargs: dict[str, Any] = field(default_factory=dict)
     label: str = ""
     n_obstacles: int | None = None
+    action_kind: str = "gentle"  # bench.harness.ACTION_KINDS
     warmup: int = 1  # untimed steps after reset(seed=0)
     fixed: int | None = None  # vector steps per repeat; None: calibrated to ``seconds``
     seconds: float = 0.0  # wall time a calibrated repeat aims at
@@ -128,7 +132,7 @@ class VecMeasurement:
         """(steps, N, …) actions, drawn as for the single env."""
         env = self.env
         space = env.action_space if self.backend == "subproc" else env.single_action_space
-        return draw_actions(space, self.env_id, (steps, self.num_envs), rng)
+        return draw_actions(space, self.env_id, (steps, self.num_envs), rng, self.action_kind)
 
     def _loop(self, actions: np.ndarray) -> tuple[float, int]:
         """Step through ``actions``; returns (seconds, episodes ended). Counting is not timed."""
@@ -165,7 +169,12 @@ def vector_measurements(cfg: dict[str, Any], steps: int | None = None) -> list[V
     """
 
     def vec(
-        backend: str, env_id: str, num_envs: int, kwargs: dict[str, Any] | None = None, label=""
+        backend: str,
+        env_id: str,
+        num_envs: int,
+        kwargs: dict[str, Any] | None = None,
+        label: str = "",
+        action_kind: str = "gentle",
     ) -> VecMeasurement:
         high = cfg["sync_max_steps"] if backend == "sync" else MAX_VECTOR_STEPS
         return VecMeasurement(
@@ -175,6 +184,7 @@ def vector_measurements(cfg: dict[str, Any], steps: int | None = None) -> list[V
             num_envs,
             kwargs or {},
             label,
+            action_kind=action_kind,
             warmup=max(1, cfg["warmup_steps"]),
             fixed=steps,
             seconds=cfg["vector_seconds"],
@@ -183,6 +193,8 @@ def vector_measurements(cfg: dict[str, Any], steps: int | None = None) -> list[V
 
     out = [vec("native", CARTPOLE, cfg["cartpole_envs"])]
     out += [vec("native", ID_2D, n) for n in cfg["vector_envs"]]
+    # uniformly random actions, as an exploring policy gives them: episodes end often
+    out.append(vec("native", ID_2D, cfg["cartpole_envs"], label=RANDOM, action_kind="random"))
     n = cfg["vector_variant_envs"]
     out.append(vec("native", ID_3D, n))
     out.append(vec("native", ID_2D, n, {"observation": "lidar"}, "observation=lidar"))
@@ -192,6 +204,7 @@ def vector_measurements(cfg: dict[str, Any], steps: int | None = None) -> list[V
         for num in dict.fromkeys((cfg["cartpole_envs"], cfg["vector_envs"][-1])):
             out.append(vec("native", ID_2D, num, kw, f"num_threads={threads}"))
     out.append(vec("sync", ID_2D, cfg["sync_envs"]))
+    out.append(vec("sync", ID_2D, cfg["sync_envs"], label=RANDOM, action_kind="random"))
     out += [vec("subproc", ID_2D, n) for n in cfg["subproc_envs"]]
     return out
 
@@ -204,22 +217,24 @@ def run_vector(
     interleave(todo, n_repeats, "vector", progress)
     rows = vector_rows(todo)
     cartpole = next((r for r in rows if r["env_id"] == CARTPOLE), None)
-    sync = next((r for r in rows if r["level"] == "sync" and not r["variant"]), None)
+    syncs = {r["actions"]: r for r in rows if r["level"] == "sync" and r["variant"] in ("", RANDOM)}
     for row in rows:
         if row["env_id"] == CARTPOLE:
             continue
         if row["level"] == "native":
             paired_ratio(row, cartpole, "ratio_cartpole")
-        default_env = not row["variant"] or row["variant"].startswith("num_threads=")
+        default_env = row["variant"] in ("", RANDOM) or row["variant"].startswith("num_threads=")
         if row["env_id"] == ID_2D and default_env and row["level"] != "sync":
-            paired_ratio(row, sync, "ratio_sync")
+            paired_ratio(row, syncs.get(row["actions"]), "ratio_sync")
     return drop_rates(rows)
 
 
 def vector_rows(todo: list[VecMeasurement]) -> list[dict[str, Any]]:
     """One row per vector measurement, ratios not yet filled in.
 
-    Fields: ``section``, ``env_id``, ``variant``, ``level`` (the backend), ``n_obstacles``,
+    Fields: ``section``, ``env_id``, ``variant``, ``level`` (the backend), ``actions``
+    (:data:`bench.harness.ACTION_KINDS`; a random row is compared with the random
+    SyncVectorEnv row), ``n_obstacles``,
     ``field_size`` (m), ``num_envs``, ``count`` (vector steps per repeat), ``repeats``,
     ``warmup_steps``, ``env_steps_per_s`` (median over repeats) and ``env_steps_per_s_best``,
     ``us_per_env_step`` (median), ``ends_per_1000`` (episodes ended per 1000 env-steps in the
@@ -240,6 +255,7 @@ def vector_rows(todo: list[VecMeasurement]) -> list[dict[str, Any]]:
             "env_id": m.env_id,
             "variant": m.label,
             "level": m.backend,
+            "actions": m.action_kind,
             "n_obstacles": m.n_obstacles,
             "field_size": m.kwargs.get("field_size"),
             "num_envs": m.num_envs,

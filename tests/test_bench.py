@@ -60,7 +60,12 @@ def test_every_env_has_a_step_row_at_both_wrapper_levels(rows):
 
 def test_variants_scaling_and_resets_are_measured(rows):
     variants = {r["variant"] for r in rows if r["section"] == "step"}
-    assert {"observation=lidar", "action=discrete"} <= variants
+    assert {"observation=lidar", "action=discrete", "actions=random"} <= variants
+    (explored,) = [r for r in rows if r["variant"] == "actions=random"]
+    assert explored["env_id"] == ID_2D and explored["level"] == "make"
+    assert _finite_positive(explored["ratio_wall"])  # resets included on both sides
+    low, high = explored["ratio_wall_range"]
+    assert low <= explored["ratio_wall"] <= high
     scaling = {r["n_obstacles"]: r for r in rows if r["section"] == "scaling"}
     assert sorted(scaling) == sorted(config.SCALING_COUNTS)
     for n, row in scaling.items():
@@ -116,6 +121,9 @@ def test_vector_section_rows(all_rows):
     expected |= {("native", ID_3D, "", tiny["vector_variant_envs"])}
     expected |= {("native", ID_2D, "observation=lidar", tiny["vector_variant_envs"])}
     expected |= {("sync", ID_2D, "", tiny["sync_envs"])}
+    # uniformly random actions: the native env at CartPole's N and SyncVectorEnv
+    expected |= {("native", ID_2D, "actions=random", tiny["cartpole_envs"])}
+    expected |= {("sync", ID_2D, "actions=random", tiny["sync_envs"])}
     expected |= {("subproc", ID_2D, "", n) for n in tiny["subproc_envs"]}
     if vector.numba_threads() >= 2:  # the default env again, stepped by two threads
         threaded = {tiny["cartpole_envs"], tiny["vector_envs"][-1]}
@@ -130,8 +138,10 @@ def test_vector_section_rows(all_rows):
         assert row["ends_per_1000"] >= 0
     native_2d = [r for r in vec if r["level"] == "native" and r["env_id"] == ID_2D]
     assert all(_finite_positive(r["ratio_cartpole"]) for r in native_2d)
-    same_env = [r for r in native_2d if not r["variant"] or r["variant"] == "num_threads=2"]
+    same_env = [r for r in native_2d if r["variant"] in ("", "num_threads=2", "actions=random")]
     assert all(_finite_positive(r["ratio_sync"]) for r in same_env)
+    assert {r["actions"] for r in vec if r["variant"] == "actions=random"} == {"random"}
+    assert {r["actions"] for r in vec if r["variant"] != "actions=random"} == {"gentle"}
     subproc = [r for r in vec if r["level"] == "subproc"]
     assert all(_finite_positive(r["ratio_sync"]) for r in subproc)
 
@@ -163,7 +173,7 @@ def test_memory_row(all_rows):
     assert _finite_positive(row["array_bytes_per_env"])
     assert _finite_positive(row["obs_buffer_bytes_per_env"])
     names = {(a["owner"], a["name"]) for a in row["arrays"]}
-    assert {("field", "centers"), ("missions", "state"), ("env", "_obs")} <= names
+    assert {("field", "centers"), ("missions", "state"), ("env", "observation")} <= names
     assert [a["nbytes"] for a in row["arrays"]] == sorted(
         (a["nbytes"] for a in row["arrays"]), reverse=True
     )
@@ -177,7 +187,9 @@ def test_memory_child_counts_every_array():
     out = memory.memory_child(2)
     assert out["num_envs"] == 2 and out["n_bodies"] >= 21
     obs = [a for a in out["arrays"] if a["observation_buffer"]]
-    assert [a["name"] for a in obs] == ["_obs"]
+    assert [a["name"] for a in obs] == ["observation"]
+    # the fields drawn ahead are per sub-env memory too
+    assert any(a["owner"] == "supply" and a["name"] == "_store.centers" for a in out["arrays"])
     # every field array is per sub-env
     assert all(2 in a["shape"] for a in out["arrays"] if a["owner"] == "field")
     assert out["rss_after_reset"] > 0
@@ -192,7 +204,7 @@ def test_memory_child_counts_an_array_held_twice_once(monkeypatch):
 
     def reset_and_alias(self, *args, **kwargs):
         out = reset(self, *args, **kwargs)
-        self._missions.alias_of_vertices = self._missions.field.vertices
+        self.batch.alias_of_vertices = self.batch.field.vertices
         return out
 
     monkeypatch.setattr(vector.DebrisFieldVectorEnv, "reset", reset_and_alias)
