@@ -68,6 +68,44 @@ def test_the_option_table_gives_the_registered_value_beside_the_constructor_defa
     assert cells["capture_speed"] == ("**`0.2`**", "`0.5`")
 
 
+def anchors(text: str) -> set[str]:
+    """The anchors of a Markdown page as GitHub makes them: each heading lower-cased, stripped
+    of punctuation but hyphens, spaces turned to hyphens, repeats suffixed ``-1``, ``-2`` …;
+    plus every ``<a id="…">``. Headings inside fenced code do not count."""
+    found: set[str] = set()
+    seen: dict[str, int] = {}
+    fenced = False
+    for line in text.splitlines():
+        if line.startswith("```"):
+            fenced = not fenced
+            continue
+        heading = None if fenced else re.match(r"#{1,6} (.*)", line)
+        if heading:
+            slug = re.sub(r"[^\w\- ]", "", heading.group(1).strip().lower()).replace(" ", "-")
+            found.add(f"{slug}-{seen[slug]}" if slug in seen else slug)
+            seen[slug] = seen.get(slug, 0) + 1
+    return found | set(re.findall(r'<a id="([^"]+)"', text))
+
+
+def test_every_relative_link_and_anchor_resolves():
+    """Links between the docs (``[text](page.md#section)``) name a file that exists and, for a
+    page, a heading it has: renaming a section must update the links to it."""
+    pages = [*sorted((ROOT / "docs").glob("*.md")), ROOT / "README.md"]
+    pages += sorted((ROOT / "agents").rglob("*.md"))
+    broken = []
+    for page in pages:
+        for target in re.findall(r"\]\(([^)\s]+)\)", page.read_text()):
+            if re.match(r"[a-z]+:", target):  # https:, mailto:
+                continue
+            path, _, anchor = target.partition("#")
+            linked = page.parent / path if path else page
+            if not linked.exists():
+                broken.append(f"{page.name}: {target} (no such file)")
+            elif anchor and linked.suffix == ".md" and anchor not in anchors(linked.read_text()):
+                broken.append(f"{page.name}: {target} (no such section)")
+    assert not broken, "\n".join(broken)
+
+
 def test_the_agents_docstring_names_every_baseline():
     for name in BASELINES:
         assert f"``{name}``" in agents.__doc__, name
