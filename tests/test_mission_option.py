@@ -1,5 +1,5 @@
 """The difficulty rungs of v1 and the ``reset(options={"mission": ...})`` that moves an env
-between them (issue 21, item 1): a curriculum is an env feature of the single env, the native
+between them: a curriculum is an env feature of the single env, the native
 vector env and its SB3 adapter."""
 
 from __future__ import annotations
