@@ -10,7 +10,14 @@
 ``apf-rrt``    APF with local-minimum detection and RRT escape ([An23])
 ``apf-mpc``    APF reference path tracked by an OSQP MPC on the CWH model ([APF-MPC])
 ``astar``      A* grid path tracked by the same MPC (the [APF-MPC] A* baseline)
+``st-rrt``     Tube-ST-RRT*: space-time RRT* among the moving bodies, a tube of
+               free balls, minimum-snap smoothing, tracked by the MPC ([Zhou24])
+``se-scp``     spherical expansion and sequential convex programming of a
+               fuel-optimal trajectory, tracked by the MPC ([Bandyopadhyay17])
 =============  ==================================================================
+
+Every name of :data:`BASELINES` is listed here (``tests/test_docs.py`` checks it);
+docs/baselines.md describes each method, its parameters and its measured results.
 
 ``load_agent("ppo:runs/ppo/model.zip", env)`` loads a policy trained by ``train.py`` (``sac``,
 ``td3``, ``dqn`` likewise; ``load_agent("pretrained", env)`` the shipped one) behind the same

@@ -1,4 +1,4 @@
-"""The compiled calls alone, timed inside the native vector env's loop (issue 17's A/B).
+"""The compiled calls alone, timed inside the native vector env's loop (for A/B comparisons).
 
 ``MissionBatch.step`` and ``.observe`` are wrapped with a ``perf_counter_ns`` timer while the
 native vector env steps (N sub-envs, seeded, actions uniform in ±0.05); after a warm-up, each

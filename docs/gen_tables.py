@@ -1,4 +1,8 @@
-"""Regenerate the tables of docs/environments.md from the code (config options, observation layout).
+"""Regenerate the tables of docs/environments.md from the code (IDs, options, observation layout).
+
+The observation tables and the option table's first value column describe the registered
+default env, :data:`DEFAULT_ID` (its registration's keyword arguments over the constructor's
+defaults); the option table also gives the constructor's own default.
 
 python docs/gen_tables.py          # rewrite the tables in place
 python docs/gen_tables.py --check  # exit 1 if the docs are out of date (used by the tests)
@@ -8,17 +12,18 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import os
 import re
 import sys
-import tempfile
 from pathlib import Path
 
 from debris_gym.config import OPTIONS, EnvConfig
 from debris_gym.envs import DebrisFieldEnv
+from debris_gym.files import write_atomic
 from debris_gym.registration import ENV_SPECS
 
 DOC = Path(__file__).with_name("environments.md")
+DEFAULT_ID = "DebrisGym/Rendezvous2D-v1"
+"""The ID the tables describe: the default of every script and headline figure."""
 
 OBS_MEANING = [
     (r"chaser_pos_(\w)", "chaser position {0}", "m", "L"),
@@ -36,6 +41,7 @@ OBS_MEANING = [
     ),
     (r"obstacle(\d+)_radius", "obstacle slot {0}: bounding radius", "m", "L"),
     (r"obstacle(\d+)_gap", "obstacle slot {0}: distance from chaser centre to surface", "m", "L"),
+    (r"obstacle(\d+)_rel_vel_(\w)", "obstacle slot {0}: body − chaser velocity, {1}", "m/s", "V"),
     (r"lidar(\d+)", "lidar ray {0}: range to first surface", "m", "lidar_range"),
     (r"delta_v_remaining", "Δv budget left (1 without a budget)", "", "budget"),
     (r"time_remaining", "steps left of the registered limit", "", "max_episode_steps"),
@@ -53,12 +59,26 @@ def describe_obs(name: str) -> tuple[str, str, str]:
     raise KeyError(f"undocumented observation element {name!r}")
 
 
+def registered_kwargs(env_id: str = DEFAULT_ID) -> dict:
+    """The keyword arguments ``gym.make(env_id)`` passes to the env."""
+    return dict(ENV_SPECS[env_id]["kwargs"])
+
+
 def options_table() -> str:
     defaults = {f.name: f.default for f in dataclasses.fields(EnvConfig)}
-    rows = ["| key | unit | default | allowed | meaning |", "|---|---|---|---|---|"]
+    registered = {**defaults, **registered_kwargs()}
+    name = DEFAULT_ID.split("/")[1]
+    rows = [
+        f"| key | unit | `{name}` | constructor default | allowed | meaning |",
+        "|---|---|---|---|---|---|",
+    ]
     for key, opt in OPTIONS.items():
+        value = f"`{registered[key]!r}`"
+        if registered[key] != defaults[key]:
+            value = f"**{value}**"
         rows.append(
-            f"| `{key}` | {opt.unit or '–'} | `{defaults[key]!r}` | {opt.describe()} | {opt.doc} |"
+            f"| `{key}` | {opt.unit or '–'} | {value} | `{defaults[key]!r}` | {opt.describe()} "
+            f"| {opt.doc} |"
         )
     return "\n".join(rows)
 
@@ -71,12 +91,29 @@ def ids_table() -> str:
     return "\n".join(rows)
 
 
-def observation_table(**kwargs) -> str:
-    env = DebrisFieldEnv(**kwargs)
+def observation_table(env_id: str = DEFAULT_ID, **extra) -> str:
+    env = DebrisFieldEnv(**{**registered_kwargs(env_id), **extra})
+    low, high = env.observation_space.low, env.observation_space.high
     rows = ["| index | name | meaning | unit | divided by | min | max |", "|---" * 7 + "|"]
     for i, name in enumerate(env.observation_names()):
         meaning, unit, scale = describe_obs(name)
-        rows.append(f"| {i} | `{name}` | {meaning} | {unit or '–'} | {scale} | −10 | 10 |")
+        bounds = f"{low[i]:g} | {high[i]:g}".replace("-", "−")
+        rows.append(f"| {i} | `{name}` | {meaning} | {unit or '–'} | {scale} | {bounds} |")
+    return "\n".join(rows)
+
+
+def observation_sizes_table() -> str:
+    """Observation length of every registered ID, in each observation mode at its defaults."""
+    rows = [
+        '| ID | `observation="kinematics"` | `observation="lidar"` |',
+        "|---|--:|--:|",
+    ]
+    for env_id in ENV_SPECS:
+        sizes = [
+            DebrisFieldEnv(**{**registered_kwargs(env_id), "observation": mode}).observation_space
+            for mode in ("kinematics", "lidar")
+        ]
+        rows.append(f"| `{env_id}` | {sizes[0].shape[0]} | {sizes[1].shape[0]} |")
     return "\n".join(rows)
 
 
@@ -84,8 +121,9 @@ def render(text: str) -> str:
     blocks = {
         "ids": ids_table(),
         "options": options_table(),
-        "obs-2d": observation_table(dim=2),
-        "obs-lidar-2d": observation_table(dim=2, observation="lidar", lidar_rays=8),
+        "obs-2d": observation_table(),
+        "obs-lidar-2d": observation_table(observation="lidar", lidar_rays=8),
+        "obs-sizes": observation_sizes_table(),
     }
     for name, table in blocks.items():
         pattern = re.compile(rf"(<!-- table:{name} -->\n).*?(<!-- /table:{name} -->)", re.S)
@@ -106,10 +144,7 @@ def main() -> int:
             print(f"{DOC} is out of date: run python docs/gen_tables.py", file=sys.stderr)
             return 1
         return 0
-    fd, tmp = tempfile.mkstemp(dir=DOC.parent, prefix=".environments.", suffix=".tmp")
-    with os.fdopen(fd, "w") as fh:
-        fh.write(new)
-    os.replace(tmp, DOC)
+    write_atomic(DOC, new)
     return 0
 
 

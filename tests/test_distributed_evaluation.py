@@ -1,4 +1,4 @@
-"""evaluate.py --backend ray (issue 22, item 1): episodes fanned out to Ray workers give the local
+"""evaluate.py --backend ray: episodes fanned out to Ray workers give the local
 run's records, are journaled as they arrive, and an interrupted Ray run resumes without flying
 its finished episodes again. The Ray tests run only where Ray is installed (the [distributed]
 extra); the argument checks and the work plan run everywhere."""

@@ -1,4 +1,4 @@
-"""The registered envs under RLlib's new API stack (issue 22, item 3): PPO built on a DebrisGym
+"""The registered envs under RLlib's new API stack: PPO built on a DebrisGym
 ID named "debris_gym:DebrisGym/...", its env made on a separate env-runner process through the
 native vector env, trains one iteration. Runs only where RLlib is installed."""
 

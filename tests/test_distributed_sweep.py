@@ -1,4 +1,4 @@
-"""Hyper-parameter sweeps (issue 22, item 2): the recipe's ``sweep:`` section is validated with
+"""Hyper-parameter sweeps: the recipe's ``sweep:`` section is validated with
 the rest of the config, and a tiny Ray Tune sweep trains each trial into its own run directory
 and exports the best model where evaluate.py loads it. The Tune test runs only where Ray is
 installed."""

@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+import dataclasses
+import re
 import subprocess
 import sys
 from pathlib import Path
 
+import gymnasium as gym
+
+import agents
 import debris_gym
-from debris_gym.config import OPTIONS
+from agents.policies.registry import BASELINES
+from debris_gym.config import OPTIONS, EnvConfig
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -28,6 +34,81 @@ def test_every_option_and_id_is_in_the_docs():
     for env_id in debris_gym.ENV_SPECS:
         assert env_id in text
         assert env_id.split("/")[1] in (ROOT / "README.md").read_text()
+
+
+def generated_block(name: str) -> str:
+    """The lines between ``<!-- table:NAME -->`` and its end marker in docs/environments.md."""
+    text = (ROOT / "docs" / "environments.md").read_text()
+    match = re.search(rf"<!-- table:{name} -->\n(.*?)<!-- /table:{name} -->", text, re.S)
+    assert match, name
+    return match.group(1)
+
+
+def test_the_observation_table_is_the_registered_default_env():
+    """The documented layout is what ``gym.make`` of the default ID observes (74 elements in
+    2D v1), not the constructor's defaults (58, the v0 layout)."""
+    env = gym.make("DebrisGym/Rendezvous2D-v1")
+    names = re.findall(r"^\| (\d+) \| `(\w+)` \|", generated_block("obs-2d"), re.M)
+    assert [int(i) for i, _ in names] == list(range(env.observation_space.shape[0]))
+    assert [name for _, name in names] == env.unwrapped.observation_names()
+    env.close()
+
+
+def test_the_option_table_gives_the_registered_value_beside_the_constructor_default():
+    cells = {}
+    for line in generated_block("options").splitlines()[2:]:
+        key, _unit, registered, default = (c.strip() for c in line.split(" | ")[:4])
+        cells[key.strip("| `")] = (registered, default)
+    assert set(cells) == set(OPTIONS)
+    defaults = {f.name: f.default for f in dataclasses.fields(EnvConfig)}
+    v1 = {**defaults, **debris_gym.ENV_SPECS["DebrisGym/Rendezvous2D-v1"]["kwargs"]}
+    for key, (registered, default) in cells.items():
+        assert registered.strip("*") == f"`{v1[key]!r}`", key
+        assert default == f"`{defaults[key]!r}`", key
+    assert cells["capture_speed"] == ("**`0.2`**", "`0.5`")
+
+
+def anchors(text: str) -> set[str]:
+    """The anchors of a Markdown page as GitHub makes them: each heading lower-cased, stripped
+    of punctuation but hyphens, spaces turned to hyphens, repeats suffixed ``-1``, ``-2`` …;
+    plus every ``<a id="…">``. Headings inside fenced code do not count."""
+    found: set[str] = set()
+    seen: dict[str, int] = {}
+    fenced = False
+    for line in text.splitlines():
+        if line.startswith("```"):
+            fenced = not fenced
+            continue
+        heading = None if fenced else re.match(r"#{1,6} (.*)", line)
+        if heading:
+            slug = re.sub(r"[^\w\- ]", "", heading.group(1).strip().lower()).replace(" ", "-")
+            found.add(f"{slug}-{seen[slug]}" if slug in seen else slug)
+            seen[slug] = seen.get(slug, 0) + 1
+    return found | set(re.findall(r'<a id="([^"]+)"', text))
+
+
+def test_every_relative_link_and_anchor_resolves():
+    """Links between the docs (``[text](page.md#section)``) name a file that exists and, for a
+    page, a heading it has: renaming a section must update the links to it."""
+    pages = [*sorted((ROOT / "docs").glob("*.md")), ROOT / "README.md"]
+    pages += sorted((ROOT / "agents").rglob("*.md"))
+    broken = []
+    for page in pages:
+        for target in re.findall(r"\]\(([^)\s]+)\)", page.read_text()):
+            if re.match(r"[a-z]+:", target):  # https:, mailto:
+                continue
+            path, _, anchor = target.partition("#")
+            linked = page.parent / path if path else page
+            if not linked.exists():
+                broken.append(f"{page.name}: {target} (no such file)")
+            elif anchor and linked.suffix == ".md" and anchor not in anchors(linked.read_text()):
+                broken.append(f"{page.name}: {target} (no such section)")
+    assert not broken, "\n".join(broken)
+
+
+def test_the_agents_docstring_names_every_baseline():
+    for name in BASELINES:
+        assert f"``{name}``" in agents.__doc__, name
 
 
 def test_every_option_has_a_meaning():

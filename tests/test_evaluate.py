@@ -138,7 +138,7 @@ def test_script_rejects_an_unknown_agent_by_name(tmp_path):
         (["--paper", "--agents", "zero"], "--agents", "--paper"),
         (["--plots", "-1"], "--plots", ">= 0"),
         (["--agents", "zero,random", "--reference", "apf"], "--reference", "agents: zero, random"),
-        # issue 18: each of these ended in a traceback (some after running every episode)
+        # each of these is a usage error, not a traceback (some after running every episode)
         (["--agents", "zero", "--seed", "-1"], "--seed", ">= 0"),
         (["--agents", "zero", "--env", "CartPole-v1"], "--env", "DebrisGym/Rendezvous2D-v0"),
         (["--agents", "zero", "--env", ""], "--env", "DebrisGym/Rendezvous3D-v0"),

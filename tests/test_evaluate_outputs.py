@@ -1,4 +1,4 @@
-"""evaluate.py's output directory as a transaction (issue 18, items 5 and 6): --out checked before
+"""evaluate.py's output directory as a transaction: --out checked before
 anything runs, one run per directory, outputs landing as one set, Ctrl-C keeping the finished
 episodes, and --resume DIR finishing the run as if it had never stopped."""
 

@@ -1,5 +1,5 @@
-"""Fuzzing the env options, reset options and actions of the single and the vector env (issue
-18): every input either gets a ``ValueError`` whose message names the key (or ``action``), or
+"""Fuzzing the env options, reset options and actions of the single and the vector env: every
+input either gets a ``ValueError`` whose message names the key (or ``action``), or
 gives a few steps whose observations lie inside the observation space with finite rewards.
 
 Values are drawn across and beyond each option's allowed range (:data:`debris_gym.config.OPTIONS`):

@@ -295,7 +295,7 @@ def test_ctrl_c_stops_the_run_and_its_workers(tmp_path):
     assert not (out / "model.zip").exists()
 
 
-# --- issue 18: bad options are usage errors before any work; one run per directory ----------
+# --- bad options are usage errors before any work; one run per directory --------------------
 
 
 def load_imitate_cli():

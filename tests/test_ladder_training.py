@@ -1,6 +1,6 @@
-"""The checked-in PPO recipe learns the Easy rung from scratch, from the env's own reward
-(issue 21, item 2). The default run checks a short version that must already learn something;
-the issue's whole claim (≥ 90 % within 5 M steps) is the slow test (docs/training.md, "The
+"""The checked-in PPO recipe learns the Easy rung from scratch, from the env's own reward.
+The default run checks a short version that must already learn something; the whole claim
+(≥ 90 % within 5 M steps) is the slow test (docs/training.md, "The
 ladder", has the runs over seeds)."""
 
 from __future__ import annotations
@@ -54,6 +54,6 @@ def test_a_short_run_of_the_easy_recipe_learns_to_capture(tmp_path):
 
 @pytest.mark.slow
 def test_the_easy_recipe_reaches_90_percent_within_5m_steps(tmp_path):
-    """The issue's claim, as a user runs it: 5 M steps, then 30 missions (seeds 0–29)."""
+    """The recipe's claim, as a user runs it: 5 M steps, then 30 missions (seeds 0–29)."""
     success, _ = train_and_rate(tmp_path, 5_000_000, 30)
     assert success >= 0.9, f"success {success:.2f} < 0.90"

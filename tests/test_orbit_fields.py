@@ -59,7 +59,8 @@ def states_of(fields, k: int) -> np.ndarray:
 
 
 def check_field_over_time(fields, k: int, spec: FieldSpec, t: np.ndarray) -> None:
-    """Every rule of item 3 on a time grid, from the CW closed form (not the generator)."""
+    """Every placement rule of a moving field (docs/environments.md, "Moving fields") on a time
+    grid, from the CW closed form (not the generator)."""
     n_t = spec.n_targets
     radii = fields.radii[k]
     pos = cw_positions(states_of(fields, k), spec.mean_motion, t)  # (S, B, dim)

@@ -329,7 +329,7 @@ def test_record_video_writes_the_episode(tmp_path) -> None:
         clip.close()
 
 
-# --- huge bodies (issue 18: render() hung at an obstacle radius >= 1e20 m) -----------------------
+# --- huge bodies (an obstacle radius >= 1e20 m must not hang render()) ---------------------------
 
 
 def _frame(scenario: Scenario) -> np.ndarray:
@@ -448,7 +448,7 @@ def test_a_huge_disc_is_drawn_where_it_is(dim: int) -> None:
     assert differ.sum() < 0.01 * differ.size
 
 
-# --- moving bodies (issue 19: the v1 world, every body on CWH motion) ----------------------------
+# --- moving bodies (the v1 world, every body on CWH motion) --------------------------------------
 
 N_LEO = 1.1314e-3
 """Mean motion (rad/s) of a ~400 km LEO reference orbit."""

@@ -415,7 +415,7 @@ def test_paper_field_matches_seed_000_world():
     assert grid_route_exists(scen, 0.1, 0.2, cell=0.05)
 
 
-# --- every scenario is checked before it is flown (issue 18, item 2) ------------------------------
+# --- every scenario is checked before it is flown ------------------------------------------------
 
 
 def _flown(data) -> tuple[float, np.ndarray]:

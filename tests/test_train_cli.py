@@ -1,4 +1,4 @@
-"""train.py's refusals (issue 18 items 5 and 6): every bad option, config value, device and run
+"""train.py's refusals: every bad option, config value, device and run
 directory is a usage error (exit status 2) raised before the run directory is touched; one run at
 a time per directory; a run that never saved a model can be started again; ``--resume`` names a
 damaged checkpoint and falls back to the previous complete one.

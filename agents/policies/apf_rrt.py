@@ -12,7 +12,7 @@ on eq. 14 with its balance test one-sided (:func:`~agents.planners.apf.is_held_b
 nearly opposite the attraction and at least half as strong), and "no progress" means that the
 closest approach to the goal has not improved over the window (the goal distance of a chaser
 carried by a drifting trap wanders, so its change from the window's start is no measure). In a
-frozen field the test is eq. 14 as before.
+frozen field the test is eq. 14 itself, with the goal distance's net progress over the window.
 """
 
 from __future__ import annotations

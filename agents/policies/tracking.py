@@ -17,7 +17,8 @@ In a moving field (the v1 world) the agent plans against the bodies' predicted m
 * the path is re-planned every ``replan_every`` decisions on a fresh snapshot, as the field moves;
 * the targets' order is the tour of least estimated time, each met where it will be.
 
-A frozen field is flown exactly as before.
+In a frozen field (v0) none of this applies: the path is planned on the field itself, in LVLH,
+and re-planned only as :class:`MPCPathAgent` describes (a new goal, straying, a stall).
 """
 
 from __future__ import annotations

@@ -130,7 +130,8 @@ class CrashFlagHerReplayBuffer(HerReplayBuffer):
     """SB3's HER buffer that keeps, of each step's info, only what
     :meth:`GoalConditionedEnv.compute_reward` reads (``collision``, ``out_of_bounds``) and what
     the buffer itself reads (``TimeLimit.truncated``): ``copy_info_dict=True`` deep-copies the
-    stored infos of every relabelled sample, and the env's full infos made that 40 % slower."""
+    stored infos of every relabelled sample, and the env's full infos made that markedly slower
+    (docs/benchmarks.md, "Measured design choices")."""
 
     def add(  # type: ignore[override]
         self,
