@@ -2,8 +2,7 @@
 
 :data:`kernel` compiles a loop that Python calls; :data:`inlined` compiles a helper that the
 kernels call, inlined into them by numba (``inline="always"``): as separate functions the
-helpers cost an array-view set-up per call, which made the gaps of a field ~1.6x slower
-(measured, docs/benchmarks.md).
+helpers cost an array-view set-up per call (docs/benchmarks.md, "Measured design choices").
 
 Both cache their machine code on disk (``cache=True``), but numba keys a cached kernel only on
 its *own* source file: a kernel of ``mission_batch.py`` with a helper inlined from
@@ -142,8 +141,9 @@ def specialise(dispatcher, *args):
 
     Numba types every argument on each call of a dispatcher; for a named tuple it does so in
     Python, element by element, which costs more than the whole of a small step
-    (docs/benchmarks.md). A caller that passes the same structures every time resolves the
-    machine code once and calls it directly. The caller must then pass arguments of exactly the
-    types of ``args`` (same dtypes, dimensions and contiguity): the machine code does not check.
+    (docs/benchmarks.md, "Measured design choices"). A caller that passes the same structures
+    every time resolves the machine code once and calls it directly. The caller must then pass
+    arguments of exactly the types of ``args`` (same dtypes, dimensions and contiguity): the
+    machine code does not check.
     """
     return dispatcher.compile(tuple(dispatcher.typeof_pyval(a) for a in args))

@@ -22,8 +22,9 @@ reads.
 The row loop :func:`step_rows` is compiled without numba's reference counting
 (:data:`debris_gym.jit.borrowing`): with it, every array handed to an inlined phase costs an
 atomic reference-count update per row that numba does not remove, and in a row of spheres only
-(3D) those updates cost a third of the row (docs/benchmarks.md). The loop borrows its arrays
-from its caller, which also allocates its working arrays (:class:`StepScratch`).
+(3D) those updates are a large part of the row (docs/benchmarks.md, "Measured design
+choices"). The loop borrows its arrays from its caller, which also allocates its working
+arrays (:class:`StepScratch`).
 
 The rules are those of ``docs/environments.md``; :class:`debris_gym.mission_batch.MissionBatch`
 drives these kernels and ``tests/test_mission_batch.py`` holds them to an independent reference
@@ -149,7 +150,7 @@ def measure(
 
     The gaps are exact for every body: computing all of them in one tight loop costs less than
     culling polygons with bounds (the bookkeeping of a culled selection outweighs the polygon
-    edges it saves at the default obstacle count; docs/benchmarks.md).
+    edges it saves at the default obstacle count; docs/benchmarks.md, "Measured design choices").
     """
     dim = centers.shape[2]
     field_gaps(
@@ -291,7 +292,7 @@ def potential(i, rules, shaping, state, gaps, captured, centers, dock, length_sc
 
     ``shaping`` is None when those terms are off (:func:`debris_gym.mission_data.make_shaping`):
     numba then compiles the kernels without the call, whose mere presence cost time in every
-    step (docs/benchmarks.md).
+    step (docs/benchmarks.md, "Measured design choices").
     """
     goal, gap, after = current_goal(
         i, gaps, captured, rules.queued, rules.return_to_dock, rules.chaser_radius
