@@ -130,6 +130,23 @@ class MissionBatch:
     (N,) m and ``speed_scale`` (N,) m/s (the observation's L and V).
     """
 
+    # the arrays of ``self.missions``, also attributes (batch.state is batch.missions.state)
+    state: np.ndarray
+    time: np.ndarray
+    steps: np.ndarray
+    delta_v: np.ndarray
+    captured: np.ndarray
+    collision: np.ndarray
+    out_of_bounds: np.ndarray
+    success: np.ndarray
+    gaps: np.ndarray
+    nearest: np.ndarray
+    min_clearance: np.ndarray
+    potential: np.ndarray
+    accel: np.ndarray
+    hold: np.ndarray
+    score: np.ndarray
+
     def __init__(
         self,
         cfg: EnvConfig,
@@ -284,9 +301,7 @@ class MissionBatch:
             code = self._begin_code[states is None] = specialise(begin_rows, *args)
         code(*args)
 
-    def step(
-        self, actions: np.ndarray, live: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def step(self, actions: np.ndarray, live: np.ndarray) -> StepOutputs:
         """One decision step of the missions in ``live`` (the others are left as they are).
 
         Args:
@@ -296,14 +311,16 @@ class MissionBatch:
             live: (N,) bool, the missions that step.
 
         Returns:
-            ``(reward (N,), terminated (N,), truncated (N,), terms (N, 7))``, buffers that the
-            next call overwrites; rows not in ``live`` are zero / False. ``terms`` columns follow
+            :class:`~debris_gym.mission_data.StepOutputs`: ``reward`` (N,), ``terminated``
+            (N,), ``truncated`` (N,), ``terms`` (N, 7), buffers that the next call overwrites;
+            rows not in ``live`` are zero / False. ``terms`` columns follow
             :data:`debris_gym.rewards.REWARD_TERMS`.
         """
-        if live.dtype != np.bool_ or actions.dtype != np.float64:
-            live, actions = live.astype(np.bool_), actions.astype(np.float64)
         # the machine code is resolved for exactly these types (see jit.specialise)
-        live, actions = np.ascontiguousarray(live), np.ascontiguousarray(actions)
+        if live.dtype != np.bool_ or not live.flags.c_contiguous:
+            live = np.ascontiguousarray(live, dtype=np.bool_)
+        if actions.dtype != np.float64 or not actions.flags.c_contiguous:
+            actions = np.ascontiguousarray(actions, dtype=np.float64)
         head = self._head()
         code = self._step_code
         if code is None:

@@ -279,6 +279,12 @@ def real_array(value: Any, name: str) -> np.ndarray:
     return array
 
 
+_FLOAT_TYPES = (np.dtype(np.float32), np.dtype(np.float64))
+_SMALL = 16
+"""Actions of at most this many elements are checked element by element (faster than numpy's
+reductions for one env's action)."""
+
+
 def checked_continuous_actions(value: Any, shape: tuple[int, ...]) -> np.ndarray:
     """Continuous actions as float64 of ``shape``: real, finite, any magnitude (the thrust
     model saturates them, :func:`debris_gym.thrust.thrust_row`).
@@ -286,6 +292,11 @@ def checked_continuous_actions(value: Any, shape: tuple[int, ...]) -> np.ndarray
     Raises:
         ValueError: naming ``action`` (wrong type, shape, NaN or inf).
     """
+    if type(value) is np.ndarray and value.dtype in _FLOAT_TYPES and value.shape == shape:
+        # the common case, a float array of the right shape: only finiteness to check
+        a = value.astype(np.float64)
+        if a.size <= _SMALL and all(map(math.isfinite, a.ravel().tolist())):
+            return a
     a = real_array(value, "action").astype(float, copy=False)
     if a.shape != shape:
         raise ValueError(f"action must have shape {shape}, got {a.shape}")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import numpy as np
@@ -25,6 +25,9 @@ from debris_gym.goal import DOCK_GOAL, Goal, current_goal
 from debris_gym.mission_batch import MissionBatch
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.scenario import Scenario
+
+if TYPE_CHECKING:  # matplotlib is imported when an env first renders
+    from debris_gym.envs.rendering import Renderer
 
 TRAIL_LENGTH = 4096
 """Chaser positions the env keeps for :attr:`DebrisFieldEnv.trail` and rendering: the last
@@ -149,7 +152,7 @@ class DebrisFieldEnv(gym.Env):
         self._obs_buffer = np.zeros((1, len(self._obs_names)), dtype=np.float32)
         self._field_geometry: FieldGeometry | None = None
         self._trail: deque[np.ndarray] = deque(maxlen=TRAIL_LENGTH)
-        self._renderer = None
+        self._renderer: Renderer | None = None
 
     # --- state accessors --------------------------------------------------------------------
 
@@ -222,7 +225,9 @@ class DebrisFieldEnv(gym.Env):
         """Geometry of the current field as it is now (bodies where they are at the env's
         time), inflated by the chaser radius (built on first use, again when the bodies have
         moved): the clearance and collision queries planners share with the env."""
-        scenario = self.scenario
+        scenario = self._shell.scenario(0)
+        if scenario is None:
+            raise RuntimeError("call reset() first")
         t = self.elapsed if scenario.moving else 0.0
         geometry = self._field_geometry
         if geometry is None or geometry.time != t or geometry.scenario is not scenario:
@@ -311,7 +316,7 @@ class DebrisFieldEnv(gym.Env):
         """
         shell = self._shell
         result = shell.step(self._action(action))
-        m = shell.batch
+        m = shell.missions
         self._trail.append(m.state[0, : self.dim].copy())
         if self.render_mode == "human":
             self.render()

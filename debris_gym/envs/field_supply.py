@@ -20,9 +20,10 @@ from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -41,7 +42,7 @@ class SupplyState:
     words (see :class:`FieldSupply`)."""
 
     generators: tuple[np.random.Generator, ...]
-    states: tuple[dict, ...]
+    states: tuple[Mapping[str, Any], ...]
     pending: np.ndarray
     words: np.ndarray
     config: EnvConfig
@@ -94,7 +95,8 @@ class FieldSupply:
         """
         spec = field_spec(config)
         self.wait()
-        self.config, self.spec, self._drawer = config, spec, None
+        self.config, self.spec = config, spec
+        self._drawer: OrbitDrawer | None = None
 
     @property
     def moving(self) -> bool:
@@ -121,9 +123,10 @@ class FieldSupply:
         Raises:
             ValueError: the spec breaks the moving fields' conditions (naming them).
         """
-        if self._drawer is None:
-            self._drawer = orbit_drawer(self.spec, self.config.capture_radius)
-        return self._drawer
+        drawer = self._drawer
+        if drawer is None:
+            drawer = self._drawer = orbit_drawer(self.spec, self.config.capture_radius)
+        return drawer
 
     # --- random state -------------------------------------------------------------------------
 
@@ -145,7 +148,7 @@ class FieldSupply:
         self.wait()
         self.generators = list(saved.generators)
         for generator, state in zip(saved.generators, saved.states):
-            generator.bit_generator.state = state
+            generator.bit_generator.state = dict(state)
         self._pending[:] = saved.pending
         self._words[:] = saved.words
         self.config, self.spec, self._drawer = saved.config, saved.spec, saved.drawer
@@ -178,7 +181,7 @@ class FieldSupply:
             self.wait()
             ready = self._ready[rows] & (self._ready_words[rows] == words)
             self._ready[rows] = False
-            if ready.all():
+            if ready.all() and self._store is not None:
                 return _select(self._store, rows)
         return drawer.from_words(words)
 
@@ -251,12 +254,19 @@ class FieldSupply:
         self._lock = threading.Lock()
 
 
+def _moving(array: np.ndarray | None) -> np.ndarray:
+    """A moving field's velocities or spins (the supply draws ahead only moving fields)."""
+    if array is None:
+        raise RuntimeError("a field drawn ahead has no velocities or spins")
+    return array
+
+
 def _select(store: FieldArrays, rows: np.ndarray) -> FieldArrays:
     """The rows ``rows`` of a store of fields, as fields of their own."""
     return FieldArrays(
         store.dim, store.half_size, store.n_targets, store.centers[rows], store.radii[rows],
-        store.vertices[rows], store.n_vertices[rows], velocities=store.velocities[rows],
-        spins=store.spins[rows],
+        store.vertices[rows], store.n_vertices[rows], velocities=_moving(store.velocities)[rows],
+        spins=_moving(store.spins)[rows],
     )  # fmt: skip
 
 
@@ -277,7 +287,7 @@ def _empty_store(fields: FieldArrays, num: int) -> FieldArrays:
     return FieldArrays(
         fields.dim, fields.half_size, fields.n_targets, rows_of(fields.centers),
         rows_of(fields.radii), rows_of(fields.vertices), rows_of(fields.n_vertices),
-        velocities=rows_of(fields.velocities), spins=rows_of(fields.spins),
+        velocities=rows_of(_moving(fields.velocities)), spins=rows_of(_moving(fields.spins)),
     )  # fmt: skip
 
 
@@ -286,5 +296,5 @@ def _assign(store: FieldArrays, rows: np.ndarray, fields: FieldArrays) -> None:
     store.radii[rows] = fields.radii
     store.vertices[rows] = fields.vertices
     store.n_vertices[rows] = fields.n_vertices
-    store.velocities[rows] = fields.velocities
-    store.spins[rows] = fields.spins
+    _moving(store.velocities)[rows] = _moving(fields.velocities)
+    _moving(store.spins)[rows] = _moving(fields.spins)

@@ -155,6 +155,18 @@ class MissionShell:
 
     # --- reading ------------------------------------------------------------------------------
 
+    @property
+    def missions(self) -> MissionBatch:
+        """The batch, after the first reset.
+
+        Raises:
+            RuntimeError: before the first reset.
+        """
+        batch = self.batch
+        if batch is None:
+            raise RuntimeError("call reset() first")
+        return batch
+
     def scenario(self, i: int) -> Scenario | None:
         """Row ``i``'s field as a :class:`Scenario` (a pinned one as given; a random one built
         from its arrays, as drawn at t = 0, when first asked for), or None before the first
@@ -192,12 +204,12 @@ class MissionShell:
         """Every mission's observation, into ``out`` (N, size) float32 or a new array."""
         if out is None:
             out = np.empty((self.num, self._obs_size), dtype=np.float32)
-        return self.batch.observe(out, self.horizon)
+        return self.missions.observe(out, self.horizon)
 
     def info(self, terms: np.ndarray) -> dict[str, Any]:
         """The :data:`INFO_KEYS` of every mission as new arrays (row i = mission i);
         ``terms`` (N, 7) the step's reward terms (by term name under ``"reward_terms"``)."""
-        m = self.batch
+        m = self.missions
         return {
             "chaser_state": m.state.copy(),
             "time": m.time.copy(),
@@ -217,7 +229,7 @@ class MissionShell:
     def row_info(self, i: int, terms: Sequence[float]) -> dict[str, Any]:
         """The :data:`INFO_KEYS` of mission ``i`` as Python scalars and arrays of its own;
         ``terms`` its 7 reward terms."""
-        m = self.batch
+        m = self.missions
         captured = m.captured[i].copy()
         return {
             "chaser_state": m.state[i].copy(),
@@ -300,7 +312,7 @@ class MissionShell:
             self._install_scenario(rows, pinned)
         else:
             self._install(rows, fields)
-        self.batch.begin(rows, states)
+        self.missions.begin(rows, states)
         self._restart[:] = False
         if pinned is None:
             self.supply.draw_ahead(rows)
@@ -390,7 +402,7 @@ class MissionShell:
         if fields is None:
             self._install_scenario(rows, self.supply.paper_field())
             return
-        batch = self.batch
+        batch = self.missions
         t = fields.n_targets
         start = batch.field.polygon_start
         spins = None if fields.spins is None else fields.spins[:, start:]
@@ -408,7 +420,7 @@ class MissionShell:
 
     def _install_scenario(self, rows: np.ndarray, scenario: Scenario) -> None:
         """Load ``scenario`` into the rows ``rows``."""
-        batch = self.batch
+        batch = self.missions
         batch.load_scenario(rows, scenario)
         for i in rows.tolist():
             self.pinned[i], self._built[i] = scenario, None
@@ -424,9 +436,9 @@ class MissionShell:
         Raises:
             RuntimeError: before the first reset.
         """
-        batch = self.batch
-        if batch is None:
+        if self.batch is None:
             raise RuntimeError("call reset() before step()")
+        batch = self.batch
         if self.autoreset is Autoreset.NEVER:
             out = batch.step(actions, self._live)
             return StepResult(out.reward, out.terminated, out.truncated, out.terms)
@@ -453,10 +465,10 @@ class MissionShell:
         rows = np.flatnonzero(mask)
         if self._pin is not None:
             self._install_scenario(rows, self._pin)
-            self.batch.begin(rows)
+            self.missions.begin(rows)
             return
         self._install(rows, self.supply.take(rows))
-        self.batch.begin(rows)
+        self.missions.begin(rows)
         self.supply.draw_ahead(rows)
 
     def close(self) -> None:

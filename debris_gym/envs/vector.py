@@ -187,7 +187,8 @@ class DebrisFieldVectorEnv(VectorEnv):
         if seed is None:
             seeds: list[int | None] = [None] * n
         elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
-            first = checked_seed(seed)
+            first = int(seed)
+            checked_seed(first)
             seeds = [first + i for i in range(n)]
         else:
             if isinstance(seed, (str, bytes, bool)) or not isinstance(seed, (Sequence, np.ndarray)):
@@ -210,13 +211,13 @@ class DebrisFieldVectorEnv(VectorEnv):
             raise RuntimeError("call reset() before step()")
         result = shell.step(self._actions(actions))
         info = self._info(result.terms)
-        if result.ended is not None:  # same-step autoreset
-            ended = result.ended
+        ended, final_obs, final_info = result.ended, result.final_observation, result.final_info
+        if ended is not None and final_obs is not None and final_info is not None:  # same step
             info["final_obs"] = np.full(self.num_envs, None, dtype=object)
             for i in np.flatnonzero(ended):
-                info["final_obs"][i] = result.final_observation[i]
+                info["final_obs"][i] = final_obs[i]
             info["_final_obs"] = ended.copy()
-            info["final_info"] = _masked(result.final_info, ended)
+            info["final_info"] = _masked(final_info, ended)
             info["_final_info"] = ended.copy()
         return shell.observe(), result.reward, result.terminated, result.truncated, info
 
