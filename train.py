@@ -31,47 +31,17 @@ examples:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from agents.experiments.training.command_line import add_recipe_options
     from agents.experiments.training.config import available_configs
-    from agents.policies.model_files import ALGOS
 
     epilog = EXAMPLES + "\nchecked-in configs: " + ", ".join(available_configs())
     parser = cli.script_parser("train.py", __doc__, epilog)
-    parser.add_argument(
-        "--env",
-        dest="env_id",
-        metavar="ID",
-        help="environment ID (default: DebrisGym/Rendezvous2D-v1)",
-    )
-    parser.add_argument("--algo", choices=ALGOS, help="algorithm (default: ppo)")
-    parser.add_argument(
-        "--timesteps",
-        type=lambda t: cli.int_at_least(t, 1),
-        metavar="N",
-        help="training budget in env steps (default: the config's); with --resume: steps to add "
-        "(default: finish the run's budget)",
-    )
-    parser.add_argument(
-        "--n-envs",
-        type=lambda t: cli.int_at_least(t, 1),
-        metavar="N",
-        help="training envs (default: config)",
-    )
-    parser.add_argument(
-        "--seed",
-        type=lambda t: cli.int_at_least(t, 0),
-        metavar="S",
-        help="base seed; training sub-env i is seeded with S + i (default: 0)",
-    )
+    add_recipe_options(parser)
     # kept as text: Path("") would turn an empty argument into the current directory
     parser.add_argument(
         "--out",
         metavar="DIR",
         help="run directory (created; one run at a time; refused if it holds a model)",
-    )
-    cli.add_config_options(
-        parser,
-        "agents/configs/<env>_<algo>.yaml",
-        "--set algo_kwargs.batch_size=512 --set normalize.enabled=false",
     )
     parser.add_argument(
         "--init",
@@ -88,14 +58,6 @@ def build_parser() -> argparse.ArgumentParser:
         "--no-progress", dest="progress", action="store_false", help="no progress bar"
     )
     cli.add_suite_refusal(parser)
-    parser.add_argument(
-        "--threads",
-        type=lambda t: cli.int_at_least(t, 1),
-        default=1,
-        metavar="N",
-        help="torch CPU threads (default: 1; more threads compete with the envs for the cores, "
-        "see docs/training.md)",
-    )
     parser.add_argument(
         "--device",
         default="cpu",

@@ -22,12 +22,12 @@ from hypothesis import strategies as st
 
 pytest.importorskip("stable_baselines3")
 
+from agents.experiments.config_files import load_config_file
 from agents.experiments.run_directory import RunDirectoryLock
 from agents.experiments.training.checkpoints import model_timesteps, scan_checkpoints
 from agents.experiments.training.config import TrainConfig, default_config_path
 from agents.experiments.training.run import TrainOptions, train
 from agents.experiments.training.validation import ALGO_KWARG_RANGES, algo_kwarg_range
-from agents.policies.model_files import load_config_file
 from tests.helpers import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -341,9 +341,10 @@ def test_auto_device_is_recorded_as_the_device_used():
         (["--resume", "{tmp}/nothere"], "no such run directory"),
         (["--resume", "{tmp}"], "not a run of train.py (no config.yaml)"),
         (["--resume", "{tmp}/afile"], "no such run directory"),
-        ([*TINY, "--out", "{tmp}/r", "--timesteps", "inf"], "must be an integer"),
+        ([*TINY, "--out", "{tmp}/r", "--timesteps", "inf"], "--timesteps: must be a whole number"),
         ([*TINY, "--out", "{tmp}/r", "--set", "algo_kwargs=5"], "algo_kwargs must be a mapping"),
-        ([*TINY, "--out", "{tmp}/r", "--config", "{tmp}"], "not found"),
+        ([*TINY, "--out", "{tmp}/r", "--config", "{tmp}"], "is a directory, not a config file"),
+        ([*TINY, "--out", "{tmp}/r", "--config", "{tmp}/nothere.yaml"], "not found"),
         ([*TINY, "--out", "{tmp}/r", "--seed", "999999"], "seed + n_envs <= 1000000"),
     ],
 )

@@ -1,36 +1,86 @@
-"""Command-line pieces that ``train.py``, ``evaluate.py`` and ``imitate.py`` share: the parser
-frame, the config-file options, Ctrl-C handling and the command line a run records."""
+"""Command-line pieces every script shares (``train.py``, ``evaluate.py``, ``sweep.py``,
+``imitate.py``, ``python -m bench``): the parser frame, integer options, the config-file
+options, Ctrl-C handling and the command line a run records."""
 
 from __future__ import annotations
 
 import argparse
+import decimal
+import re
 import signal
 import sys
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 __all__ = [
+    "IntegerOption",
     "add_config_options",
+    "add_suite_refusal",
     "command_words",
-    "int_at_least",
+    "integer",
     "interrupt_on_signals",
+    "refuse_suite",
     "script_parser",
 ]
 
 
-def int_at_least(text: str, low: int) -> int:
-    """An integer option's value (``1_000_000`` and ``1e6`` read too), at least ``low``.
+_NUMBER = re.compile(
+    r"[+-]?(?:\d+(?:_\d+)*(?:\.(?:\d+(?:_\d+)*)?)?|\.\d+(?:_\d+)*)(?:[eE][+-]?\d+(?:_\d+)*)?"
+)
+"""A decimal number as a user types it: ``1000000``, ``1_000_000``, ``1e6``, ``1.5e3``,
+``2.0`` (underscores between digits, as in Python literals)."""
 
-    Raises:
-        argparse.ArgumentTypeError: not an integer, or below ``low``.
+MAX_WORKERS = 4096
+"""Most worker processes (or Ray tasks at once) a script's ``--workers`` asks for."""
+
+MAX_NUMBER_TEXT = 100
+"""Longest integer option text read (a longer one is a typo, and costs time to parse)."""
+
+
+@dataclass(frozen=True)
+class IntegerOption:
+    """The ``type=`` of an integer option: a whole number in ``[low, high]``.
+
+    Every script reads integer options with it, so they all accept the same forms: plain
+    digits, ``_`` between digits, and exponent or decimal forms whose value is whole (``1e6``,
+    ``1.5e3``, ``2.0``). The value is read exactly (as a :class:`~decimal.Decimal`), so
+    ``2.5e0`` is refused rather than cut to 2 and ``1e400`` is out of range rather than an
+    overflow.
+
+    Attributes:
+        low, high: the allowed range, both included.
     """
-    try:
-        value = int(float(text)) if "e" in text.lower() else int(text.replace("_", ""))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
-    if value < low:
-        raise argparse.ArgumentTypeError(f"must be >= {low}, got {value}")
-    return value
+
+    low: int
+    high: int
+
+    def __call__(self, text: str) -> int:
+        """The value of ``text``.
+
+        Raises:
+            argparse.ArgumentTypeError: not a whole number in ``[low, high]`` (argparse names
+                the option in front of the message).
+        """
+        stripped = text.strip()
+        value = None
+        if len(stripped) <= MAX_NUMBER_TEXT and _NUMBER.fullmatch(stripped):
+            value = decimal.Decimal(stripped.replace("_", ""))
+        if (
+            value is None
+            or value != value.to_integral_value()
+            or not self.low <= value <= self.high
+        ):
+            raise argparse.ArgumentTypeError(
+                f"must be a whole number in [{self.low:_}, {self.high:_}] (e.g. 1000, 1_000 or "
+                f"1e3), got {text!r}"
+            )
+        return int(value)
+
+
+def integer(low: int, high: int) -> IntegerOption:
+    """The ``type=`` of an integer option in ``[low, high]`` (:class:`IntegerOption`)."""
+    return IntegerOption(low, high)
 
 
 def script_parser(prog: str, doc: str | None, epilog: str) -> argparse.ArgumentParser:

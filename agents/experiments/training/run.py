@@ -23,6 +23,7 @@ from typing import Any
 
 from stable_baselines3.common.callbacks import ProgressBarCallback
 
+from agents.experiments.config_files import load_config_file
 from agents.experiments.provenance import library_versions, utc_now
 from agents.experiments.run_directory import LOCK_FILE, RunDirectoryLock, check_output_dir
 from agents.experiments.training import finetune
@@ -48,6 +49,7 @@ from agents.experiments.training.models import (
     tensorboard_dir,
 )
 from agents.experiments.training.resolve import (
+    MAX_THREADS,
     TrainOptions,
     check_seed,
     refuse_suite_seeds_of,
@@ -60,12 +62,7 @@ from agents.experiments.training.run_files import (
     write_run_config,
     write_train_log,
 )
-from agents.policies.model_files import (
-    FINAL_MODEL,
-    algo_class,
-    load_config_file,
-    sidecar_path,
-)
+from agents.policies.model_files import FINAL_MODEL, algo_class, sidecar_path
 
 __all__ = ["TrainOptions", "TrainResult", "resolve_config", "train"]
 
@@ -142,9 +139,9 @@ def train(options: TrainOptions) -> TrainResult:
     import torch
 
     device = resolve_device(options.device)
-    threads = int(options.threads)
-    if threads < 1:
-        raise ValueError(f"--threads must be >= 1, got {threads}")
+    threads = options.threads
+    if isinstance(threads, bool) or not isinstance(threads, int) or not 1 <= threads <= MAX_THREADS:
+        raise ValueError(f"--threads must be an integer in [1, {MAX_THREADS}], got {threads!r}")
     torch.set_num_threads(threads)
     argv = options.argv if options.argv is not None else sys.argv
     command = shlex.join(["python", *argv]) if argv else ""
