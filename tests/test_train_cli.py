@@ -341,7 +341,7 @@ def test_auto_device_is_recorded_as_the_device_used():
         (["--resume", "{tmp}/nothere"], "no such run directory"),
         (["--resume", "{tmp}"], "not a run of train.py (no config.yaml)"),
         (["--resume", "{tmp}/afile"], "no such run directory"),
-        ([*TINY, "--out", "{tmp}/r", "--timesteps", "inf"], "--timesteps: must be a whole number"),
+        ([*TINY, "--out", "{tmp}/r", "--timesteps", "inf"], "--timesteps: must be an integer"),
         ([*TINY, "--out", "{tmp}/r", "--set", "algo_kwargs=5"], "algo_kwargs must be a mapping"),
         ([*TINY, "--out", "{tmp}/r", "--config", "{tmp}"], "is a directory, not a config file"),
         ([*TINY, "--out", "{tmp}/r", "--config", "{tmp}/nothere.yaml"], "not found"),

@@ -5,8 +5,8 @@ options, Ctrl-C handling and the command line a run records."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import decimal
-import re
 import signal
 import sys
 from collections.abc import Sequence
@@ -25,17 +25,21 @@ __all__ = [
 ]
 
 
-_NUMBER = re.compile(
-    r"[+-]?(?:\d+(?:_\d+)*(?:\.(?:\d+(?:_\d+)*)?)?|\.\d+(?:_\d+)*)(?:[eE][+-]?\d+(?:_\d+)*)?"
-)
-"""A decimal number as a user types it: ``1000000``, ``1_000_000``, ``1e6``, ``1.5e3``,
-``2.0`` (underscores between digits, as in Python literals)."""
+MAX_SEED = 2**32 - 1
+"""Largest reset seed a script's ``--seed`` takes (a 32-bit seed: what numpy's legacy seeding,
+and many user policies, accept)."""
+
+MAX_EPISODES = 1_000_000
+"""Most episodes (per agent, plotted or recorded) a script's option asks for."""
+
+MAX_EPISODE_STEPS = 10_000_000
+"""Longest episode time limit (steps) an option sets."""
 
 MAX_WORKERS = 4096
 """Most worker processes (or Ray tasks at once) a script's ``--workers`` asks for."""
 
 MAX_NUMBER_TEXT = 100
-"""Longest integer option text read (a longer one is a typo, and costs time to parse)."""
+"""Longest integer option text read (a longer one is a typo)."""
 
 
 @dataclass(frozen=True)
@@ -59,20 +63,23 @@ class IntegerOption:
         """The value of ``text``.
 
         Raises:
-            argparse.ArgumentTypeError: not a whole number in ``[low, high]`` (argparse names
-                the option in front of the message).
+            argparse.ArgumentTypeError: not a whole number in ``[low, high]`` (the message
+                gives the range; argparse names the option in front of it).
         """
         stripped = text.strip()
         value = None
-        if len(stripped) <= MAX_NUMBER_TEXT and _NUMBER.fullmatch(stripped):
-            value = decimal.Decimal(stripped.replace("_", ""))
+        if len(stripped) <= MAX_NUMBER_TEXT and stripped.isascii():
+            with contextlib.suppress(ValueError):
+                float(stripped)  # the forms of a Python number literal ("_" between digits)
+                value = decimal.Decimal(stripped.replace("_", ""))  # its exact value
         if (
             value is None
+            or not value.is_finite()
             or value != value.to_integral_value()
             or not self.low <= value <= self.high
         ):
             raise argparse.ArgumentTypeError(
-                f"must be a whole number in [{self.low:_}, {self.high:_}] (e.g. 1000, 1_000 or "
+                f"must be an integer >= {self.low:_} and <= {self.high:_} (e.g. 1000, 1_000 or "
                 f"1e3), got {text!r}"
             )
         return int(value)
