@@ -78,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"done in {result['wall_s']:.0f} s\n  {result['model']}\n  {out / 'config.yaml'}\n"
         f"  {out / 'imitation_log.json'}\n  {out / 'imitation_curve.png'}\n"
-        f"evaluate with: python evaluate.py --agents apf-mpc,ppo={result['model']}"
+        "evaluate with: " + cli.evaluate_command(config.env_id, f"apf-mpc,ppo={result['model']}")
     )
     return 0
 

@@ -70,6 +70,10 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"argument {exc.flag}: {exc}")
     except (FileNotFoundError, ValueError, ImportError) as exc:
         parser.error(str(exc))
+    from agents.experiments.config_files import load_config_file
+
+    best, _ = load_config_file(result.best_dir / "config.yaml")
+    env_id, algo = str(best["env_id"]), str(best["algo"])
     print(
         f"{len(result.trials)} trials in {result.wall_time_s:.1f} s; by {result.metric} "
         f"({result.mode}):"
@@ -80,7 +84,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f" {mark} {trial.trial_id}  {trial.params}  {shown}")
     print(
         f"best: {result.best.run_dir}\nexported: {result.best_dir}/model.zip\n"
-        f"evaluate with: python evaluate.py --agents ppo={result.best_dir}/model.zip"
+        "evaluate with: " + cli.evaluate_command(env_id, f"{algo}={result.best_dir / 'model.zip'}")
     )
     return 0
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 from agents.experiments import cli
 from agents.experiments.run_directory import OutputDirError
@@ -75,12 +74,15 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("give --out DIR (a new run) or --resume DIR")
     cli.interrupt_on_signals()
 
-    from agents.experiments.training.run import TrainOptions, train
+    from agents.experiments.training.run import TrainOptions, TrainWriteError, train
 
     # the parser's destinations are the option names
     options = TrainOptions(**vars(args), argv=cli.command_words(argv))
     try:
         result = train(options)
+    except TrainWriteError as exc:  # mid-run: not a usage error
+        print(f"train.py: {exc}", file=sys.stderr)
+        return 1
     except (FileNotFoundError, FileExistsError, ValueError) as exc:
         parser.error(cli_error(exc))
     except KeyboardInterrupt:  # before learning started: nothing to save
@@ -99,7 +101,8 @@ def main(argv: list[str] | None = None) -> int:
         f"({result.env_steps_per_s:,.0f} env-steps/s)\n"
         f"  {result.model_path}\n  {out / 'config.yaml'}\n  {out / 'learning_curve.png'}\n"
         f"  {out / 'train_log.json'}\n"
-        f"evaluate with: python evaluate.py --agents apf,{_algo(out)}={result.model_path}"
+        "evaluate with: "
+        + cli.evaluate_command(result.env_id, f"apf,{result.algo}={result.model_path}")
     )
     return 0
 
@@ -107,15 +110,6 @@ def main(argv: list[str] | None = None) -> int:
 def cli_error(exc: Exception) -> str:
     """The usage-error text of a rejected option (output-directory errors name their flag)."""
     return f"argument {exc.flag}: {exc}" if isinstance(exc, OutputDirError) else str(exc)
-
-
-def _algo(out: Path) -> str:
-    import yaml
-
-    try:
-        return str(yaml.safe_load((out / "config.yaml").read_text())["algo"])
-    except (OSError, KeyError, TypeError):
-        return "ppo"
 
 
 if __name__ == "__main__":

@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import decimal
+import shlex
 import signal
 import sys
 from collections.abc import Sequence
@@ -18,6 +19,7 @@ __all__ = [
     "add_config_options",
     "add_suite_refusal",
     "command_words",
+    "evaluate_command",
     "integer",
     "interrupt_on_signals",
     "refuse_suite",
@@ -88,6 +90,12 @@ class IntegerOption:
 def integer(low: int, high: int) -> IntegerOption:
     """The ``type=`` of an integer option in ``[low, high]`` (:class:`IntegerOption`)."""
     return IntegerOption(low, high)
+
+
+def evaluate_command(env_id: str, agents: str) -> str:
+    """The ``evaluate.py`` command line that flies ``agents`` on ``env_id`` (what a script that
+    made a model prints: the model's own env, not evaluate.py's default)."""
+    return shlex.join(["python", "evaluate.py", "--env", env_id, "--agents", agents])
 
 
 def script_parser(prog: str, doc: str | None, epilog: str) -> argparse.ArgumentParser:

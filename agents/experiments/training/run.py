@@ -35,6 +35,7 @@ from agents.experiments.training.checkpoints import (
     model_timesteps,
     save_model_files,
     scan_checkpoints,
+    write_failure,
 )
 from agents.experiments.training.config import (
     OFF_POLICY,
@@ -56,6 +57,9 @@ from agents.experiments.training.resolve import (
     resolve_config,
 )
 from agents.experiments.training.run_files import (
+    RUNNING,
+    STOPPED,
+    TrainWriteError,
     clear_unstarted_run,
     read_train_log,
     truncate_episode_log,
@@ -64,7 +68,7 @@ from agents.experiments.training.run_files import (
 )
 from agents.policies.model_files import FINAL_MODEL, algo_class, sidecar_path
 
-__all__ = ["TrainOptions", "TrainResult", "resolve_config", "train"]
+__all__ = ["TrainOptions", "TrainResult", "TrainWriteError", "resolve_config", "train"]
 
 
 @dataclass
@@ -73,6 +77,7 @@ class TrainResult:
 
     Attributes:
         out: the run directory.
+        env_id, algo: what the run trained (its config's).
         status: ``"completed"`` or ``"interrupted"``.
         num_timesteps: the model's ``num_timesteps`` at the end.
         model_path: ``DIR/model.zip`` (completed) or the interrupt checkpoint.
@@ -81,6 +86,8 @@ class TrainResult:
     """
 
     out: Path
+    env_id: str
+    algo: str
     status: str
     num_timesteps: int
     model_path: Path
@@ -135,6 +142,8 @@ def train(options: TrainOptions) -> TrainResult:
     Raises:
         FileNotFoundError, FileExistsError, ValueError: bad options, config or run directory
             (messages name the option or key, the value and what is allowed).
+        TrainWriteError: a file of the run could not be written mid-run (a full disk, a
+            directory made read-only); the message says what is on disk and how to resume.
     """
     import torch
 
@@ -302,6 +311,9 @@ def _prepare_resume(options: TrainOptions, out: Path, device: str, command: str)
     config = dataclasses.replace(config, timesteps=max(config.timesteps, start_steps + add))
     source = run.get("config_source", str(out / "config.yaml"))
     log = read_train_log(out)
+    segments = log.get("segments", [])
+    if segments and segments[-1].get("status") == RUNNING:
+        segments[-1]["status"] = STOPPED  # its process ended without saving
     segment_seed = seed + len(log.get("segments", [])) * config.n_envs
     check_seed(segment_seed, config.n_envs)
     refuse_suite_seeds_of(segment_seed, config)
@@ -372,26 +384,84 @@ def _run_section(segment: _Segment, device: str) -> dict[str, Any]:
 
 
 def _run_segment(segment: _Segment, options: TrainOptions) -> TrainResult:
-    """Learn one segment into its (locked) directory and write its files."""
+    """Learn one segment into its (locked) directory and write its files.
+
+    Raises:
+        TrainWriteError: a file of the run could not be written (a full disk, a directory made
+            read-only); the run's files are as the last complete write left them.
+    """
+    try:
+        return _learn_segment(segment, options)
+    except (OSError, RuntimeError) as exc:
+        failure = write_failure(exc)
+        if failure is None:
+            raise
+        steps = int(segment.model.num_timesteps)
+        latest = scan_checkpoints(segment.out, segment.config.normalize.enabled).latest
+        raise TrainWriteError(segment.out, failure, steps, latest) from None
+
+
+def _learn_segment(segment: _Segment, options: TrainOptions) -> TrainResult:
     import torch
 
     out, config, run, model = segment.out, segment.config, segment.run, segment.model
     checkpoint, start_steps, add = segment.checkpoint, segment.start_steps, segment.add
     log = segment.log
-    segments = log.setdefault("segments", [])
+    earlier = list(log.get("segments", []))
     out.mkdir(parents=True, exist_ok=True)
     if checkpoint is not None:
         truncate_episode_log(out / "train_episodes.csv", start_steps)
     write_run_config(out, config, run)  # before learning, so an interrupted run can be resumed
     if checkpoint is None and config.init.path is not None:
-        finetune.save_reference(
-            out, config
-        )  # a resume restores the anchor's reference from the run
+        # a resume restores the anchor's reference from the run
+        finetune.save_reference(out, config)
+
+    def record(status: str, model_path: Path, steps: int, wall: float | None = None) -> None:
+        """``train_log.json`` with this segment as it stands at ``steps`` (``wall``: its
+        learning time, s; default: so far)."""
+        wall = time.perf_counter() - start if wall is None else wall
+        eval_s = evaluation.seconds if evaluation is not None else 0.0
+        ckpt_s = checkpointer.seconds if checkpointer is not None else 0.0
+        done = steps - start_steps
+        entry = {
+            "status": status,
+            "started_at": run["resumes"][-1]["at"] if checkpoint else run["started_at"],
+            "resumed_from": str(checkpoint) if checkpoint else None,
+            "n_envs": config.n_envs,
+            "env_seed": segment.segment_seed,
+            "torch_threads": torch.get_num_threads(),
+            "start_timesteps": start_steps,
+            "end_timesteps": steps,
+            "wall_time_s": round(wall, 3),
+            "eval_time_s": round(eval_s, 3),
+            "checkpoint_time_s": round(ckpt_s, 3),
+            "env_steps_per_s": round(done / wall, 1) if wall > 0 else None,
+            "env_steps_per_s_excluding_eval": (
+                round(done / (wall - eval_s - ckpt_s), 1) if wall - eval_s - ckpt_s > 0 else None
+            ),
+        }
+        log.update(
+            {
+                "env_id": config.env_id,
+                "algo": config.algo,
+                "status": status,
+                "num_timesteps": steps,
+                "target_timesteps": int(config.timesteps),
+                "model": str(model_path),
+                "segments": [*earlier, entry],
+            }
+        )
+        write_train_log(out, log)
+
+    def checkpointed(path: Path, steps: int) -> None:
+        record(RUNNING, path, steps)  # a killed run's log stands as of its last checkpoint
+
     callbacks, evaluation, checkpointer, episodes = make_callbacks(
         config,
         out,
         segment.eval_env,
         start_steps if checkpoint is not None else None,
+        after_checkpoint=checkpointed,
     )
     if options.progress:
         callbacks.append(ProgressBarCallback())
@@ -419,7 +489,6 @@ def _run_segment(segment: _Segment, options: TrainOptions) -> TrainResult:
     main_thread = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main_thread else None
     try:  # a second Ctrl-C must not cut the saving short
-        episodes.flush()
         if status == "completed":
             if evaluation is not None and (
                 not evaluation.evaluations_timesteps
@@ -429,42 +498,9 @@ def _run_segment(segment: _Segment, options: TrainOptions) -> TrainResult:
             model_path = out / FINAL_MODEL
         else:
             model_path = out / "checkpoints" / f"{INTERRUPTED}.zip"
+        episodes.flush(sync=True)  # the rows of every step the model has seen, first
         save_model_files(model, config, model_path)
-        eval_s = evaluation.seconds if evaluation is not None else 0.0
-        ckpt_s = checkpointer.seconds if checkpointer is not None else 0.0
-        steps = model.num_timesteps - start_steps
-        segments.append(
-            {
-                "status": status,
-                "started_at": run["resumes"][-1]["at"] if checkpoint else run["started_at"],
-                "resumed_from": str(checkpoint) if checkpoint else None,
-                "n_envs": config.n_envs,
-                "env_seed": segment.segment_seed,
-                "torch_threads": torch.get_num_threads(),
-                "start_timesteps": start_steps,
-                "end_timesteps": int(model.num_timesteps),
-                "wall_time_s": round(wall, 3),
-                "eval_time_s": round(eval_s, 3),
-                "checkpoint_time_s": round(ckpt_s, 3),
-                "env_steps_per_s": round(steps / wall, 1) if wall > 0 else None,
-                "env_steps_per_s_excluding_eval": (
-                    round(steps / (wall - eval_s - ckpt_s), 1)
-                    if wall - eval_s - ckpt_s > 0
-                    else None
-                ),
-            }
-        )
-        log.update(
-            {
-                "env_id": config.env_id,
-                "algo": config.algo,
-                "status": status,
-                "num_timesteps": int(model.num_timesteps),
-                "target_timesteps": int(config.timesteps),
-                "model": str(model_path),
-            }
-        )
-        write_train_log(out, log)
+        record(status, model_path, int(model.num_timesteps), wall)
         run["finished_at" if status == "completed" else "interrupted_at"] = utc_now()
         write_run_config(out, config, run)
         plot_learning_curve(out)
@@ -473,6 +509,8 @@ def _run_segment(segment: _Segment, options: TrainOptions) -> TrainResult:
             signal.signal(signal.SIGINT, previous)
     return TrainResult(
         out=out,
+        env_id=config.env_id,
+        algo=config.algo,
         status=status,
         num_timesteps=int(model.num_timesteps),
         model_path=model_path,
