@@ -482,3 +482,23 @@ def test_the_evaluate_command_train_py_prints_flies_the_model_on_its_own_env(
         "evaluate with: python evaluate.py --env DebrisGym/Rendezvous2D-Easy-v1 --agents "
         f"apf,ppo={out / 'model.zip'}"
     )
+
+
+def test_every_algorithm_the_readme_offers_for_an_env_has_a_recipe():
+    """Regression: the README offered recurrent_ppo on the full task, which has no recipe."""
+    import re
+
+    from agents.experiments.training.config import ALGOS
+    from agents.experiments.training.resolve import resolve_config
+
+    text = (ROOT / "README.md").read_text()
+    offered = []
+    for line in text.splitlines():
+        found = re.match(r"python train\.py --env (\S+) --algo (\S+) .*#(.*)$", line)
+        if found:
+            words = re.findall(r"[a-z_0-9]+", found[3])
+            offered += [(found[1], a) for a in [found[2], *(w for w in words if w in ALGOS)]]
+    assert ("DebrisGym/Rendezvous2D-v1", "ppo") in offered and len(offered) >= 4
+    for env_id, algo in offered:
+        config, _ = resolve_config(TrainOptions(env_id=env_id, algo=algo))
+        assert (config.env_id, config.algo) == (env_id, algo)
