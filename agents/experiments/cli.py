@@ -27,9 +27,9 @@ __all__ = [
 ]
 
 
-MAX_SEED = 2**32 - 1
-"""Largest reset seed a script's ``--seed`` takes (a 32-bit seed: what numpy's legacy seeding,
-and many user policies, accept)."""
+MAX_SEED = 2**128 - 1
+"""Largest reset seed a script's ``--seed`` takes (gymnasium takes any integer >= 0 as a numpy
+``SeedSequence`` entropy; 128 bits is that entropy's size)."""
 
 MAX_EPISODES = 1_000_000
 """Most episodes (per agent, plotted or recorded) a script's option asks for."""
