@@ -38,6 +38,7 @@ from agents.experiments.training.checkpoints import (
     write_failure,
 )
 from agents.experiments.training.config import (
+    MAX_TIMESTEPS,
     OFF_POLICY,
     TrainConfig,
 )
@@ -308,6 +309,11 @@ def _prepare_resume(options: TrainOptions, out: Path, device: str, command: str)
             )
     if add < 1:
         raise ValueError(f"--timesteps must be >= 1, got {add}")
+    if start_steps + add > MAX_TIMESTEPS:
+        raise ValueError(
+            f"--timesteps {add:,} would take the run past {MAX_TIMESTEPS:,} steps (it is at "
+            f"{start_steps:,})"
+        )
     config = dataclasses.replace(config, timesteps=max(config.timesteps, start_steps + add))
     source = run.get("config_source", str(out / "config.yaml"))
     log = read_train_log(out)
