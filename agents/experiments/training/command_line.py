@@ -43,7 +43,7 @@ def add_recipe_options(
         "--timesteps",
         type=cli.integer(1, MAX_TIMESTEPS),
         metavar="N",
-        help=f"training budget{each} in env steps, in [1, {MAX_TIMESTEPS:.0e}] (default: the "
+        help=f"training budget{each} in env steps, in [1, {MAX_TIMESTEPS:_}] (default: the "
         "recipe's); with train.py --resume: steps to add (default: finish the run's budget)",
     )
     parser.add_argument(

@@ -14,6 +14,8 @@ __all__ = ["algo_kwargs", "policy_kwargs", "set_encoder_kwargs"]
 
 
 def policy_kwargs(config: TrainConfig) -> dict[str, Any]:
+    """The SB3 ``policy_kwargs`` of ``config``: ``activation_fn`` as its torch class, and the set
+    encoder's feature extractor when ``encoder.kind`` is ``"set"``."""
     import torch.nn as nn
 
     kwargs = dict(config.policy_kwargs)
@@ -56,6 +58,9 @@ def set_encoder_kwargs(config: TrainConfig) -> dict[str, Any]:
 
 
 def algo_kwargs(config: TrainConfig, action_dim: int) -> dict[str, Any]:
+    """The SB3 algorithm keyword arguments of ``config``: ``lin_<value>`` as a linear schedule
+    to 0, ``train_freq`` as a tuple, ``action_noise`` as SB3's noise object for ``action_dim``
+    action elements."""
     from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise
     from stable_baselines3.common.utils import LinearSchedule
 
