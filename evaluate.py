@@ -83,27 +83,6 @@ examples:
 """
 
 
-def _positive_int(text: str) -> int:
-    value = _int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
-    return value
-
-
-def _non_negative_int(text: str) -> int:
-    value = _int(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {value}")
-    return value
-
-
-def _int(text: str) -> int:
-    try:
-        return int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
-
-
 def _out_dir(text: str) -> Path:
     """``--out DIR`` checked before anything runs: not empty, not a file, not under a file,
     writable."""
@@ -167,14 +146,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--episodes",
-        type=_positive_int,
+        type=cli.integer(1, cli.MAX_EPISODES),
         default=None,
         metavar="N",
         help=f"episodes per agent, >= 1 (default: {DEFAULT_EPISODES})",
     )
     parser.add_argument(
         "--seed",
-        type=_non_negative_int,
+        type=cli.integer(0, cli.MAX_SEED),
         default=None,
         help="reset seed of episode 0, >= 0; episode i uses SEED + i (default: 0)",
     )
@@ -206,7 +185,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--plots",
-        type=_non_negative_int,
+        type=cli.integer(0, cli.MAX_EPISODES),
         default=None,
         metavar="N",
         help="trajectory plots of the first N episodes (default: 3; 0 = none)",
@@ -220,7 +199,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--max-steps",
-        type=_positive_int,
+        type=cli.integer(1, cli.MAX_EPISODE_STEPS),
         default=None,
         metavar="N",
         help="override the env's time limit (max_episode_steps) — for quick checks; headline "
@@ -244,7 +223,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--video",
-        type=int,
+        type=cli.integer(0, cli.MAX_EPISODES),
         default=0,
         metavar="N",
         help="record each agent's first N episodes as mp4 in DIR/videos/<agent>/ "
@@ -267,7 +246,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--workers",
-        type=_positive_int,
+        type=cli.integer(1, cli.MAX_WORKERS),
         default=None,
         metavar="N",
         help="with --backend ray: Ray workers, >= 1 (default: one per CPU of the cluster)",

@@ -28,6 +28,8 @@ examples:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from agents.experiments.imitation.config import MAX_SEED
+
     parser = cli.script_parser("imitate.py", __doc__, EXAMPLES)
     # kept as text: Path("") would turn an empty argument into the current directory
     parser.add_argument(
@@ -43,7 +45,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="environment ID (default: DebrisGym/Rendezvous2D-v1)",
     )
     cli.add_config_options(parser, "agents/configs/<env>_imitation.yaml", "--set dagger_rounds=2")
-    parser.add_argument("--seed", type=int, metavar="S", help="base seed (default: the config's)")
+    parser.add_argument(
+        "--seed",
+        type=cli.integer(0, MAX_SEED),
+        metavar="S",
+        help=f"base seed, in [0, {MAX_SEED:_}] (default: the config's)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
     cli.add_suite_refusal(parser)
     return parser
@@ -71,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"done in {result['wall_s']:.0f} s\n  {result['model']}\n  {out / 'config.yaml'}\n"
         f"  {out / 'imitation_log.json'}\n  {out / 'imitation_curve.png'}\n"
-        f"evaluate with: python evaluate.py --agents apf-mpc,ppo={result['model']}"
+        "evaluate with: " + cli.evaluate_command(config.env_id, f"apf-mpc,ppo={result['model']}")
     )
     return 0
 

@@ -32,43 +32,17 @@ examples:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from agents.policies.model_files import ALGOS
+    from agents.experiments.training.command_line import add_recipe_options
+    from agents.experiments.training.sweep_config import MAX_SAMPLES
 
     parser = cli.script_parser("sweep.py", __doc__, EXAMPLES)
-    parser.add_argument(
-        "--env",
-        dest="env_id",
-        metavar="ID",
-        help="environment ID (picks the "
-        "checked-in recipe with --algo; default: DebrisGym/Rendezvous2D-v1)",
-    )
-    parser.add_argument("--algo", choices=ALGOS, help="algorithm (default: ppo)")
-    cli.add_config_options(parser, "agents/configs/<env>_<algo>.yaml", "--set eval.n_episodes=8")
+    add_recipe_options(parser, each=" of every trial", seed_default=0)
     parser.add_argument("--out", required=True, metavar="DIR", help="the sweep's directory")
     parser.add_argument(
         "--samples",
-        type=lambda t: cli.int_at_least(t, 1),
+        type=cli.integer(1, MAX_SAMPLES),
         metavar="N",
-        help="trials, >= 1 (default: the recipe's sweep.num_samples)",
-    )
-    parser.add_argument(
-        "--timesteps",
-        type=lambda t: cli.int_at_least(t, 1),
-        metavar="N",
-        help="training budget of every trial (default: the recipe's)",
-    )
-    parser.add_argument(
-        "--n-envs",
-        type=lambda t: cli.int_at_least(t, 1),
-        metavar="N",
-        help="training envs of every trial (default: the recipe's)",
-    )
-    parser.add_argument(
-        "--seed",
-        type=lambda t: cli.int_at_least(t, 0),
-        default=0,
-        metavar="S",
-        help="base seed of every trial (default: 0)",
+        help=f"trials, in [1, {MAX_SAMPLES:_}] (default: the recipe's sweep.num_samples)",
     )
     parser.add_argument(
         "--address",
@@ -77,16 +51,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--workers",
-        type=lambda t: cli.int_at_least(t, 1),
+        type=cli.integer(1, cli.MAX_WORKERS),
         metavar="N",
-        help="trials at once, >= 1 (default: one per CPU of the cluster)",
-    )
-    parser.add_argument(
-        "--threads",
-        type=lambda t: cli.int_at_least(t, 1),
-        default=1,
-        metavar="N",
-        help="torch CPU threads per trial (default: 1)",
+        help=f"trials at once, in [1, {cli.MAX_WORKERS:_}] (default: one per CPU of the cluster)",
     )
     return parser
 
@@ -103,6 +70,10 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"argument {exc.flag}: {exc}")
     except (FileNotFoundError, ValueError, ImportError) as exc:
         parser.error(str(exc))
+    from agents.experiments.config_files import load_config_file
+
+    best, _ = load_config_file(result.best_dir / "config.yaml")
+    env_id, algo = str(best["env_id"]), str(best["algo"])
     print(
         f"{len(result.trials)} trials in {result.wall_time_s:.1f} s; by {result.metric} "
         f"({result.mode}):"
@@ -113,7 +84,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f" {mark} {trial.trial_id}  {trial.params}  {shown}")
     print(
         f"best: {result.best.run_dir}\nexported: {result.best_dir}/model.zip\n"
-        f"evaluate with: python evaluate.py --agents ppo={result.best_dir}/model.zip"
+        "evaluate with: " + cli.evaluate_command(env_id, f"{algo}={result.best_dir / 'model.zip'}")
     )
     return 0
 

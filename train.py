@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 from agents.experiments import cli
 from agents.experiments.run_directory import OutputDirError
@@ -31,47 +30,17 @@ examples:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from agents.experiments.training.command_line import add_recipe_options
     from agents.experiments.training.config import available_configs
-    from agents.policies.model_files import ALGOS
 
     epilog = EXAMPLES + "\nchecked-in configs: " + ", ".join(available_configs())
     parser = cli.script_parser("train.py", __doc__, epilog)
-    parser.add_argument(
-        "--env",
-        dest="env_id",
-        metavar="ID",
-        help="environment ID (default: DebrisGym/Rendezvous2D-v1)",
-    )
-    parser.add_argument("--algo", choices=ALGOS, help="algorithm (default: ppo)")
-    parser.add_argument(
-        "--timesteps",
-        type=lambda t: cli.int_at_least(t, 1),
-        metavar="N",
-        help="training budget in env steps (default: the config's); with --resume: steps to add "
-        "(default: finish the run's budget)",
-    )
-    parser.add_argument(
-        "--n-envs",
-        type=lambda t: cli.int_at_least(t, 1),
-        metavar="N",
-        help="training envs (default: config)",
-    )
-    parser.add_argument(
-        "--seed",
-        type=lambda t: cli.int_at_least(t, 0),
-        metavar="S",
-        help="base seed; training sub-env i is seeded with S + i (default: 0)",
-    )
+    add_recipe_options(parser)
     # kept as text: Path("") would turn an empty argument into the current directory
     parser.add_argument(
         "--out",
         metavar="DIR",
         help="run directory (created; one run at a time; refused if it holds a model)",
-    )
-    cli.add_config_options(
-        parser,
-        "agents/configs/<env>_<algo>.yaml",
-        "--set algo_kwargs.batch_size=512 --set normalize.enabled=false",
     )
     parser.add_argument(
         "--init",
@@ -89,14 +58,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     cli.add_suite_refusal(parser)
     parser.add_argument(
-        "--threads",
-        type=lambda t: cli.int_at_least(t, 1),
-        default=1,
-        metavar="N",
-        help="torch CPU threads (default: 1; more threads compete with the envs for the cores, "
-        "see docs/training.md)",
-    )
-    parser.add_argument(
         "--device",
         default="cpu",
         help="torch device: cpu, auto, cuda, cuda:<N> or mps, if this machine has it "
@@ -113,12 +74,15 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("give --out DIR (a new run) or --resume DIR")
     cli.interrupt_on_signals()
 
-    from agents.experiments.training.run import TrainOptions, train
+    from agents.experiments.training.run import TrainOptions, TrainWriteError, train
 
     # the parser's destinations are the option names
     options = TrainOptions(**vars(args), argv=cli.command_words(argv))
     try:
         result = train(options)
+    except TrainWriteError as exc:  # mid-run: not a usage error
+        print(f"train.py: {exc}", file=sys.stderr)
+        return 1
     except (FileNotFoundError, FileExistsError, ValueError) as exc:
         parser.error(cli_error(exc))
     except KeyboardInterrupt:  # before learning started: nothing to save
@@ -137,7 +101,8 @@ def main(argv: list[str] | None = None) -> int:
         f"({result.env_steps_per_s:,.0f} env-steps/s)\n"
         f"  {result.model_path}\n  {out / 'config.yaml'}\n  {out / 'learning_curve.png'}\n"
         f"  {out / 'train_log.json'}\n"
-        f"evaluate with: python evaluate.py --agents apf,{_algo(out)}={result.model_path}"
+        "evaluate with: "
+        + cli.evaluate_command(result.env_id, f"apf,{result.algo}={result.model_path}")
     )
     return 0
 
@@ -145,15 +110,6 @@ def main(argv: list[str] | None = None) -> int:
 def cli_error(exc: Exception) -> str:
     """The usage-error text of a rejected option (output-directory errors name their flag)."""
     return f"argument {exc.flag}: {exc}" if isinstance(exc, OutputDirError) else str(exc)
-
-
-def _algo(out: Path) -> str:
-    import yaml
-
-    try:
-        return str(yaml.safe_load((out / "config.yaml").read_text())["algo"])
-    except (OSError, KeyError, TypeError):
-        return "ppo"
 
 
 if __name__ == "__main__":

@@ -12,11 +12,15 @@ import json
 import time
 from pathlib import Path
 
+from agents.experiments.cli import integer
 from bench.machine import machine_description
 from bench.memory import memory_child
 from bench.report import format_report
 from bench.suite import SECTIONS, choose_sections, run
 from debris_gym.files import write_atomic
+
+MAX_ENVS = 1_000_000
+"""Most sub-envs of one memory measurement."""
 
 DESCRIPTION = "Step and reset throughput of the DebrisGym environments, relative to CartPole-v1."
 
@@ -64,7 +68,9 @@ def main(
         "against the debris count",
     )
     parser.add_argument("--out", metavar="FILE", help="also write the Markdown report to FILE")
-    parser.add_argument("--memory-child", type=int, metavar="N", help=argparse.SUPPRESS)
+    parser.add_argument(
+        "--memory-child", type=integer(1, MAX_ENVS), metavar="N", help=argparse.SUPPRESS
+    )
     args = parser.parse_args(argv)
     if args.memory_child is not None:  # internal: one fresh-process memory measurement
         print(json.dumps(memory_child(args.memory_child)))

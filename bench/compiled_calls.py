@@ -18,6 +18,7 @@ import gymnasium as gym
 import numpy as np
 
 import debris_gym  # noqa: F401  (registers the IDs)
+from agents.experiments.cli import integer
 from debris_gym.mission_batch import MissionBatch
 
 
@@ -58,9 +59,9 @@ def time_calls(env_id: str, num: int, steps: int, warmup: int) -> dict[str, np.n
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("ids", help="comma-separated env IDs (DebrisGym/ may be left out)")
-    parser.add_argument("--num", type=int, default=1024)
-    parser.add_argument("--steps", type=int, default=400)
-    parser.add_argument("--warmup", type=int, default=150)
+    parser.add_argument("--num", type=integer(1, 1_000_000), default=1024)
+    parser.add_argument("--steps", type=integer(1, 1_000_000), default=400)
+    parser.add_argument("--warmup", type=integer(0, 1_000_000), default=150)
     args = parser.parse_args()
     warnings.filterwarnings("ignore")  # the v0 IDs' deprecation notice
     for env_id in args.ids.split(","):

@@ -22,6 +22,7 @@ import gymnasium as gym
 import numpy as np
 
 import debris_gym  # noqa: F401  (registers the IDs)
+from agents.experiments.cli import integer
 from debris_gym.generators import FieldSpec, random_fields
 
 N = 1.1314e-3  # rad/s
@@ -74,9 +75,9 @@ def reset_costs(ids: tuple[str, ...], resets: int, passes: int) -> dict[str, flo
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--passes", type=int, default=5)
-    parser.add_argument("--count", type=int, default=2048)
-    parser.add_argument("--resets", type=int, default=2000)
+    parser.add_argument("--passes", type=integer(1, 1_000), default=5)
+    parser.add_argument("--count", type=integer(1, 1_000_000), default=2048)
+    parser.add_argument("--resets", type=integer(1, 1_000_000), default=2000)
     args = parser.parse_args(argv)
     print("| field | batch of 1 (µs/field) | batch of 64 (µs/field) |")
     print("|---|---|---|")

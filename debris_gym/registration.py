@@ -5,7 +5,30 @@ Variants are registrations with different keyword arguments, not subclasses.
 
 from __future__ import annotations
 
+import re
+
 import gymnasium as gym
+
+MIN_GYMNASIUM = (1, 0)
+"""The oldest gymnasium the envs run on (its reset and vector-env API; 0.29 lacks both)."""
+
+
+def require_gymnasium(version: str) -> None:
+    """Refuse a gymnasium older than :data:`MIN_GYMNASIUM` at import, with the fix, rather than
+    an ``AttributeError`` deep inside the first ``reset``.
+
+    Raises:
+        ImportError: ``version`` is older than 1.0 (or not a version number).
+    """
+    found = re.match(r"(\d+)\.(\d+)", version)
+    if found is None or (int(found[1]), int(found[2])) < MIN_GYMNASIUM:
+        raise ImportError(
+            f"debris-gym needs gymnasium >= {'.'.join(map(str, MIN_GYMNASIUM))}, found "
+            f"gymnasium {version}; upgrade it: pip install 'gymnasium>=1.0'"
+        )
+
+
+require_gymnasium(gym.__version__)
 
 ENTRY_POINT = "debris_gym.envs.debris_field:DebrisFieldEnv"
 VECTOR_ENTRY_POINT = "debris_gym.envs.vector:DebrisFieldVectorEnv"

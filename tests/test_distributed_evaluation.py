@@ -59,7 +59,7 @@ def test_backend_options_are_checked_before_anything_runs(cli, capsys, tmp_path)
     err = _usage_error(cli, capsys, [*QUICK, "--workers", "2", "--out", str(out)])
     assert "argument --workers: needs --backend ray" in err
     err = _usage_error(cli, capsys, [*QUICK, "--backend", "ray", "--workers", "0"])
-    assert "argument --workers: must be >= 1, got 0" in err
+    assert "argument --workers: must be an integer >= 1" in err
     err = _usage_error(cli, capsys, [*QUICK, "--backend", "dask"])
     assert "argument --backend: invalid choice: 'dask'" in err
     if HAS_RAY:

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 import yaml
 
+from agents.experiments.config_files import load_config_file
 from agents.experiments.training.config import TrainConfig, default_config_path
 from agents.experiments.training.sweep_config import SweepParam
-from agents.policies.model_files import load_config_file
 
 EASY = "DebrisGym/Rendezvous2D-Easy-v1"
 HAS_RAY = importlib.util.find_spec("ray") is not None

@@ -18,7 +18,7 @@ pytest.importorskip("stable_baselines3")
 import torch
 
 import agents
-from agents.experiments.config_files import CONFIG_DIR
+from agents.experiments.config_files import CONFIG_DIR, ConfigError, load_config_file
 from agents.experiments.imitation.config import ImitationConfig
 from agents.experiments.imitation.run import imitate
 from agents.experiments.training.anchored import (
@@ -29,7 +29,6 @@ from agents.experiments.training.anchored import (
 from agents.experiments.training.config import TrainConfig
 from agents.experiments.training.finetune import REFERENCE_MODEL
 from agents.experiments.training.run import TrainOptions, resolve_config, train
-from agents.policies.model_files import ConfigError, load_config_file
 from tests.helpers import load_script
 
 ENV_ID = "DebrisGym/Rendezvous2D-v1"

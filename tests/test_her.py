@@ -252,5 +252,7 @@ def test_cli_control_run(tmp_path, capsys):
     factory = load_policy(out / "model.zip")
     adapter = factory(gym.make(EASY))
     assert isinstance(adapter, GoalPolicy) and not adapter.goal_conditioned
-    assert main(["--timesteps", "0", "--out", str(tmp_path / "x")]) == 2
-    assert "timesteps: an integer >= 1" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        main(["--timesteps", "0", "--out", str(tmp_path / "x")])
+    assert exc.value.code == 2
+    assert "argument --timesteps: must be an integer >= 1" in capsys.readouterr().err

@@ -345,7 +345,7 @@ def tiny_sets() -> list[str]:
 @pytest.mark.parametrize(
     "setting, message",
     [
-        ("net_arch=5", "net_arch=5 is out of range; allowed: a non-empty list of integer widths"),
+        ("net_arch=5", "net_arch=5 is out of range; allowed: a non-empty list of at most 16"),
         ("net_arch=[1e9]", "net_arch"),
         ("net_arch=[abc]", "net_arch"),
         ("max_episode_steps=2.5", "max_episode_steps must be an integer >= 1, got 2.5"),

@@ -11,8 +11,8 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
+from agents.experiments.config_files import load_config_file
 from agents.experiments.training.config import default_config_path
-from agents.policies.model_files import load_config_file
 from tests.helpers import load_script
 
 EASY = "DebrisGym/Rendezvous2D-Easy-v1"

@@ -46,6 +46,40 @@ def test_check_output_dir_rejects_a_file_and_a_path_under_a_file(tmp_path):
         check_output_dir(afile / "x" / "y")
 
 
+def test_check_output_dir_refuses_paths_the_file_system_cannot_hold(tmp_path):
+    """Regression: a 300-character name raised OSError (ENAMETOOLONG) and 2 000 levels a
+    RecursionError, where a usage error naming --out was due."""
+    with pytest.raises(OutputDirError, match=r"is 300 bytes long; .* at most 255") as info:
+        check_output_dir(tmp_path / ("x" * 300))
+    assert info.value.flag == "--out"
+    with pytest.raises(OutputDirError, match=r"levels\) made absolute; .* at most 3840"):
+        check_output_dir(tmp_path.joinpath(*["d"] * 2000))
+    with pytest.raises(OutputDirError, match="is 256 bytes long"):  # bytes, not characters
+        check_output_dir(tmp_path / ("é" * 128))
+
+
+def test_a_deep_output_directory_within_the_limits_is_created_and_locked(tmp_path):
+    """``Path.mkdir(parents=True)`` recurses once per level: past Python's recursion limit for a
+    path of 1 500 levels (3 000 bytes), which the file system holds."""
+    deep = tmp_path.joinpath(*["d"] * 1500)
+    try:
+        assert check_output_dir(deep) == deep
+        with RunDirectoryLock(deep):
+            assert deep.is_dir()
+        with OutputSet(deep) as files:
+            (files.path("a.txt")).write_text("a")
+            files.commit()
+        assert (deep / "a.txt").read_text() == "a"
+    finally:  # pytest's clean-up (shutil.rmtree) recurses once per level too
+        level = deep
+        while level != tmp_path:
+            if level.is_dir():
+                for child in level.iterdir():
+                    child.unlink()
+                level.rmdir()
+            level = level.parent
+
+
 @pytest.mark.skipif(os.geteuid() == 0, reason="root may write anywhere")
 def test_check_output_dir_rejects_an_unwritable_place(tmp_path):
     locked = tmp_path / "ro"

@@ -14,10 +14,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import debris_gym  # noqa: F401
-from agents.experiments.config_files import CONFIG_DIR
+from agents.experiments.config_files import CONFIG_DIR, load_config_file
 from agents.experiments.training.config import TrainConfig
 from agents.experiments.training.run import TrainOptions, train
-from agents.policies.model_files import load_config_file
 from agents.policies.set_encoder import SlotSetExtractor, slot_layout
 
 torch = pytest.importorskip("torch")
@@ -180,8 +179,12 @@ def test_a_recurrent_run_carries_its_lstm_state_through_an_episode(tmp_path):
 def test_recurrent_ppo_without_sb3_contrib_is_a_clear_error(monkeypatch):
     import sys
 
-    from agents.policies.model_files import ConfigError, algo_class
+    from agents.experiments.config_files import ConfigError
+    from agents.policies.model_files import algo_class
 
     monkeypatch.setitem(sys.modules, "sb3_contrib", None)  # import fails
-    with pytest.raises(ConfigError, match="pip install sb3-contrib"):
+    with pytest.raises(ValueError, match="pip install sb3-contrib"):
         algo_class("recurrent_ppo")
+    data, _ = load_config_file(CONFIG_DIR / "rendezvous2d-easy_recurrent_ppo.yaml")
+    with pytest.raises(ConfigError, match=r"config key 'algo' .*pip install sb3-contrib"):
+        TrainConfig.from_dict(data, "recipe")

@@ -136,8 +136,8 @@ def test_bad_files_and_names_are_named(tmp_path):
 
 def _default_training_seeds() -> list[range]:
     """Every reset seed a checked-in training config uses at the default --seed 0."""
+    from agents.experiments.config_files import load_config_file
     from agents.experiments.training.config import available_configs
-    from agents.policies.model_files import load_config_file
 
     ranges = []
     for stem in available_configs():
@@ -158,8 +158,8 @@ def test_suite_seeds_are_disjoint_from_default_training_and_evaluation_seeds():
 
 
 def test_training_refuses_seeds_that_are_a_suites(monkeypatch, tmp_path):
+    from agents.experiments.config_files import load_config_file
     from agents.experiments.training import resolve
-    from agents.policies.model_files import load_config_file
 
     # a suite whose seeds sit where training would seed its envs
     base = suites.load_suite("standard-2d-v1")

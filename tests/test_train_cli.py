@@ -22,12 +22,12 @@ from hypothesis import strategies as st
 
 pytest.importorskip("stable_baselines3")
 
+from agents.experiments.config_files import load_config_file
 from agents.experiments.run_directory import RunDirectoryLock
 from agents.experiments.training.checkpoints import model_timesteps, scan_checkpoints
 from agents.experiments.training.config import TrainConfig, default_config_path
 from agents.experiments.training.run import TrainOptions, train
 from agents.experiments.training.validation import ALGO_KWARG_RANGES, algo_kwarg_range
-from agents.policies.model_files import load_config_file
 from tests.helpers import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -341,9 +341,10 @@ def test_auto_device_is_recorded_as_the_device_used():
         (["--resume", "{tmp}/nothere"], "no such run directory"),
         (["--resume", "{tmp}"], "not a run of train.py (no config.yaml)"),
         (["--resume", "{tmp}/afile"], "no such run directory"),
-        ([*TINY, "--out", "{tmp}/r", "--timesteps", "inf"], "must be an integer"),
+        ([*TINY, "--out", "{tmp}/r", "--timesteps", "inf"], "--timesteps: must be an integer"),
         ([*TINY, "--out", "{tmp}/r", "--set", "algo_kwargs=5"], "algo_kwargs must be a mapping"),
-        ([*TINY, "--out", "{tmp}/r", "--config", "{tmp}"], "not found"),
+        ([*TINY, "--out", "{tmp}/r", "--config", "{tmp}"], "is a directory, not a config file"),
+        ([*TINY, "--out", "{tmp}/r", "--config", "{tmp}/nothere.yaml"], "not found"),
         ([*TINY, "--out", "{tmp}/r", "--seed", "999999"], "seed + n_envs <= 1000000"),
     ],
 )
@@ -384,3 +385,120 @@ def test_resume_with_a_damaged_replay_buffer_starts_an_empty_one(train_cli, tmp_
     assert train_cli.main(["--resume", str(out), "--timesteps", "32", "--no-progress"]) == 0
     err = capsys.readouterr().err
     assert "replay buffer replay_buffer.pkl is damaged" in err and "empty buffer" in err
+
+
+# --- inputs that ended in a traceback ----------------------------------------------------------
+
+CARTPOLE_RECIPE = "version: 1\nenv_id: CartPole-v1\nalgo: ppo\ntimesteps: 256\nn_envs: 2\n"
+SAC = ["--no-progress", "--n-envs", "2", "--timesteps", "256", "--algo", "sac"]
+for _item in ("eval.freq=0", "policy_kwargs.net_arch=[16]", "algo_kwargs.learning_starts=10"):
+    SAC += ["--set", _item]
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--out", "{tmp}/" + "x" * 300], "argument --out: the name xxx"),
+        (["--out", "{tmp}/" + "/".join(["d"] * 2000)], "argument --out: the path is"),
+        (["--set", "env_id=CartPole-v1"], "'env_id' is not a DebrisGym env: 'CartPole-v1'"),
+        (["--config", "{tmp}/cartpole.yaml"], "'env_id' is not a DebrisGym env: 'CartPole-v1'"),
+        (["--set", "x=!!python/name:os.system"], "--set 'x=!!python/name:os.system': the value"),
+        (
+            ["--set", "policy_kwargs.net_arch=[100000, 100000]"],
+            "'policy_kwargs.net_arch' must be a list of at most 16 layer sizes in [1, 4096]",
+        ),
+        (
+            [*SAC, "--set", "algo_kwargs.buffer_size=1e12"],
+            "'algo_kwargs.buffer_size' must be an integer in [1, 1000000000]",
+        ),
+        (
+            ["--set", "curriculum=[{until: .nan, mission: {}}]"],
+            "'curriculum[0].until' must be an integer, got nan",
+        ),
+        (
+            ["--set", "curriculum=[{until: .inf, mission: {}}]"],
+            "'curriculum[0].until' must be an integer, got inf",
+        ),
+        (["--config", "{tmp}/binary.yaml"], "binary.yaml: not a YAML text file (byte 128 is"),
+        (["--config", "/dev/null"], "/dev/null: is empty; a config file holds a mapping"),
+    ],
+)
+def test_inputs_that_raised_tracebacks_are_usage_errors_naming_the_key(
+    argv, message, train_cli, tmp_path, capsys
+):
+    (tmp_path / "cartpole.yaml").write_text(CARTPOLE_RECIPE)
+    (tmp_path / "binary.yaml").write_bytes(bytes(range(256)) * 8)
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
+    if "--out" not in argv:
+        argv += ["--out", str(tmp_path / "r")]
+    base = [] if "--algo" in argv else TINY
+    before = snapshot(tmp_path)
+    assert message in refused(train_cli, [*base, *argv], capsys)
+    assert snapshot(tmp_path) == before
+
+
+def test_a_replay_buffer_larger_than_the_memory_is_refused(
+    monkeypatch, train_cli, tmp_path, capsys
+):
+    """Regression: a buffer numpy cannot allocate (269 TiB) ended in an _ArrayMemoryError."""
+    from agents.experiments.training import models
+
+    monkeypatch.setattr(models, "machine_memory_bytes", lambda: 2**30)
+    argv = [*SAC, "--set", "algo_kwargs.buffer_size=10_000_000", "--out", str(tmp_path / "r")]
+    err = refused(train_cli, argv, capsys)
+    assert "config key 'algo_kwargs.buffer_size' asks for a replay buffer of 5.7 GiB" in err
+    assert "this machine has 1.0 GiB of memory" in err
+    assert not (tmp_path / "r").exists()
+
+
+def test_a_network_that_does_not_fit_in_memory_is_a_usage_error(
+    monkeypatch, train_cli, tmp_path, capsys
+):
+    """torch reports a failed allocation as a RuntimeError; it names the config keys."""
+    from agents.experiments.training import models
+
+    def no_memory(*args, **kwargs):
+        raise RuntimeError(
+            "[enforce fail at alloc_cpu.cpp:127] err == 0. DefaultCPUAllocator: can't allocate "
+            "memory: you tried to allocate 40000000000 bytes."
+        )
+
+    monkeypatch.setattr(models, "algo_class", lambda algo: no_memory)
+    err = refused(train_cli, [*TINY, "--out", str(tmp_path / "r")], capsys)
+    assert "does not fit in this machine's memory" in err and "policy_kwargs.net_arch" in err
+
+
+def test_the_evaluate_command_train_py_prints_flies_the_model_on_its_own_env(
+    train_cli, tmp_path, capsys
+):
+    """Regression: the printed command had no --env, so it flew an Easy-rung model on the
+    default task."""
+    out = tmp_path / "run"
+    assert (
+        train_cli.main([*TINY, "--env", "DebrisGym/Rendezvous2D-Easy-v1", "--out", str(out)]) == 0
+    )
+    printed = capsys.readouterr().out.splitlines()[-1]
+    assert printed == (
+        "evaluate with: python evaluate.py --env DebrisGym/Rendezvous2D-Easy-v1 --agents "
+        f"apf,ppo={out / 'model.zip'}"
+    )
+
+
+def test_every_algorithm_the_readme_offers_for_an_env_has_a_recipe():
+    """Regression: the README offered recurrent_ppo on the full task, which has no recipe."""
+    import re
+
+    from agents.experiments.training.config import ALGOS
+    from agents.experiments.training.resolve import resolve_config
+
+    text = (ROOT / "README.md").read_text()
+    offered = []
+    for line in text.splitlines():
+        found = re.match(r"python train\.py --env (\S+) --algo (\S+) .*#(.*)$", line)
+        if found:
+            words = re.findall(r"[a-z_0-9]+", found[3])
+            offered += [(found[1], a) for a in [found[2], *(w for w in words if w in ALGOS)]]
+    assert ("DebrisGym/Rendezvous2D-v1", "ppo") in offered and len(offered) >= 4
+    for env_id, algo in offered:
+        config, _ = resolve_config(TrainOptions(env_id=env_id, algo=algo))
+        assert (config.env_id, config.algo) == (env_id, algo)

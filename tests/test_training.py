@@ -27,7 +27,7 @@ import yaml
 pytest.importorskip("stable_baselines3")
 
 import agents
-from agents.experiments.config_files import CONFIG_DIR, apply_overrides
+from agents.experiments.config_files import CONFIG_DIR, apply_overrides, load_config_file
 from agents.experiments.training.checkpoints import (
     find_latest_checkpoint,
     interrupts_deferred,
@@ -41,7 +41,7 @@ from agents.experiments.training.config import (
 )
 from agents.experiments.training.run import TrainOptions, train
 from agents.policies.learned import LearnedAgent
-from agents.policies.model_files import load_config_file, sidecar_path
+from agents.policies.model_files import sidecar_path
 from debris_gym.files import save_atomic
 from tests.helpers import load_script
 

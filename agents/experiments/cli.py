@@ -1,36 +1,101 @@
-"""Command-line pieces that ``train.py``, ``evaluate.py`` and ``imitate.py`` share: the parser
-frame, the config-file options, Ctrl-C handling and the command line a run records."""
+"""Command-line pieces every script shares (``train.py``, ``evaluate.py``, ``sweep.py``,
+``imitate.py``, ``python -m bench``): the parser frame, integer options, the config-file
+options, Ctrl-C handling and the command line a run records."""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import decimal
+import shlex
 import signal
 import sys
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 __all__ = [
+    "IntegerOption",
     "add_config_options",
+    "add_suite_refusal",
     "command_words",
-    "int_at_least",
+    "evaluate_command",
+    "integer",
     "interrupt_on_signals",
+    "refuse_suite",
     "script_parser",
 ]
 
 
-def int_at_least(text: str, low: int) -> int:
-    """An integer option's value (``1_000_000`` and ``1e6`` read too), at least ``low``.
+MAX_SEED = 2**128 - 1
+"""Largest reset seed a script's ``--seed`` takes (gymnasium takes any integer >= 0 as a numpy
+``SeedSequence`` entropy; 128 bits is that entropy's size)."""
 
-    Raises:
-        argparse.ArgumentTypeError: not an integer, or below ``low``.
+MAX_EPISODES = 1_000_000
+"""Most episodes (per agent, plotted or recorded) a script's option asks for."""
+
+MAX_EPISODE_STEPS = 10_000_000
+"""Longest episode time limit (steps) an option sets."""
+
+MAX_WORKERS = 4096
+"""Most worker processes (or Ray tasks at once) a script's ``--workers`` asks for."""
+
+MAX_NUMBER_TEXT = 100
+"""Longest integer option text read (a longer one is a typo)."""
+
+
+@dataclass(frozen=True)
+class IntegerOption:
+    """The ``type=`` of an integer option: a whole number in ``[low, high]``.
+
+    Every script reads integer options with it, so they all accept the same forms: plain
+    digits, ``_`` between digits, and exponent or decimal forms whose value is whole (``1e6``,
+    ``1.5e3``, ``2.0``). The value is read exactly (as a :class:`~decimal.Decimal`), so
+    ``2.5e0`` is refused rather than cut to 2 and ``1e400`` is out of range rather than an
+    overflow.
+
+    Attributes:
+        low, high: the allowed range, both included.
     """
-    try:
-        value = int(float(text)) if "e" in text.lower() else int(text.replace("_", ""))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
-    if value < low:
-        raise argparse.ArgumentTypeError(f"must be >= {low}, got {value}")
-    return value
+
+    low: int
+    high: int
+
+    def __call__(self, text: str) -> int:
+        """The value of ``text``.
+
+        Raises:
+            argparse.ArgumentTypeError: not a whole number in ``[low, high]`` (the message
+                gives the range; argparse names the option in front of it).
+        """
+        stripped = text.strip()
+        value = None
+        if len(stripped) <= MAX_NUMBER_TEXT and stripped.isascii():
+            with contextlib.suppress(ValueError):
+                float(stripped)  # the forms of a Python number literal ("_" between digits)
+                value = decimal.Decimal(stripped.replace("_", ""))  # its exact value
+        if (
+            value is None
+            or not value.is_finite()
+            or value != value.to_integral_value()
+            or not self.low <= value <= self.high
+        ):
+            raise argparse.ArgumentTypeError(
+                f"must be an integer >= {self.low:_} and <= {self.high:_} (e.g. 1000, 1_000 or "
+                f"1e3), got {text!r}"
+            )
+        return int(value)
+
+
+def integer(low: int, high: int) -> IntegerOption:
+    """The ``type=`` of an integer option in ``[low, high]`` (:class:`IntegerOption`)."""
+    return IntegerOption(low, high)
+
+
+def evaluate_command(env_id: str, agents: str) -> str:
+    """The ``evaluate.py`` command line that flies ``agents`` on ``env_id`` (what a script that
+    made a model prints: the model's own env, not evaluate.py's default)."""
+    return shlex.join(["python", "evaluate.py", "--env", env_id, "--agents", agents])
 
 
 def script_parser(prog: str, doc: str | None, epilog: str) -> argparse.ArgumentParser:

@@ -40,6 +40,7 @@ import gymnasium as gym
 import numpy as np
 
 import debris_gym  # registers the IDs; locates the suite folder
+from agents.experiments.cli import MAX_EPISODES, MAX_SEED, integer
 from agents.planners.rrt import RRTParams
 from agents.policies.registry import make_agent
 from debris_gym.scenario import Scenario
@@ -319,14 +320,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     sub = parser.add_subparsers(dest="command", required=True)
     sel = sub.add_parser("select", help="screen seeds and write the suite file")
-    sel.add_argument("--count", type=int, default=SUITE_SIZE, help="missions to keep")
-    sel.add_argument("--first-seed", type=int, default=FIRST_SEED, help="first seed tried")
+    sel.add_argument("--count", type=integer(1, MAX_EPISODES), default=SUITE_SIZE, help="missions")
+    sel.add_argument(
+        "--first-seed", type=integer(0, MAX_SEED), default=FIRST_SEED, help="first seed tried"
+    )
     sel.add_argument("--out", type=Path, default=SUITE_PATH, help="suite file to write")
     sel.add_argument("--log", type=Path, default=None, help="also write every screen (JSONL)")
     mea = sub.add_parser("measure", help="fly baselines on the suite, print a table")
     mea.add_argument("--suite", type=Path, default=SUITE_PATH, help="suite file to read")
     mea.add_argument("--agents", default="apf,apf-rrt,apf-mpc,astar", help="baselines, comma-sep")
-    mea.add_argument("--episodes", type=int, default=None, help="fly the first N missions")
+    mea.add_argument(
+        "--episodes", type=integer(1, MAX_EPISODES), default=None, help="fly the first N missions"
+    )
     mea.add_argument("--json", type=Path, default=None, help="also write the rows (JSON)")
     args = parser.parse_args(argv)
     if args.command == "select":

@@ -40,6 +40,7 @@ __all__ = [
     "RunDirectoryLock",
     "check_output_dir",
     "deferred_interrupts",
+    "make_dirs",
 ]
 
 MANIFEST = "manifest.json"
@@ -61,18 +62,28 @@ class RunDirectoryBusy(OutputDirError):
     """Another running process holds the directory's lock."""
 
 
+MAX_NAME_BYTES = 255
+"""Longest file or directory name (bytes) on the usual file systems (ext4, XFS, APFS, NTFS)."""
+
+MAX_PATH_BYTES = 4096 - 256
+"""Longest output directory path (bytes, made absolute): Linux's PATH_MAX less room for the
+files a run writes inside it (``checkpoints/…``, ``videos/<agent>/…``)."""
+
+
 def check_output_dir(path: str | os.PathLike[str], flag: str = "--out") -> Path:
     """The directory ``path`` names, checked to be usable for a run's outputs.
 
     Nothing is created: the directory may be made later, when the run has something to write.
 
     Raises:
-        OutputDirError: ``path`` is empty, is (or lies under) a file, or can be neither created
-            nor written by this user.
+        OutputDirError: ``path`` is empty, has a name longer than :data:`MAX_NAME_BYTES` or is
+            longer than :data:`MAX_PATH_BYTES` in all, is (or lies under) a file, or can be
+            neither created nor written by this user.
     """
     text = os.fspath(path)
     if not str(text).strip():
         raise OutputDirError(flag, "must name a directory, got an empty string")
+    _check_length(str(text), flag)
     out = Path(text)
     if out.exists() and not out.is_dir():
         raise OutputDirError(flag, f"{out} is a file, not a directory")
@@ -87,6 +98,38 @@ def check_output_dir(path: str | os.PathLike[str], flag: str = "--out") -> Path:
         what = "write into" if existing == out else f"create directories in {existing} for"
         raise OutputDirError(flag, f"cannot {what} {out} (permission denied)")
     return out
+
+
+def _check_length(text: str, flag: str) -> None:
+    """Refuse a path the file system cannot hold, before any system call sees it."""
+    for name in Path(text).parts:
+        size = len(os.fsencode(name))
+        if size > MAX_NAME_BYTES:
+            raise OutputDirError(
+                flag,
+                f"the name {name[:40]}… is {size} bytes long; file and directory names hold at "
+                f"most {MAX_NAME_BYTES}",
+            )
+    size = len(os.fsencode(os.path.abspath(text)))
+    if size > MAX_PATH_BYTES:
+        raise OutputDirError(
+            flag,
+            f"the path is {size} bytes long ({len(Path(text).parts)} levels) made absolute; an "
+            f"output directory's path holds at most {MAX_PATH_BYTES} (room is left for the "
+            "files inside it)",
+        )
+
+
+def make_dirs(path: Path) -> None:
+    """Create ``path`` and its missing parents, one level at a time (``Path.mkdir(parents=True)``
+    recurses once per level, past Python's recursion limit for a deep path)."""
+    missing = []
+    level = path
+    while not level.is_dir() and level.parent != level:
+        missing.append(level)
+        level = level.parent
+    for directory in reversed(missing):
+        directory.mkdir(exist_ok=True)
 
 
 class RunDirectoryLock:
@@ -110,7 +153,7 @@ class RunDirectoryLock:
                 :func:`check_output_dir` cannot foresee, e.g. a read-only or virtual file system).
         """
         try:
-            self.out.mkdir(parents=True, exist_ok=True)
+            make_dirs(self.out)
             fd = os.open(self.out / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o644)
         except OSError as exc:
             raise OutputDirError(
@@ -194,7 +237,7 @@ class OutputSet:
         self.committed: list[Path] = []
 
     def __enter__(self) -> OutputSet:
-        self.out.mkdir(parents=True, exist_ok=True)
+        make_dirs(self.out)
         for leftover in self.out.glob(STAGING_PREFIX + "*"):  # of a killed run (callers hold
             shutil.rmtree(leftover, ignore_errors=True)  # the directory's lock)
         self._staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=self.out))

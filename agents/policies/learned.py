@@ -28,10 +28,10 @@ import numpy as np
 from gymnasium import spaces
 
 from agents.policies.model_files import (
-    ALGOS,
     FINAL_MODEL,
+    LEARNED_ALGOS,
     algo_class,
-    load_config_file,
+    read_config_mapping,
     sidecar_path,
 )
 
@@ -251,7 +251,7 @@ def _run_config(path: Path) -> dict[str, Any] | None:
     if config is None:
         return None
     try:
-        data, _ = load_config_file(config)
+        data = read_config_mapping(config)
     except (OSError, UnicodeDecodeError, ValueError) as exc:
         raise ValueError(
             f"{config}: the run config of {path} is damaged ({exc}); restore it from the "
@@ -381,12 +381,13 @@ def _parse(spec: str) -> tuple[str, Path | None]:
     if not seps:
         raise ValueError(
             f"learned agent {text!r}: expected ALGO:PATH or ALGO=PATH (ALGO one of "
-            f"{', '.join(ALGOS)}) or {PRETRAINED!r}"
+            f"{', '.join(LEARNED_ALGOS)}) or {PRETRAINED!r}"
         )
     algo, path = text[: min(seps)].strip().lower(), text[min(seps) + 1 :].strip()
-    if algo not in ALGOS:
+    if algo not in LEARNED_ALGOS:
         raise ValueError(
-            f"unknown learning algorithm {algo!r} in {text!r}; use one of {', '.join(ALGOS)}"
+            f"unknown learning algorithm {algo!r} in {text!r}; use one of "
+            f"{', '.join(LEARNED_ALGOS)}"
         )
     if not path:
         raise ValueError(f"learned agent {text!r} needs a model path: {algo}:path/to/model.zip")
@@ -469,7 +470,7 @@ def load_agent(spec: str, env: Any, device: str = "cpu") -> LearnedAgent:
     """Load a learned policy for ``env``.
 
     Args:
-        spec: ``"ALGO:PATH"`` or ``"ALGO=PATH"`` (ALGO in :data:`ALGOS`; PATH an SB3 zip
+        spec: ``"ALGO:PATH"`` or ``"ALGO=PATH"`` (ALGO in :data:`LEARNED_ALGOS`; PATH an SB3 zip
             written by ``train.py``, e.g. ``runs/ppo/model.zip``), or ``"pretrained"``.
         env: the env it will fly (gymnasium env, SB3 VecEnv or gymnasium VectorEnv); only its
             spaces (and, for ``pretrained``, its ID) are used.

@@ -33,7 +33,7 @@ from typing import Any
 
 import gymnasium as gym
 
-from agents.policies.model_files import ALGOS
+from agents.policies.model_files import LEARNED_ALGOS
 
 __all__ = [
     "LEARNED_ALGOS",
@@ -48,7 +48,6 @@ __all__ = [
     "resolve_python_agent",
 ]
 
-LEARNED_ALGOS = ALGOS
 """Algorithms a learned-agent spec ``ALGO=PATH`` may name (those ``train.py`` trains)."""
 
 PRETRAINED = "pretrained"

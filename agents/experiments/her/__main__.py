@@ -11,7 +11,8 @@ from __future__ import annotations
 import sys
 from collections.abc import Sequence
 
-from agents.experiments.cli import script_parser
+from agents.experiments.cli import integer, script_parser
+from agents.experiments.training.config import EVAL_SEED, MAX_EVAL_EPISODES, MAX_TIMESTEPS
 
 EPILOG = """examples:
   python -m agents.experiments.her --timesteps 300000 --seed 0 --out runs/her
@@ -24,8 +25,16 @@ EPILOG = """examples:
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse ``argv`` and train; returns the exit status."""
     parser = script_parser("python -m agents.experiments.her", __doc__, EPILOG)
-    parser.add_argument("--timesteps", type=int, required=True, metavar="N", help="env steps, >= 1")
-    parser.add_argument("--seed", type=int, default=0, help="seed, >= 0 (default: 0)")
+    parser.add_argument(
+        "--timesteps",
+        type=integer(1, MAX_TIMESTEPS),
+        required=True,
+        metavar="N",
+        help="env steps, >= 1",
+    )
+    parser.add_argument(
+        "--seed", type=integer(0, EVAL_SEED - 1), default=0, help="seed, >= 0 (default: 0)"
+    )
     parser.add_argument("--out", required=True, metavar="DIR", help="run directory")
     parser.add_argument(
         "--env",
@@ -35,11 +44,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--no-her", action="store_true", help="plain SAC, the control")
     parser.add_argument(
-        "--eval-freq", type=int, default=25_000, metavar="N", help="env steps between evaluations"
+        "--eval-freq",
+        type=integer(1, MAX_TIMESTEPS),
+        default=25_000,
+        metavar="N",
+        help="env steps between evaluations",
     )
     parser.add_argument(
         "--eval-episodes",
-        type=int,
+        type=integer(1, MAX_EVAL_EPISODES),
         default=20,
         metavar="N",
         help="held-out missions per evaluation",

@@ -13,8 +13,14 @@ from typing import Any
 
 import numpy as np
 
-from agents.experiments.config_files import CONFIG_DIR, apply_overrides, env_stub
-from agents.policies.model_files import load_config_file
+from agents.experiments.config_files import (
+    CONFIG_DIR,
+    MAX_LAYER_WIDTH,
+    MAX_LAYERS,
+    apply_overrides,
+    env_stub,
+    load_config_file,
+)
 
 __all__ = [
     "ACTIVATION_NAMES",
@@ -27,9 +33,6 @@ __all__ = [
 
 ACTIVATION_NAMES = ("tanh", "relu")
 """Hidden activations of the policy network."""
-
-MAX_WIDTH = 4096
-"""Widest hidden layer of the policy network (a wider one is a typo, and costs gigabytes)."""
 
 MAX_SEED = 2**31 - 1
 """Largest base seed (torch's manual_seed and the field seeds derived from it stay in range)."""
@@ -121,11 +124,13 @@ class ImitationConfig:
             not isinstance(arch, tuple)
             or not arch
             or any(isinstance(w, bool) or not isinstance(w, int) for w in arch)
-            or any(not 1 <= w <= MAX_WIDTH for w in arch)
+            or any(not 1 <= w <= MAX_LAYER_WIDTH for w in arch)
+            or len(arch) > MAX_LAYERS
         ):
             raise ValueError(
                 f"net_arch={list(arch) if isinstance(arch, tuple) else arch!r} is out of range; "
-                f"allowed: a non-empty list of integer widths in [1, {MAX_WIDTH}]"
+                f"allowed: a non-empty list of at most {MAX_LAYERS} integer widths in "
+                f"[1, {MAX_LAYER_WIDTH}]"
             )
         if self.activation_fn not in ACTIVATION_NAMES:
             raise ValueError(

@@ -6,11 +6,13 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import io
+import os
 import sys
 import time
 import zipfile
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -28,10 +30,10 @@ from agents.experiments.training.checkpoints import (
     checkpoint_steps,
     interrupts_deferred,
     save_model_files,
+    save_whole,
 )
 from agents.experiments.training.config import EVAL_SEED, TrainConfig
 from agents.policies.model_files import sidecar_path
-from debris_gym.files import save_atomic
 
 __all__ = [
     "CurriculumCallback",
@@ -83,6 +85,10 @@ class CurriculumCallback(BaseCallback):
 class EpisodeLogCallback(BaseCallback):
     """Append every finished training episode (VecMonitor's ``info["episode"]``) to a CSV.
 
+    Rows are held in memory and appended in batches; :meth:`flush` with ``sync`` puts every row
+    so far on disk, which each checkpoint does before it saves the model (so a killed run keeps
+    the rows of every step its resume starts after).
+
     Args:
         path: the CSV (``DIR/train_episodes.csv``); its header is written if it is new.
     """
@@ -122,12 +128,14 @@ class EpisodeLogCallback(BaseCallback):
             self.flush()
         return True
 
-    def flush(self) -> None:
-        """Append the rows held so far to the CSV."""
-        if self.rows:
-            with open(self.path, "a", newline="") as fh:
-                csv.writer(fh).writerows(self.rows)
-            self.rows = []
+    def flush(self, sync: bool = False) -> None:
+        """Append the rows held so far to the CSV; with ``sync``, flushed to disk too."""
+        if not self.rows and not sync:
+            return
+        text = io.StringIO()
+        csv.writer(text).writerows(self.rows)
+        append_whole(self.path, text.getvalue().encode(), sync)
+        self.rows = []
 
     def _on_rollout_end(self) -> None:
         # beside SB3's rollout/success_rate in TensorBoard and the console table
@@ -136,6 +144,26 @@ class EpisodeLogCallback(BaseCallback):
 
     def _on_training_end(self) -> None:
         self.flush()
+
+
+def append_whole(path: Path, data: bytes, sync: bool) -> None:
+    """Append ``data`` to ``path`` (flushed to disk with ``sync``), or, if the write fails (a
+    full disk), leave the file as it was: no row is ever left half-written."""
+    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)
+    try:
+        end = os.lseek(fd, 0, os.SEEK_END)
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(fd, view) :]
+            if sync:
+                os.fsync(fd)
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.ftruncate(fd, end)
+            raise
+    finally:
+        os.close(fd)
 
 
 class SaveBestCallback(BaseCallback):
@@ -154,10 +182,10 @@ class SaveBestCallback(BaseCallback):
     def _on_step(self) -> bool:
         path = self.out / "best_model.zip"
         with interrupts_deferred():
-            save_atomic(path, self.model.save)
+            save_whole(path, self.model.save)
             venv = self.model.get_vec_normalize_env()
             if venv is not None:
-                save_atomic(sidecar_path(path, "vecnormalize"), venv.save)
+                save_whole(sidecar_path(path, "vecnormalize"), venv.save)
         return True
 
 
@@ -205,7 +233,7 @@ class HeldOutEvalCallback(EvalCallback):
                 successes=self.evaluations_successes,
                 targets_captured=self.evaluations_targets,
             )
-            save_atomic(Path(self.log_path + ".npz"), lambda tmp: np.savez(tmp, **arrays))
+            save_whole(Path(self.log_path + ".npz"), lambda tmp: np.savez(tmp, **arrays))
         self.seconds += time.perf_counter() - start
         returns = self.evaluations_results[-1] if self.evaluations_results else [np.nan]
         success = self.evaluations_successes[-1] if self.evaluations_successes else [np.nan]
@@ -264,15 +292,31 @@ class PruningCheckpointCallback(CheckpointCallback):
     """CheckpointCallback that saves through :func:`save_model_files` (atomic and whole) and
     keeps the last ``keep`` checkpoints (0 = all) and the latest replay buffer.
 
+    Before the model, every record of the run up to this step goes to disk (``before_save``: the
+    episode log, flushed and synced); after it, ``after_save(path, steps)`` runs (the run's log).
+    A checkpoint on disk therefore means its run's records up to it are on disk too.
+
     Args:
         config: the run's config (what to save with each model).
         keep: periodic checkpoints kept.
+        before_save: called before each checkpoint is written.
+        after_save: called with the checkpoint's path and timesteps once it is written.
     """
 
-    def __init__(self, *args: Any, config: TrainConfig, keep: int = 0, **kwargs: Any) -> None:
+    def __init__(
+        self,
+        *args: Any,
+        config: TrainConfig,
+        keep: int = 0,
+        before_save: Callable[[], None] | None = None,
+        after_save: Callable[[Path, int], None] | None = None,
+        **kwargs: Any,
+    ) -> None:
         super().__init__(*args, **kwargs)
         self.config = config
         self.keep = keep
+        self.before_save = before_save
+        self.after_save = after_save
         self.seconds = 0.0
 
     def _on_step(self) -> bool:
@@ -280,10 +324,14 @@ class PruningCheckpointCallback(CheckpointCallback):
             return True
         start = time.perf_counter()
         with interrupts_deferred():  # atomic and whole, unlike CheckpointCallback's
+            if self.before_save is not None:
+                self.before_save()
             path = Path(self._checkpoint_path(extension="zip"))
             save_model_files(self.model, self.config, path)
             self._prune()
         self.seconds += time.perf_counter() - start
+        if self.after_save is not None:
+            self.after_save(path, self.num_timesteps)
         return True
 
     def _prune(self) -> None:
@@ -302,10 +350,17 @@ class PruningCheckpointCallback(CheckpointCallback):
 
 
 def make_callbacks(
-    config: TrainConfig, out: Path, eval_env: Any, resume_at: int | None
+    config: TrainConfig,
+    out: Path,
+    eval_env: Any,
+    resume_at: int | None,
+    after_checkpoint: Callable[[Path, int], None] | None = None,
 ) -> tuple[list[Any], HeldOutEvalCallback | None, PruningCheckpointCallback | None, Any]:
     """The callbacks of a run: (all of them, the evaluation or None, the checkpointer or None,
     the episode logger).
+
+    At a step that both evaluates and checkpoints, the evaluation runs first, so that a
+    checkpoint's step has its evaluation on disk as well as its episode rows.
 
     Args:
         config: the run's config.
@@ -313,24 +368,14 @@ def make_callbacks(
         eval_env: the evaluation VecEnv (None when ``config.eval.freq`` is 0).
         resume_at: timesteps of the checkpoint a resumed run starts from (None: a fresh run);
             the evaluation log continues up to it.
+        after_checkpoint: called with the path and timesteps of each periodic checkpoint once
+            it is written.
     """
     episodes = EpisodeLogCallback(out / "train_episodes.csv")
     callbacks: list[Any] = [episodes]
     if config.curriculum:
         callbacks.insert(0, CurriculumCallback(config))
     n = config.n_envs
-    checkpoint = None
-    if config.checkpoint.freq > 0:
-        checkpoint = PruningCheckpointCallback(
-            save_freq=max(config.checkpoint.freq // n, 1),
-            save_path=str(out / "checkpoints"),
-            name_prefix=CHECKPOINT_PREFIX,
-            save_replay_buffer=False,  # unused: _on_step saves through save_model_files
-            save_vecnormalize=False,
-            config=config,
-            keep=config.checkpoint.keep,
-        )
-        callbacks.append(checkpoint)
     evaluation = None
     if config.eval.freq > 0:
         evaluation = HeldOutEvalCallback(
@@ -346,6 +391,20 @@ def make_callbacks(
         if resume_at is not None:
             evaluation.preload(out / "evaluations.npz", resume_at)
         callbacks.append(evaluation)
+    checkpoint = None
+    if config.checkpoint.freq > 0:
+        checkpoint = PruningCheckpointCallback(
+            save_freq=max(config.checkpoint.freq // n, 1),
+            save_path=str(out / "checkpoints"),
+            name_prefix=CHECKPOINT_PREFIX,
+            save_replay_buffer=False,  # unused: _on_step saves through save_model_files
+            save_vecnormalize=False,
+            config=config,
+            keep=config.checkpoint.keep,
+            before_save=lambda: episodes.flush(sync=True),
+            after_save=after_checkpoint,
+        )
+        callbacks.append(checkpoint)
     return callbacks, evaluation, checkpoint, episodes
 
 

@@ -9,12 +9,13 @@ until the save is whole.
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import pickle
 import signal
 import threading
 import zipfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -33,6 +34,37 @@ INTERRUPTED = "interrupted"
 
 SIDECARS = ("vecnormalize", "replay_buffer")
 """The kinds of file that travel with a model (see :func:`sidecar_path`)."""
+
+
+WRITE_ERRNOS = {
+    errno.ENOSPC, errno.EDQUOT, errno.EACCES, errno.EPERM, errno.EROFS, errno.EIO, errno.EFBIG,
+    errno.ENOENT, errno.ENOTDIR, errno.ESTALE,
+}  # fmt: skip
+"""Errors of a run directory that stopped taking files (full disk or quota, permissions or a
+read-only remount, a failing or vanished device or directory)."""
+
+
+def write_failure(exc: BaseException) -> OSError | None:
+    """The file-system error behind ``exc`` (itself, or one it was raised from or during, as
+    torch's zip writer wraps it in a RuntimeError), or None if it is not a write failure."""
+    seen: BaseException | None = exc
+    while seen is not None:
+        if isinstance(seen, OSError) and seen.errno in WRITE_ERRNOS:
+            return seen
+        seen = seen.__cause__ or seen.__context__
+    return None
+
+
+def save_whole(path: Path, save: Callable[[str], None]) -> Path:
+    """:func:`~debris_gym.files.save_atomic`, with a write failure naming ``path`` (torch's zip
+    writer and numpy report a full disk without a file name)."""
+    try:
+        return save_atomic(path, save)
+    except (OSError, RuntimeError) as exc:
+        failure = write_failure(exc)
+        if failure is None or failure.filename:
+            raise
+        raise OSError(failure.errno, failure.strerror, str(path)) from exc
 
 
 def checkpoint_steps(path: Path) -> int:
@@ -177,10 +209,10 @@ def _save_replay_buffer(config: TrainConfig, model: Any) -> bool:
 def save_model_files(model: Any, config: TrainConfig, path: Path) -> list[Path]:
     """Save ``model`` at ``path`` with its VecNormalize stats and (per config) replay buffer,
     each atomically, under the :func:`sidecar_path` names. Returns the files written."""
-    written = [save_atomic(path, model.save)]
+    written = [save_whole(path, model.save)]
     venv = model.get_vec_normalize_env()
     if venv is not None:
-        written.append(save_atomic(sidecar_path(path, "vecnormalize"), venv.save))
+        written.append(save_whole(sidecar_path(path, "vecnormalize"), venv.save))
     if _save_replay_buffer(config, model):
-        written.append(save_atomic(sidecar_path(path, "replay_buffer"), model.save_replay_buffer))
+        written.append(save_whole(sidecar_path(path, "replay_buffer"), model.save_replay_buffer))
     return written

@@ -18,6 +18,7 @@ from agents.experiments.config_files import CONFIG_DIR, apply_overrides, env_stu
 from agents.experiments.training.sweep_config import SweepConfig, validate_sweep
 from agents.experiments.training.validation import (
     at_least,
+    at_most,
     check_keys,
     config_error,
     section,
@@ -26,13 +27,28 @@ from agents.experiments.training.validation import (
     validate_curriculum,
     validate_policy_kwargs,
 )
-from agents.policies.model_files import ALGOS, ON_POLICY_ALGOS, algo_class
+from agents.policies.model_files import LEARNED_ALGOS, algo_class
+
+ALGOS = LEARNED_ALGOS
+"""Algorithms ``train.py`` trains: every algorithm whose models a learned agent loads."""
+
+ON_POLICY_ALGOS = ("ppo", "recurrent_ppo")
+"""Algorithms that learn from rollouts (``n_steps`` × envs samples per update)."""
 
 OFF_POLICY = ("sac", "td3", "dqn")
 """Algorithms with a replay buffer."""
 
 EVAL_SEED = 1_000_000
 """Evaluation sub-env ``i`` is reset with seed ``EVAL_SEED + i``; training seeds stay below it."""
+
+MAX_TIMESTEPS = 10**12
+"""Largest training budget (env steps); a larger one is a typo."""
+
+MAX_ENVS = 16_384
+"""Most sub-envs of a training or evaluation env."""
+
+MAX_EVAL_EPISODES = 100_000
+"""Most episodes of one periodic evaluation."""
 
 DEFAULT_ENV = "DebrisGym/Rendezvous2D-v1"
 """Env of a ``train.py`` run that names neither ``--env`` nor ``--config``."""
@@ -254,18 +270,19 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
     version = typed(data["version"], int, "version", source)
     at_least(version, 1, "version", source)
     env_id = typed(data["env_id"], str, "env_id", source)
-    if env_id not in gym.registry:
+    if env_id not in gym.registry or gym.registry[env_id].namespace != "DebrisGym":
         ids = [i for i in gym.registry if i.startswith("DebrisGym/")]
-        raise config_error(
-            source, "env_id", f"names an unknown env {env_id!r}; known: {', '.join(ids)}"
-        )
+        what = "is not a DebrisGym env" if env_id in gym.registry else "names an unknown env"
+        raise config_error(source, "env_id", f"{what}: {env_id!r}; DebrisGym IDs: {', '.join(ids)}")
     algo = typed(data["algo"], str, "algo", source).lower()
     if algo not in ALGOS:
         raise config_error(source, "algo", f"must be one of {', '.join(ALGOS)}, got {algo!r}")
     timesteps = typed(data["timesteps"], int, "timesteps", source)
     at_least(timesteps, 1, "timesteps", source)
+    at_most(timesteps, MAX_TIMESTEPS, "timesteps", source)
     n_envs = typed(data["n_envs"], int, "n_envs", source)
     at_least(n_envs, 1, "n_envs", source)
+    at_most(n_envs, MAX_ENVS, "n_envs", source)
     notes = typed(data.get("notes", ""), str, "notes", source, optional=True) or ""
 
     # env options: the env's own validation names the key
@@ -290,7 +307,10 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
     if algo in ("sac", "td3") and env_config.action != "continuous":
         raise config_error(source, "env_kwargs.action", f"must be 'continuous' for {algo}")
 
-    cls = algo_class(algo)
+    try:
+        cls = algo_class(algo)
+    except ValueError as exc:  # an algorithm whose package is not installed
+        raise config_error(source, "algo", str(exc)) from None
     policy = typed(data.get("policy", "MlpPolicy"), str, "policy", source)
     if policy not in cls.policy_aliases:
         raise config_error(
@@ -321,7 +341,9 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
     evaluation = section(EvalConfig, data.get("eval"), "eval.", source)
     at_least(evaluation.freq, 0, "eval.freq", source)
     at_least(evaluation.n_episodes, 1, "eval.n_episodes", source)
+    at_most(evaluation.n_episodes, MAX_EVAL_EPISODES, "eval.n_episodes", source)
     at_least(evaluation.n_envs, 1, "eval.n_envs", source)
+    at_most(evaluation.n_envs, MAX_ENVS, "eval.n_envs", source)
     checkpoint = section(CheckpointConfig, data.get("checkpoint"), "checkpoint.", source)
     at_least(checkpoint.freq, 0, "checkpoint.freq", source)
     at_least(checkpoint.keep, 0, "checkpoint.keep", source)

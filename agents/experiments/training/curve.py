@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from agents.experiments.config_files import load_config_file
 from agents.experiments.training.run_files import is_complete_row
-from agents.policies.model_files import load_config_file
 from debris_gym.files import save_atomic
 
 __all__ = ["plot_learning_curve"]

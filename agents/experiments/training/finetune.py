@@ -28,10 +28,12 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.vec_env import VecNormalize
 
+from agents.experiments.config_files import ConfigError, load_config_file
 from agents.experiments.training.anchored import AnchoredPPO
 from agents.experiments.training.config import TrainConfig
+from agents.experiments.training.sb3_kwargs import algo_kwargs, policy_kwargs
 from agents.policies.learned import OBSERVATION_KEYS, read_vecnormalize
-from agents.policies.model_files import FINAL_MODEL, ConfigError, load_config_file, sidecar_path
+from agents.policies.model_files import FINAL_MODEL, sidecar_path
 from debris_gym.files import save_atomic
 
 __all__ = [
@@ -269,8 +271,6 @@ def finetune_train_env(venv: Any, config: TrainConfig, stats: Path | None) -> Fr
 def _policy_kwargs(config: TrainConfig, init_model: Any, source: str) -> dict[str, Any]:
     """The fine-tune policy's keyword arguments: the init policy's network (a config's
     ``net_arch`` / ``activation_fn`` must equal it), the config's other entries over it."""
-    from agents.experiments.training.models import policy_kwargs
-
     theirs = dict(init_model.policy_kwargs)
     ours = policy_kwargs(config)
     for key in ("net_arch", "activation_fn"):
@@ -296,8 +296,6 @@ def build_finetune_model(
     ``policy_kwargs.log_std_init``, when the config sets it, replaces the init's ``log_std``
     (the exploration noise of the fine-tune; the anchor acts on mean actions only).
     """
-    from agents.experiments.training.models import algo_kwargs
-
     assert config.init.path is not None
     init_model = _load_init_model(Path(config.init.path) / FINAL_MODEL, source)
     kwargs = _policy_kwargs(config, init_model, source)

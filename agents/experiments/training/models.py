@@ -8,24 +8,25 @@ SB3's ``VecMonitor`` and, optionally, ``VecNormalize``. Sub-env ``i`` is seeded 
 from __future__ import annotations
 
 import importlib.util
+import os
 import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from agents.experiments.training.config import EVAL_SEED, TrainConfig
-from agents.policies.model_files import ConfigError, algo_class
+from agents.experiments.config_files import ConfigError
+from agents.experiments.training.config import EVAL_SEED, OFF_POLICY, TrainConfig
+from agents.experiments.training.finetune import build_finetune_model, finetune_train_env
+from agents.experiments.training.sb3_kwargs import algo_kwargs, policy_kwargs
+from agents.policies.model_files import algo_class
 
 __all__ = [
     "DEVICES",
-    "algo_kwargs",
     "build_model",
     "make_eval_env",
     "make_train_env",
-    "policy_kwargs",
     "resolve_device",
-    "set_encoder_kwargs",
     "tensorboard_dir",
 ]
 
@@ -50,8 +51,6 @@ def make_train_env(config: TrainConfig, seed: int, stats: Path | None = None) ->
     venv = _vec_env(config, config.n_envs)
     norm = config.normalize
     if config.init.path is not None:  # fine-tuning: the init run's statistics, frozen
-        from agents.experiments.training.finetune import finetune_train_env
-
         venv = finetune_train_env(venv, config, stats)
     elif norm.enabled:
         if stats is not None:
@@ -89,66 +88,6 @@ def _vec_normalize(venv: Any, config: TrainConfig, training: bool) -> Any:
         gamma=norm.gamma if norm.gamma is not None else config.gamma,
         epsilon=norm.epsilon,
     )
-
-
-def policy_kwargs(config: TrainConfig) -> dict[str, Any]:
-    import torch.nn as nn
-
-    kwargs = dict(config.policy_kwargs)
-    if "activation_fn" in kwargs:
-        kwargs["activation_fn"] = {
-            "tanh": nn.Tanh,
-            "relu": nn.ReLU,
-            "elu": nn.ELU,
-            "leaky_relu": nn.LeakyReLU,
-            "gelu": nn.GELU,
-            "silu": nn.SiLU,
-        }[kwargs["activation_fn"]]
-    if config.encoder.kind == "set":
-        kwargs.update(set_encoder_kwargs(config))
-    return kwargs
-
-
-def set_encoder_kwargs(config: TrainConfig) -> dict[str, Any]:
-    """``policy_kwargs`` of a set encoder over the slots of the run's observation (its layout
-    from the env's ``observation_names()``, stored in the model file with the weights)."""
-    import gymnasium as gym
-
-    from agents.policies.set_encoder import SlotSetExtractor, slot_layout
-
-    options = {k: v for k, v in config.env_kwargs.items() if k != "max_episode_steps"}
-    env = gym.make(config.env_id, **options)
-    try:
-        context, slots = slot_layout(env.unwrapped.observation_names())
-    finally:
-        env.close()
-    return {
-        "features_extractor_class": SlotSetExtractor,
-        "features_extractor_kwargs": {
-            "context": context,
-            "slots": slots,
-            "embed_dim": config.encoder.embed_dim,
-            "hidden_dim": config.encoder.hidden_dim,
-        },
-    }
-
-
-def algo_kwargs(config: TrainConfig, action_dim: int) -> dict[str, Any]:
-    from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise
-    from stable_baselines3.common.utils import LinearSchedule
-
-    kwargs = dict(config.algo_kwargs)
-    for key in ("learning_rate", "clip_range"):
-        value = kwargs.get(key)
-        if isinstance(value, str):  # "lin_3e-4": linear decay to 0 over the run
-            kwargs[key] = LinearSchedule(float(value[4:]), 0.0, 1.0)
-    if isinstance(kwargs.get("train_freq"), list):
-        kwargs["train_freq"] = (int(kwargs["train_freq"][0]), kwargs["train_freq"][1])
-    noise = kwargs.get("action_noise")
-    if isinstance(noise, dict):
-        cls = NormalActionNoise if noise["type"] == "normal" else OrnsteinUhlenbeckActionNoise
-        kwargs["action_noise"] = cls(np.zeros(action_dim), noise["sigma"] * np.ones(action_dim))
-    return kwargs
 
 
 def tensorboard_dir(out: Path) -> str | None:
@@ -215,8 +154,6 @@ def build_model(
             the ranges of :mod:`~agents.experiments.training.validation` do not cover).
     """
     if config.init.path is not None:
-        from agents.experiments.training.finetune import build_finetune_model
-
         return build_finetune_model(
             config,
             train_env,
@@ -226,6 +163,7 @@ def build_model(
             source=source,
         )
     cls = algo_class(config.algo)
+    check_replay_buffer_fits(config, train_env, source)
     try:
         return cls(
             config.policy,
@@ -242,3 +180,53 @@ def build_model(
             f"{source}: SB3 {cls.__name__} rejects config keys 'algo_kwargs' / 'policy_kwargs' "
             f"({config.algo_kwargs} / {config.policy_kwargs}): {exc}"
         ) from None
+    except (MemoryError, RuntimeError) as exc:  # torch's allocator raises RuntimeError
+        if isinstance(exc, RuntimeError) and "allocate" not in str(exc):
+            raise
+        raise ConfigError(
+            f"{source}: the {cls.__name__} model of config keys 'policy_kwargs' / 'algo_kwargs' "
+            f"({config.policy_kwargs} / {config.algo_kwargs}) does not fit in this machine's "
+            f"memory ({str(exc).splitlines()[0]}); use smaller layers (policy_kwargs.net_arch) "
+            "or a smaller buffer_size"
+        ) from None
+
+
+def machine_memory_bytes() -> int | None:
+    """This machine's physical memory (bytes), or None where the system does not say."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):
+        return None
+
+
+def replay_buffer_bytes(config: TrainConfig, train_env: Any) -> int:
+    """The bytes of the replay buffer SB3 allocates for ``config`` on ``train_env`` (0 for an
+    on-policy algorithm): observations (twice, unless ``optimize_memory_usage``), actions,
+    rewards, dones and time-out flags per transition."""
+    import inspect
+
+    if config.algo not in OFF_POLICY:
+        return 0
+    params = inspect.signature(algo_class(config.algo).__init__).parameters
+    size = int(config.algo_kwargs.get("buffer_size", params["buffer_size"].default))
+    obs, act = train_env.observation_space, train_env.action_space
+    obs_bytes = int(np.prod(obs.shape)) * obs.dtype.itemsize
+    act_bytes = int(np.prod(act.shape or (1,))) * max(act.dtype.itemsize, 4)
+    copies = 1 if config.algo_kwargs.get("optimize_memory_usage") else 2
+    return size * (copies * obs_bytes + act_bytes + 3 * 4)
+
+
+def check_replay_buffer_fits(config: TrainConfig, train_env: Any, source: str) -> None:
+    """Refuse a replay buffer larger than this machine's memory (numpy would fail to allocate
+    it, or the system would swap until the run is killed).
+
+    Raises:
+        ConfigError: naming ``algo_kwargs.buffer_size``, the bytes it needs and the memory.
+    """
+    need, have = replay_buffer_bytes(config, train_env), machine_memory_bytes()
+    if have is not None and need > have:
+        raise ConfigError(
+            f"{source}: config key 'algo_kwargs.buffer_size' asks for a replay buffer of "
+            f"{need / 2**30:,.1f} GiB; this machine has {have / 2**30:,.1f} GiB of memory. "
+            "Lower buffer_size"
+        )

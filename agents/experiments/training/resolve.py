@@ -9,18 +9,29 @@ import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from agents.experiments.config_files import CONFIG_DIR, apply_overrides, env_stub
+from agents.experiments.config_files import (
+    CONFIG_DIR,
+    ConfigError,
+    apply_overrides,
+    env_stub,
+    load_config_file,
+)
 from agents.experiments.training import finetune
 from agents.experiments.training.config import (
+    ALGOS,
     DEFAULT_ENV,
     EVAL_SEED,
+    ON_POLICY_ALGOS,
     TrainConfig,
     available_configs,
     default_config_path,
 )
-from agents.policies.model_files import ALGOS, ON_POLICY_ALGOS, ConfigError, load_config_file
 
-__all__ = ["TrainOptions", "check_seed", "refuse_suite_seeds_of", "resolve_config"]
+__all__ = ["MAX_THREADS", "TrainOptions", "check_seed", "refuse_suite_seeds_of", "resolve_config"]
+
+
+MAX_THREADS = 256
+"""Most torch CPU threads a run asks for (thousands hang or abort torch's thread pool)."""
 
 
 @dataclass
@@ -106,8 +117,10 @@ def resolve_config(options: TrainOptions) -> tuple[TrainConfig, str]:
         data["n_envs"] = options.n_envs
     if options.timesteps is not None:
         data["timesteps"] = options.timesteps
-    config = TrainConfig.from_dict(data, source=str(path))
-    finetune.check_init_run(config, str(path))
+    # a problem a --set brought in is named with the file it was applied to
+    where = f"{path} with --set overrides" if options.overrides else str(path)
+    config = TrainConfig.from_dict(data, source=where)
+    finetune.check_init_run(config, where)
     rollout = config.algo_kwargs.get("n_steps", 2048) * config.n_envs
     batch = config.algo_kwargs.get("batch_size", 64)
     # e.g. the 128-env recipe run with --n-envs 2

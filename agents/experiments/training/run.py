@@ -23,6 +23,7 @@ from typing import Any
 
 from stable_baselines3.common.callbacks import ProgressBarCallback
 
+from agents.experiments.config_files import load_config_file
 from agents.experiments.provenance import library_versions, utc_now
 from agents.experiments.run_directory import LOCK_FILE, RunDirectoryLock, check_output_dir
 from agents.experiments.training import finetune
@@ -34,8 +35,10 @@ from agents.experiments.training.checkpoints import (
     model_timesteps,
     save_model_files,
     scan_checkpoints,
+    write_failure,
 )
 from agents.experiments.training.config import (
+    MAX_TIMESTEPS,
     OFF_POLICY,
     TrainConfig,
 )
@@ -48,26 +51,25 @@ from agents.experiments.training.models import (
     tensorboard_dir,
 )
 from agents.experiments.training.resolve import (
+    MAX_THREADS,
     TrainOptions,
     check_seed,
     refuse_suite_seeds_of,
     resolve_config,
 )
 from agents.experiments.training.run_files import (
+    RUNNING,
+    STOPPED,
+    TrainWriteError,
     clear_unstarted_run,
     read_train_log,
     truncate_episode_log,
     write_run_config,
     write_train_log,
 )
-from agents.policies.model_files import (
-    FINAL_MODEL,
-    algo_class,
-    load_config_file,
-    sidecar_path,
-)
+from agents.policies.model_files import FINAL_MODEL, algo_class, sidecar_path
 
-__all__ = ["TrainOptions", "TrainResult", "resolve_config", "train"]
+__all__ = ["TrainOptions", "TrainResult", "TrainWriteError", "resolve_config", "train"]
 
 
 @dataclass
@@ -76,6 +78,7 @@ class TrainResult:
 
     Attributes:
         out: the run directory.
+        env_id, algo: what the run trained (its config's).
         status: ``"completed"`` or ``"interrupted"``.
         num_timesteps: the model's ``num_timesteps`` at the end.
         model_path: ``DIR/model.zip`` (completed) or the interrupt checkpoint.
@@ -84,6 +87,8 @@ class TrainResult:
     """
 
     out: Path
+    env_id: str
+    algo: str
     status: str
     num_timesteps: int
     model_path: Path
@@ -138,13 +143,15 @@ def train(options: TrainOptions) -> TrainResult:
     Raises:
         FileNotFoundError, FileExistsError, ValueError: bad options, config or run directory
             (messages name the option or key, the value and what is allowed).
+        TrainWriteError: a file of the run could not be written mid-run (a full disk, a
+            directory made read-only); the message says what is on disk and how to resume.
     """
     import torch
 
     device = resolve_device(options.device)
-    threads = int(options.threads)
-    if threads < 1:
-        raise ValueError(f"--threads must be >= 1, got {threads}")
+    threads = options.threads
+    if isinstance(threads, bool) or not isinstance(threads, int) or not 1 <= threads <= MAX_THREADS:
+        raise ValueError(f"--threads must be an integer in [1, {MAX_THREADS}], got {threads!r}")
     torch.set_num_threads(threads)
     argv = options.argv if options.argv is not None else sys.argv
     command = shlex.join(["python", *argv]) if argv else ""
@@ -302,9 +309,17 @@ def _prepare_resume(options: TrainOptions, out: Path, device: str, command: str)
             )
     if add < 1:
         raise ValueError(f"--timesteps must be >= 1, got {add}")
+    if start_steps + add > MAX_TIMESTEPS:
+        raise ValueError(
+            f"--timesteps {add:,} would take the run past {MAX_TIMESTEPS:,} steps (it is at "
+            f"{start_steps:,})"
+        )
     config = dataclasses.replace(config, timesteps=max(config.timesteps, start_steps + add))
     source = run.get("config_source", str(out / "config.yaml"))
     log = read_train_log(out)
+    segments = log.get("segments", [])
+    if segments and segments[-1].get("status") == RUNNING:
+        segments[-1]["status"] = STOPPED  # its process ended without saving
     segment_seed = seed + len(log.get("segments", [])) * config.n_envs
     check_seed(segment_seed, config.n_envs)
     refuse_suite_seeds_of(segment_seed, config)
@@ -375,26 +390,84 @@ def _run_section(segment: _Segment, device: str) -> dict[str, Any]:
 
 
 def _run_segment(segment: _Segment, options: TrainOptions) -> TrainResult:
-    """Learn one segment into its (locked) directory and write its files."""
+    """Learn one segment into its (locked) directory and write its files.
+
+    Raises:
+        TrainWriteError: a file of the run could not be written (a full disk, a directory made
+            read-only); the run's files are as the last complete write left them.
+    """
+    try:
+        return _learn_segment(segment, options)
+    except (OSError, RuntimeError) as exc:
+        failure = write_failure(exc)
+        if failure is None:
+            raise
+        steps = int(segment.model.num_timesteps)
+        latest = scan_checkpoints(segment.out, segment.config.normalize.enabled).latest
+        raise TrainWriteError(segment.out, failure, steps, latest) from None
+
+
+def _learn_segment(segment: _Segment, options: TrainOptions) -> TrainResult:
     import torch
 
     out, config, run, model = segment.out, segment.config, segment.run, segment.model
     checkpoint, start_steps, add = segment.checkpoint, segment.start_steps, segment.add
     log = segment.log
-    segments = log.setdefault("segments", [])
+    earlier = list(log.get("segments", []))
     out.mkdir(parents=True, exist_ok=True)
     if checkpoint is not None:
         truncate_episode_log(out / "train_episodes.csv", start_steps)
     write_run_config(out, config, run)  # before learning, so an interrupted run can be resumed
     if checkpoint is None and config.init.path is not None:
-        finetune.save_reference(
-            out, config
-        )  # a resume restores the anchor's reference from the run
+        # a resume restores the anchor's reference from the run
+        finetune.save_reference(out, config)
+
+    def record(status: str, model_path: Path, steps: int, wall: float | None = None) -> None:
+        """``train_log.json`` with this segment as it stands at ``steps`` (``wall``: its
+        learning time, s; default: so far)."""
+        wall = time.perf_counter() - start if wall is None else wall
+        eval_s = evaluation.seconds if evaluation is not None else 0.0
+        ckpt_s = checkpointer.seconds if checkpointer is not None else 0.0
+        done = steps - start_steps
+        entry = {
+            "status": status,
+            "started_at": run["resumes"][-1]["at"] if checkpoint else run["started_at"],
+            "resumed_from": str(checkpoint) if checkpoint else None,
+            "n_envs": config.n_envs,
+            "env_seed": segment.segment_seed,
+            "torch_threads": torch.get_num_threads(),
+            "start_timesteps": start_steps,
+            "end_timesteps": steps,
+            "wall_time_s": round(wall, 3),
+            "eval_time_s": round(eval_s, 3),
+            "checkpoint_time_s": round(ckpt_s, 3),
+            "env_steps_per_s": round(done / wall, 1) if wall > 0 else None,
+            "env_steps_per_s_excluding_eval": (
+                round(done / (wall - eval_s - ckpt_s), 1) if wall - eval_s - ckpt_s > 0 else None
+            ),
+        }
+        log.update(
+            {
+                "env_id": config.env_id,
+                "algo": config.algo,
+                "status": status,
+                "num_timesteps": steps,
+                "target_timesteps": int(config.timesteps),
+                "model": str(model_path),
+                "segments": [*earlier, entry],
+            }
+        )
+        write_train_log(out, log)
+
+    def checkpointed(path: Path, steps: int) -> None:
+        record(RUNNING, path, steps)  # a killed run's log stands as of its last checkpoint
+
     callbacks, evaluation, checkpointer, episodes = make_callbacks(
         config,
         out,
         segment.eval_env,
         start_steps if checkpoint is not None else None,
+        after_checkpoint=checkpointed,
     )
     if options.progress:
         callbacks.append(ProgressBarCallback())
@@ -422,7 +495,6 @@ def _run_segment(segment: _Segment, options: TrainOptions) -> TrainResult:
     main_thread = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main_thread else None
     try:  # a second Ctrl-C must not cut the saving short
-        episodes.flush()
         if status == "completed":
             if evaluation is not None and (
                 not evaluation.evaluations_timesteps
@@ -432,42 +504,9 @@ def _run_segment(segment: _Segment, options: TrainOptions) -> TrainResult:
             model_path = out / FINAL_MODEL
         else:
             model_path = out / "checkpoints" / f"{INTERRUPTED}.zip"
+        episodes.flush(sync=True)  # the rows of every step the model has seen, first
         save_model_files(model, config, model_path)
-        eval_s = evaluation.seconds if evaluation is not None else 0.0
-        ckpt_s = checkpointer.seconds if checkpointer is not None else 0.0
-        steps = model.num_timesteps - start_steps
-        segments.append(
-            {
-                "status": status,
-                "started_at": run["resumes"][-1]["at"] if checkpoint else run["started_at"],
-                "resumed_from": str(checkpoint) if checkpoint else None,
-                "n_envs": config.n_envs,
-                "env_seed": segment.segment_seed,
-                "torch_threads": torch.get_num_threads(),
-                "start_timesteps": start_steps,
-                "end_timesteps": int(model.num_timesteps),
-                "wall_time_s": round(wall, 3),
-                "eval_time_s": round(eval_s, 3),
-                "checkpoint_time_s": round(ckpt_s, 3),
-                "env_steps_per_s": round(steps / wall, 1) if wall > 0 else None,
-                "env_steps_per_s_excluding_eval": (
-                    round(steps / (wall - eval_s - ckpt_s), 1)
-                    if wall - eval_s - ckpt_s > 0
-                    else None
-                ),
-            }
-        )
-        log.update(
-            {
-                "env_id": config.env_id,
-                "algo": config.algo,
-                "status": status,
-                "num_timesteps": int(model.num_timesteps),
-                "target_timesteps": int(config.timesteps),
-                "model": str(model_path),
-            }
-        )
-        write_train_log(out, log)
+        record(status, model_path, int(model.num_timesteps), wall)
         run["finished_at" if status == "completed" else "interrupted_at"] = utc_now()
         write_run_config(out, config, run)
         plot_learning_curve(out)
@@ -476,6 +515,8 @@ def _run_segment(segment: _Segment, options: TrainOptions) -> TrainResult:
             signal.signal(signal.SIGINT, previous)
     return TrainResult(
         out=out,
+        env_id=config.env_id,
+        algo=config.algo,
         status=status,
         num_timesteps=int(model.num_timesteps),
         model_path=model_path,

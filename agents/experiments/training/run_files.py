@@ -1,23 +1,30 @@
 """The bookkeeping files of a run directory: ``config.yaml`` (the resolved config and how the run
 was made), ``train_log.json`` (wall time and env-steps/s per segment) and ``train_episodes.csv``
-(every finished training episode), each written atomically.
+(every finished training episode), each written atomically — and what a run says when one of its
+files cannot be written (:class:`TrainWriteError`).
 """
 
 from __future__ import annotations
 
 import csv
+import errno
 import json
+import os
 import shutil
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from agents.experiments.training.checkpoints import model_timesteps
 from agents.experiments.training.config import TrainConfig
 from debris_gym.files import write_atomic
 
 __all__ = [
+    "RUNNING",
+    "STOPPED",
     "UNSTARTED_RUN_FILES",
+    "TrainWriteError",
     "clear_unstarted_run",
     "is_complete_row",
     "read_train_log",
@@ -25,6 +32,50 @@ __all__ = [
     "write_run_config",
     "write_train_log",
 ]
+
+RUNNING = "running"
+"""``train_log.json`` status of a segment still learning: written with each checkpoint, so the
+log of a killed run stands as of its last checkpoint."""
+
+STOPPED = "stopped"
+"""Status a resume gives a segment left ``running``: its process ended without saving (killed,
+or its files could not be written)."""
+
+
+class TrainWriteError(OSError):
+    """A file of a training run could not be written; the message says which and why, what is
+    on disk (every file is whole: atomic writes) and the command that goes on.
+
+    Attributes:
+        out: the run directory.
+        failure: the file-system error.
+        latest: the latest complete model in ``out`` (None: none).
+    """
+
+    def __init__(self, out: Path, failure: OSError, steps: int, latest: Path | None) -> None:
+        self.out, self.failure, self.latest = out, failure, latest
+        where = f" {failure.filename}" if failure.filename else f" a file in {out}"
+        problem = failure.strerror or os.strerror(failure.errno or 0)
+        if failure.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
+            fix = f"free space on the disk of {out}"
+        elif failure.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
+            fix = f"make {out} writable again"
+        else:
+            fix = f"check the disk and directory {out}"
+        text = f"cannot write{where}: {problem}. Training stopped at {steps:,} steps; "
+        if latest is None:
+            text += (
+                f"no checkpoint was saved yet. Once you {fix}, start the run again with the same "
+                "command"
+            )
+        else:
+            steps_on_disk = model_timesteps(latest)
+            text += (
+                f"the run's files are whole, up to {latest.relative_to(out)} ({steps_on_disk:,} "
+                f"steps). Once you {fix}, resume with: python train.py --resume {out}"
+            )
+        super().__init__(text)
+        self.errno = failure.errno
 
 
 UNSTARTED_RUN_FILES = (

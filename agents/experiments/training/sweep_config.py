@@ -29,6 +29,7 @@ from typing import Any
 
 from agents.experiments.training.validation import (
     at_least,
+    at_most,
     check_keys,
     config_error,
     number,
@@ -36,10 +37,13 @@ from agents.experiments.training.validation import (
     typed,
 )
 
-__all__ = ["DISTRIBUTIONS", "METRICS", "SweepConfig", "SweepParam", "validate_sweep"]
+__all__ = ["DISTRIBUTIONS", "MAX_SAMPLES", "METRICS", "SweepConfig", "SweepParam", "validate_sweep"]
 
 DISTRIBUTIONS = ("choice", "uniform", "loguniform", "randint")
 """Distributions a swept key may draw from (Ray Tune's of the same names)."""
+
+MAX_SAMPLES = 10_000
+"""Most trials a sweep runs."""
 
 METRICS = ("success_rate", "mean_reward")
 """What a trial reports and the sweep ranks by: the final periodic evaluation's success rate or
@@ -133,6 +137,7 @@ def validate_sweep(
     params_data = data.pop("params", None)
     flat = section(_Flat, data, "sweep.", source)
     at_least(flat.num_samples, 1, "sweep.num_samples", source)
+    at_most(flat.num_samples, MAX_SAMPLES, "sweep.num_samples", source)
     at_least(flat.seed, 0, "sweep.seed", source)
     if flat.metric not in METRICS:
         raise config_error(

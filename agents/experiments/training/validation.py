@@ -1,7 +1,8 @@
 """Checks behind :meth:`TrainConfig.from_dict`: keys, types and ranges of a config mapping, and
 the curriculum, policy and algorithm keyword arguments (against the SB3 signatures).
 
-Every problem raises :class:`~agents.policies.model_files.ConfigError` naming the key and the file.
+Every problem raises :class:`~agents.experiments.config_files.ConfigError` naming the key and the
+file.
 """
 
 from __future__ import annotations
@@ -16,10 +17,15 @@ from collections.abc import Iterable, Sequence
 from types import NoneType
 from typing import Any
 
-from agents.policies.model_files import ConfigError
+from agents.experiments.config_files import MAX_LAYER_WIDTH, MAX_LAYERS, ConfigError
 
 ACTIVATIONS = ("tanh", "relu", "elu", "leaky_relu", "gelu", "silu")
 """``policy_kwargs.activation_fn`` values (names of ``torch.nn`` activations, lower case)."""
+
+MAX_BUFFER_SIZE = 10**9
+"""Largest replay buffer (transitions; at the default env's 74 observation elements, 600 GB):
+a larger one is a typo. Whether a buffer fits this machine's memory is checked when the model is
+built."""
 
 RESERVED_ALGO_KWARGS = {
     "policy": "top-level key 'policy'",
@@ -77,7 +83,13 @@ def typed(value: Any, kind: type, key: str, source: str, optional: bool = False)
             raise config_error(source, key, f"must be true or false, got {value!r}")
         return value
     if kind is int:
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or value != int(value):
+        whole = (
+            isinstance(value, (int, float))
+            and not isinstance(value, bool)
+            and math.isfinite(value)
+            and value == int(value)
+        )
+        if not whole:
             raise config_error(source, key, f"must be an integer, got {value!r}")
         return int(value)
     if kind is float:
@@ -104,6 +116,11 @@ def typed(value: Any, kind: type, key: str, source: str, optional: bool = False)
 def at_least(value: float | None, low: float, key: str, source: str) -> None:
     if value is not None and value < low:
         raise config_error(source, key, f"must be >= {low}, got {value!r}")
+
+
+def at_most(value: float | None, high: float, key: str, source: str) -> None:
+    if value is not None and value > high:
+        raise config_error(source, key, f"must be <= {high:_}, got {value!r}")
 
 
 def section(cls: type, data: Any, prefix: str, source: str) -> Any:
@@ -179,11 +196,16 @@ def validate_policy_kwargs(data: Any, policy_cls: type, source: str) -> dict[str
         arch = kwargs["net_arch"]
 
         def layers(value: Any, key: str) -> list[int]:
-            if not isinstance(value, list) or not all(
-                isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in value
-            ):
+            sizes = isinstance(value, list) and all(
+                isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= MAX_LAYER_WIDTH
+                for v in value
+            )
+            if not sizes or len(value) > MAX_LAYERS:
                 raise config_error(
-                    source, key, f"must be a list of layer sizes >= 1, got {value!r}"
+                    source,
+                    key,
+                    f"must be a list of at most {MAX_LAYERS} layer sizes in [1, "
+                    f"{MAX_LAYER_WIDTH}], got {value!r}",
                 )
             return list(value)
 
@@ -249,7 +271,7 @@ ALGO_KWARG_RANGES: dict[str, Range] = {
     "target_kl": Range(float, 0, low_open=True),
     "sde_sample_freq": Range(int, 1, also=(-1,)),
     "stats_window_size": Range(int, 1),
-    "buffer_size": Range(int, 1),
+    "buffer_size": Range(int, 1, MAX_BUFFER_SIZE),
     "learning_starts": Range(int, 0),
     "tau": Range(float, 0, 1, low_open=True),
     "train_freq": Range(int, 1),
