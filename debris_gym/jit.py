@@ -27,6 +27,7 @@ COMPILED_MODULES = (
     "batch_geometry",
     "swept_contacts",
     "generators",
+    "convex_polygons",
     "orbit_fields",
     "geometry_kernels",
     "goal",

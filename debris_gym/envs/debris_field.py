@@ -323,7 +323,9 @@ class DebrisFieldEnv(gym.Env):
             super().reset(seed=seed)
             drawn = None
             if options.get("scenario") is not None:
-                scenario = as_scenario(options["scenario"])
+                scenario = as_scenario(
+                    options["scenario"], horizon_steps=registered_horizon(self.spec)
+                )
                 self._check_dim(scenario)
                 warn_if_physics_differ(self.config, scenario)
                 check_motion_matches(self.config, scenario)

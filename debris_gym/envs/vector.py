@@ -321,7 +321,8 @@ class DebrisFieldVectorEnv(VectorEnv):
             pinned = options.get("scenario")
             fields = None
             if pinned is not None:
-                pinned = as_scenario(pinned)
+                steps = self.max_episode_steps or registered_horizon(self.spec)
+                pinned = as_scenario(pinned, horizon_steps=steps)
                 if pinned.dim != self.dim:
                     raise ValueError(
                         f"scenario has dim={pinned.dim} but the env has dim={self.dim}"
