@@ -365,8 +365,8 @@ class Scenario:
                 "(Scenario.save writes one)"
             )
         with open(path, "rb") as fh:
-            raw = fh.read(MAX_FILE_BYTES + 1)
-        if len(raw) > MAX_FILE_BYTES:
+            raw = _read_at_most(fh, MAX_FILE_BYTES)
+        if raw is None:
             raise ValueError(
                 f"scenario file {name!r} is larger than {MAX_FILE_BYTES // 2**20} MiB; a "
                 f"scenario (at most {MAX_OBJECTS - 1} bodies) is far smaller"
@@ -390,6 +390,23 @@ class Scenario:
             return cls.from_dict(data)
         except ValueError as exc:
             raise ValueError(f"scenario file {name!r}: {exc}") from exc
+
+
+def _read_at_most(fh: Any, limit: int) -> bytes | None:
+    """The whole of the binary file ``fh``, or None if it holds more than ``limit`` bytes (a
+    regular file is judged by its size before anything is read; a pipe or device is read in
+    pieces and stops one byte past the limit)."""
+    size = os.fstat(fh.fileno()).st_size
+    if size > limit:
+        return None
+    pieces, total = [], 0
+    while total <= limit:
+        piece = fh.read(min(max(size + 1, 1 << 16), limit + 1 - total))
+        if not piece:
+            break
+        pieces.append(piece)
+        total += len(piece)
+    return None if total > limit else b"".join(pieces)
 
 
 def _parse(text: str) -> Any:

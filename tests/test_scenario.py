@@ -18,8 +18,8 @@ from hypothesis import strategies as st
 
 import debris_gym  # noqa: F401 - registers the IDs
 from debris_gym import generators, solvability
-from debris_gym.convex_polygons import POLYGON_DRAWS, convex_polygons
 from debris_gym.config import OPTIONS
+from debris_gym.convex_polygons import POLYGON_DRAWS, convex_polygons
 from debris_gym.envs.common import PHYSICS_DIFFER
 from debris_gym.generators import (
     MAX_POLYGON_VERTICES,
