@@ -148,9 +148,10 @@ def placement_problem(spec: FieldSpec, capture_radius: float) -> str | None:
     seeds = np.random.SeedSequence(TRIAL_SEED).generate_state(TRIAL_FIELDS, dtype=np.uint64)
     if spec.motion == "frozen":
         tries = max(1, MAX_TRIES // TRIAL_SHARE)
-        rngs = [np.random.default_rng(int(s)) for s in seeds]
         try:
-            random_fields(rngs, spec, capture_radius=capture_radius, max_tries=tries)
+            for seed in seeds:  # one field at a time: bounded memory, and the first failure ends it
+                rng = np.random.default_rng(int(seed))
+                random_fields([rng], spec, capture_radius=capture_radius, max_tries=tries)
         except ValueError:
             return _unreliable(spec, f"{tries} of its {MAX_TRIES} draws")
         return None

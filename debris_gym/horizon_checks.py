@@ -52,20 +52,20 @@ BLOCK_STEPS = 32
 """Step ends per block in a large field: the bodies' swept boxes over a block pick the pairs
 worth testing."""
 
-WHOLE_PAIRS = 1 << 22
+WHOLE_PAIRS = 1 << 19
 """A field whose pairs times step ends stay below this is tested in one block, every pair (no
-boxes: the default field's 253 pairs over 1 000 steps)."""
+boxes: the default field's 253 pairs over 1 000 steps; temporaries of at most ~25 MB)."""
 
 MAX_HALVINGS = 48
 """Deepest halving of a step an undecided interval gets (its margin is far below the tolerance
 long before)."""
 
-_PAIR_CHUNK = 1 << 15
+_PAIR_CHUNK = 1 << 13
 """Candidate pairs tested at once (bounds the temporaries of a dense field)."""
 
 
 class MotionFault(NamedTuple):
-    """The first time a moving field breaks a rule.
+    """An instant at which a moving field breaks a rule.
 
     Attributes:
         time: when (s since t = 0): a step end or an instant between two.

@@ -59,7 +59,10 @@ the counter-based generator SplitMix64 ([Steele14]): uniform number i of a try i
 SplitMix64 seeded with the try's key, computed on demand, so candidates are decoded only as far
 as they are tried. Try 0's key is the word itself; a field where some body found no candidate is
 tried again, up to ``max_tries`` times, with the key of try j the j-th SplitMix64 output of the
-word mixed once more (:func:`_try_key`).
+word mixed once more (:func:`_try_key`); then up to :data:`WIDE_TRIES` times more with
+:data:`WIDE_CANDIDATES` candidates per body (a field placed in its first tries is the same
+whether or not the wide ones exist). The kernels read their settings and write their results
+as named records (:class:`OrbitRules`, :class:`PlaceScratch`, :class:`DrawnOrbits`).
 """
 
 from __future__ import annotations
