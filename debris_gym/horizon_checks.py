@@ -226,9 +226,9 @@ class _Apart:
     centre offset D) displaced by (Δx_c, −1.5 n Δx_c t, 0), which moves it at most
     |Δx_c| (1 + 1.5 n T) over the horizon T. In the plane the ellipse's smallest distance is
     exact: |D| − 2R when |D| >= 1.5 R, else √(R² − D²/3) (as in
-    :mod:`debris_gym.orbit_fields`). In 3D its squared distance over the phase θ is evaluated
-    on :data:`_PHASES` phases, less the curvature bound (4|D|R + 6R² + 2R_z²) · h²/8 between
-    them.
+    :func:`debris_gym.orbit_separation.apart`). In 3D its squared distance over the phase θ is
+    evaluated on :data:`_PHASES` phases, less the curvature bound (4|D|R + 6R² + 2R_z²) · h²/8
+    between them.
     """
 
     def __init__(self, states, radii, n, horizon, tol) -> None:

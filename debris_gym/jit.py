@@ -28,6 +28,7 @@ COMPILED_MODULES = (
     "swept_contacts",
     "generators",
     "convex_polygons",
+    "orbit_separation",
     "orbit_fields",
     "geometry_kernels",
     "goal",

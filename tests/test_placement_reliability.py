@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 import debris_gym  # noqa: F401 - registers the IDs
 from debris_gym.config import EnvConfig
 from debris_gym.envs.common import field_spec
+from debris_gym.integrations.sb3 import NativeVecEnv
 from debris_gym.orbit_fields import orbit_drawer
 from debris_gym.registration import ENV_SPECS
 
@@ -86,3 +87,15 @@ def test_a_mission_size_the_env_accepts_resets_on_every_seed(mission):
     for seed in range(6):
         env.reset(seed=seed)
         assert len(env.unwrapped.scenario.obstacles) == n_obstacles
+
+
+def test_set_mission_refuses_a_crowd_now_and_takes_one_that_places():
+    venv = NativeVecEnv(V1[2], 4)
+    venv.reset()
+    with pytest.raises(ValueError, match="reliably"):
+        venv.set_mission({"n_obstacles": 80})
+    venv.step(np.zeros((4, 2), dtype=np.float32))  # still on its own mission
+    venv.set_mission({"n_obstacles": 50})
+    for _ in range(3):  # the restart on the crowded mission places every sub-env's field
+        venv.step(np.zeros((4, 2), dtype=np.float32))
+    venv.close()
