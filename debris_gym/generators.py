@@ -18,202 +18,55 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
-from debris_gym.jit import inlined, kernel
+from debris_gym.convex_polygons import ANGLE_JITTER, POLYGON_DRAWS, convex_polygon
+from debris_gym.field_spec import (
+    FIELD_MOTIONS,
+    MAX_POLYGON_VERTICES,
+    MAX_TRIES,
+    FieldArrays,
+    FieldSpec,
+    route_by_construction,
+    scenario_from_arrays,
+)
+from debris_gym.jit import kernel
+from debris_gym.orbit_fields import (
+    WIDE_TRIES,
+    moving_unplaceable,
+    orbit_drawer,
+    random_orbit_fields,
+)
 from debris_gym.scenario import Body, Scenario
 from debris_gym.solvability import field_route_exists, route_proof
 
+__all__ = [
+    "ANGLE_JITTER",
+    "FIELD_MOTIONS",
+    "MAX_CANDIDATES",
+    "MAX_POLYGON_VERTICES",
+    "MAX_TRIES",
+    "MIN_CANDIDATES",
+    "FieldArrays",
+    "FieldSpec",
+    "candidates",
+    "draw_size",
+    "paper_field",
+    "placement_problem",
+    "random_field",
+    "random_fields",
+    "route_by_construction",
+    "scenario_from_arrays",
+    "unplaceable",
+]
 
-@dataclass(frozen=True)
-class FieldSpec:
-    """Parameters of a random field (all lengths in m).
-
-    Attributes:
-        dim: 2 or 3.
-        n_targets: number of targets (>= 1).
-        n_obstacles: number of other debris (>= 0).
-        field_size: edge length of the square / cubic world centred on the dock.
-        target_radius: (min, max) target radius.
-        obstacle_radius: (min, max) obstacle bounding radius.
-        polygon_fraction: share of 2D obstacles that are convex polygons (rest are circles).
-        min_gap: smallest free gap between any two bodies and between a body and the bounds.
-        dock_clearance: radius of the free zone around the dock.
-        target_clearance: free zone around each target's surface (holds the capture zone).
-        min_target_distance: smallest dock-to-target centre distance.
-        chaser_radius: chaser radius, used to inflate bodies in the route check.
-        motion: ``"frozen"`` (bodies at rest in LVLH, the v0 fields), ``"bounded"`` (drift-free
-            relative orbits, the v1 default) or ``"drifting"`` (orbits whose centre slides
-            along-track); the moving draws are :mod:`debris_gym.orbit_fields`.
-        mean_motion: n (rad/s) of the reference orbit the bodies move about (> 0 when moving).
-        horizon: how long (s) a moving field must stay valid; at least one orbit 2π/n is
-            checked (a drift-free field then stays valid for ever).
-        drift_offset: (min, max) radial offset |x_c| (m) of a drifting body's orbit centre.
-        rho_max: largest in-plane amplitude ρ (and cross-track ρ_z) of a body's orbit (m); each
-            body's is also capped so that its orbit stays in the bounds.
-        spin_max: tumble rates (rad/s) of 2D polygons are drawn uniformly in ±spin_max.
-    """
-
-    dim: int = 2
-    n_targets: int = 3
-    n_obstacles: int = 20
-    field_size: float = 1000.0
-    target_radius: tuple[float, float] = (3.0, 10.0)
-    obstacle_radius: tuple[float, float] = (2.0, 25.0)
-    polygon_fraction: float = 0.5
-    min_gap: float = 10.0
-    dock_clearance: float = 50.0
-    target_clearance: float = 15.0
-    min_target_distance: float = 150.0
-    chaser_radius: float = 1.0
-    motion: str = "frozen"
-    mean_motion: float = 1.1314e-3
-    horizon: float = 0.0
-    drift_offset: tuple[float, float] = (2.0, 10.0)
-    rho_max: float = 250.0
-    spin_max: float = 0.0
-
-    def __post_init__(self) -> None:
-        # the counts size arrays and key the cached helpers (draw_size, route_by_construction):
-        # a float count such as 3.0 hashes like 3 and would poison their caches for every
-        # equal spec (EnvConfig stores whole numbers as int; this guards direct callers)
-        for key in ("dim", "n_targets", "n_obstacles"):
-            value = getattr(self, key)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-                raise ValueError(f"FieldSpec.{key} must be an int, got {value!r}")
-        from debris_gym.orbit_fields import check_motion  # imports this module
-
-        check_motion(self)
-
-
-FIELD_MOTIONS = ("frozen", "bounded", "drifting")
-"""Body motions a random field may have (:attr:`FieldSpec.motion`)."""
-
-
-MAX_POLYGON_VERTICES = 7
-"""Most vertices of a generated polygon (they have 3 to 7)."""
 
 MIN_CANDIDATES = 32
 """Fewest candidate positions per body in one draw (crowded fields get more: :func:`candidates`)."""
 
 MAX_CANDIDATES = 256
 """Most candidate positions per body in one draw."""
-
-ANGLE_JITTER = 0.3
-"""Polygon vertex angles deviate from even spacing by at most ± half this share of the spacing."""
-
-_POLYGON_DRAWS = 3 + MAX_POLYGON_VERTICES
-"""Uniform numbers per polygon: vertex count, one angle jitter per vertex, squash, rotation."""
-
-
-@dataclass(frozen=True)
-class FieldArrays:
-    """K random fields as arrays, one row per field (what :func:`random_fields` returns).
-
-    Bodies are ordered targets first, then obstacles, as :attr:`Scenario.bodies`. The world of
-    every field is the square / cube ``(-half_size, half_size)`` per axis with the dock at the
-    origin.
-
-    Attributes:
-        dim: 2 or 3.
-        half_size: half the world edge (m).
-        n_targets: targets per field T.
-        centers: (K, B, dim) body centres (m).
-        radii: (K, B) radii (m); a polygon's circumradius.
-        vertices: (K, O, V, 2) polygon vertices of the O obstacles relative to their centres (m),
-            counter-clockwise, padded with the first vertex; V is
-            :data:`MAX_POLYGON_VERTICES` in 2D and 0 in 3D.
-        n_vertices: (K, O) vertex count of each obstacle, 0 for a circle / sphere.
-        velocities: (K, B, dim) LVLH body velocities at t = 0 (m/s), or None (frozen field).
-        spins: (K, B) tumble rates (rad/s), or None (frozen field).
-    """
-
-    dim: int
-    half_size: float
-    n_targets: int
-    centers: np.ndarray
-    radii: np.ndarray
-    vertices: np.ndarray
-    n_vertices: np.ndarray
-    velocities: np.ndarray | None = None
-    spins: np.ndarray | None = None
-
-    def __len__(self) -> int:
-        return self.centers.shape[0]
-
-    @property
-    def bounds(self) -> tuple[tuple[float, float], ...]:
-        """Per-axis ``(low, high)`` world limits (m), the same for every field."""
-        return ((-self.half_size, self.half_size),) * self.dim
-
-    def scenario(self, k: int, *, mean_motion: float, dt: float, max_accel: float) -> Scenario:
-        """Field ``k`` as a :class:`Scenario` with the given physical parameters (a
-        ``motion="cwh"`` one when the field moves)."""
-        moving = self.velocities is not None
-        return scenario_from_arrays(
-            self.centers[k], self.radii[k], self.vertices[k], self.n_vertices[k],
-            self.n_targets, self.bounds, mean_motion=mean_motion, dt=dt, max_accel=max_accel,
-            velocities=self.velocities[k] if moving else None,
-            spins=self.spins[k] if moving and self.spins is not None else None,
-        )  # fmt: skip
-
-
-def scenario_from_arrays(
-    centers: np.ndarray,
-    radii: np.ndarray,
-    vertices: np.ndarray,
-    n_vertices: np.ndarray,
-    n_targets: int,
-    bounds: tuple[tuple[float, float], ...],
-    *,
-    mean_motion: float,
-    dt: float,
-    max_accel: float,
-    velocities: np.ndarray | None = None,
-    spins: np.ndarray | None = None,
-) -> Scenario:
-    """One random field's arrays (one row of :class:`FieldArrays`) as a :class:`Scenario`.
-
-    Args:
-        centers: (B, dim) body centres (m), targets first.
-        radii: (B,) radii (m).
-        vertices: (O, V, 2) obstacle polygon vertices relative to their centres (m).
-        n_vertices: (O,) vertex counts, 0 for a circle / sphere.
-        n_targets: number of targets T (the first T bodies).
-        bounds: per-axis ``(low, high)`` world limits (m); the dock is at the origin.
-        mean_motion, dt, max_accel: the scenario's physical parameters.
-        velocities: (B, dim) LVLH velocities at t = 0 (m/s); given, the scenario moves
-            (``motion="cwh"``); None keeps it frozen.
-        spins: (B,) tumble rates (rad/s) of a moving field's bodies, or None (no tumble).
-    """
-    dim = centers.shape[1]
-    zero = (0.0,) * dim
-    counts = n_vertices.tolist()
-    n_bodies = len(radii)
-    speeds = [zero] * n_bodies if velocities is None else list(map(tuple, velocities.tolist()))
-    turns = [0.0] * n_bodies if spins is None else spins.tolist()
-    bodies = []
-    for b, (position, radius) in enumerate(zip(centers.tolist(), radii.tolist())):
-        m = counts[b - n_targets] if b >= n_targets else 0
-        verts = tuple(map(tuple, vertices[b - n_targets, :m].tolist())) if m else None
-        bodies.append(
-            Body(position=tuple(position), radius=radius, velocity=speeds[b], vertices=verts,
-                 spin=turns[b] if m else 0.0)
-        )  # fmt: skip
-    return Scenario(
-        dim=dim,
-        bounds=bounds,
-        dock=zero,
-        targets=tuple(bodies[:n_targets]),
-        obstacles=tuple(bodies[n_targets:]),
-        mean_motion=mean_motion,
-        dt=dt,
-        max_accel=max_accel,
-        motion="frozen" if velocities is None else "cwh",
-        name=f"random{dim}d",
-    )
 
 
 def random_field(
@@ -224,7 +77,7 @@ def random_field(
     dt: float,
     max_accel: float,
     capture_radius: float,
-    max_tries: int = 50,
+    max_tries: int = MAX_TRIES,
 ) -> Scenario:
     """Draw a solvable random field (2D or 3D) centred on the dock at the LVLH origin.
 
@@ -247,8 +100,6 @@ def unplaceable(spec: FieldSpec) -> str | None:
     it lets through may still fail when crowded (:func:`random_fields` then says so).
     """
     if spec.motion != "frozen":
-        from debris_gym.orbit_fields import moving_unplaceable  # imports this module
-
         return moving_unplaceable(spec)
     dock_clearance = spec.dock_clearance
     kinds = [("target", spec.target_radius[0], max(spec.min_target_distance, dock_clearance))]
@@ -266,11 +117,70 @@ def unplaceable(spec: FieldSpec) -> str | None:
     return None
 
 
+TRIAL_FIELDS = 32
+"""Fields :func:`placement_problem` draws to decide whether a spec places reliably."""
+
+TRIAL_SEED = 0x5EED_F1E1D
+"""Seed of the trial fields' generators (fixed: a spec is always accepted or always refused)."""
+
+TRIAL_SHARE = 8
+"""A trial field must place within 1/TRIAL_SHARE of the draw's budget of tries."""
+
+
+@functools.lru_cache(maxsize=256)  # asked when an env is made or its mission set
+def placement_problem(spec: FieldSpec, capture_radius: float) -> str | None:
+    """Why fields of ``spec`` cannot be drawn reliably, or None: every seed should place.
+
+    :func:`unplaceable` and, for moving fields, the spec checks of
+    :func:`~debris_gym.orbit_fields.orbit_drawer` first. Then :data:`TRIAL_FIELDS` fields are
+    drawn from fixed seeds with an eighth of the budget (frozen: 1/:data:`TRIAL_SHARE` of
+    :data:`MAX_TRIES` draws; moving: the narrow tries and 1/:data:`TRIAL_SHARE` of the wide
+    ones), and every one must place. Were a seed's chance to need more than that q, the trials
+    would all pass with chance (1 − q)^32, while a seed fails the whole budget with chance
+    about q^8: a spec that passes has q small (below about 0.1), so that no seed of it fails
+    in practice, and one whose fields only sometimes place is refused before any draw.
+
+    Deterministic (fixed seeds), and remembered per spec.
+    """
+    why = unplaceable(spec)
+    if why is not None:
+        return why
+    seeds = np.random.SeedSequence(TRIAL_SEED).generate_state(TRIAL_FIELDS, dtype=np.uint64)
+    if spec.motion == "frozen":
+        tries = max(1, MAX_TRIES // TRIAL_SHARE)
+        try:
+            for seed in seeds:  # one field at a time: bounded memory, and the first failure ends it
+                rng = np.random.default_rng(int(seed))
+                random_fields([rng], spec, capture_radius=capture_radius, max_tries=tries)
+        except ValueError:
+            return _unreliable(spec, f"{tries} of its {MAX_TRIES} draws")
+        return None
+    try:
+        drawer = orbit_drawer(spec, capture_radius, MAX_TRIES, WIDE_TRIES // TRIAL_SHARE)
+    except ValueError as exc:
+        return str(exc)
+    # one field at a time: a spec that fails is refused at its first failing field
+    if not all(drawer.place(seeds[k : k + 1]).placed[0] for k in range(TRIAL_FIELDS)):
+        budget = f"{MAX_TRIES} + {WIDE_TRIES // TRIAL_SHARE} of its {MAX_TRIES} + {WIDE_TRIES}"
+        return _unreliable(spec, f"{budget} tries")
+    return None
+
+
+def _unreliable(spec: FieldSpec, budget: str) -> str:
+    return (
+        f"could not place n_targets={spec.n_targets} and n_obstacles={spec.n_obstacles} in "
+        f"field_size={spec.field_size} m with min_gap={spec.min_gap} m reliably: of "
+        f"{TRIAL_FIELDS} trial fields, some found no layout within {budget} (a spec must "
+        "place well within its budget, so that every seed places); lower n_obstacles or the "
+        "radii, or raise field_size"
+    )
+
+
 @functools.lru_cache(maxsize=64)  # called on every reset; the spec is frozen
 def draw_size(spec: FieldSpec) -> int:
     """Uniform numbers one draw of one field consumes from its generator (a fixed block)."""
     bodies = spec.n_targets + spec.n_obstacles
-    polygons = spec.n_obstacles * (1 + _POLYGON_DRAWS) if spec.dim == 2 else 0
+    polygons = spec.n_obstacles * (1 + POLYGON_DRAWS) if spec.dim == 2 else 0
     return bodies + polygons + bodies * candidates(spec) * spec.dim
 
 
@@ -311,7 +221,7 @@ def random_fields(
     spec: FieldSpec,
     *,
     capture_radius: float,
-    max_tries: int = 50,
+    max_tries: int = MAX_TRIES,
 ) -> FieldArrays:
     """Draw one solvable random field per generator, all at once.
 
@@ -338,8 +248,6 @@ def random_fields(
         ValueError: some field found no valid draw in ``max_tries``; names the settings to change.
     """
     if spec.motion != "frozen":
-        from debris_gym.orbit_fields import random_orbit_fields  # imports this module
-
         return random_orbit_fields(rngs, spec, capture_radius=capture_radius, max_tries=max_tries)
     rngs = list(rngs)
     if len(rngs) > _CHUNK:  # bounded temporaries: a big batch goes in chunks (same fields)
@@ -410,36 +318,6 @@ def _accepted(centers, radii, vertices, n_vertices, placed, spec: FieldSpec, cap
     return ok
 
 
-@functools.lru_cache(maxsize=64)  # asked on every draw; the spec is frozen
-def route_by_construction(spec: FieldSpec, capture_radius: float) -> bool:
-    """True if every field the placement accepts passes :func:`is_solvable`'s proof by itself.
-
-    The placement keeps bounding balls ``min_gap`` apart (``target_clearance`` more around
-    targets), ``min_gap`` from the bounds and ``dock_clearance`` (or more) from the dock. With
-    the chaser (radius ``chaser_radius``) and a capture point at ``0.5 · capture_radius`` from
-    a target's surface, the disjoint-balls proof then holds for every such field when
-
-    * ``min_gap > 2 · chaser_radius`` (inflated balls disjoint, and inside the bounds),
-    * ``dock_clearance > chaser_radius`` (the dock is free),
-    * ``min_gap + target_clearance > 2 · chaser_radius + 0.5 · capture_radius`` (every capture
-      point is clear of the other bodies),
-    * ``chaser_radius + 0.5 · capture_radius < min_gap`` (every capture point is inside the
-      bounds), and ``capture_radius > 0`` (capture points are off the target),
-
-    each with a margin far above rounding. Otherwise the proof is checked field by field.
-    """
-    slack = 1e-9 * spec.field_size
-    half_capture = 0.5 * capture_radius
-    cr = spec.chaser_radius
-    return (
-        half_capture > slack
-        and spec.min_gap - 2.0 * cr > slack
-        and spec.dock_clearance - cr > slack
-        and spec.min_gap + spec.target_clearance - 2.0 * cr - half_capture > slack
-        and spec.min_gap - cr - half_capture > slack
-    )
-
-
 def _draw_fields(u: np.ndarray, spec: FieldSpec):
     """Place the bodies of K fields from their blocks ``u`` (K, :func:`draw_size`).
 
@@ -480,7 +358,7 @@ def _draw(
     n_vertices = np.zeros((num, o), dtype=np.int64)
     centers = np.zeros((num, b_all, dim))
     placed = np.ones(num, dtype=np.bool_)
-    start = b_all + (o * (1 + _POLYGON_DRAWS) if dim == 2 else 0)
+    start = b_all + (o * (1 + POLYGON_DRAWS) if dim == 2 else 0)
     n_cand = (u.shape[1] - start) // (b_all * dim)
     spacing = np.full(b_all, float(min_gap))
     for b in range(t):
@@ -495,9 +373,9 @@ def _draw(
         if dim == 2:
             for j in range(o):
                 if u[k, b_all + j] < polygon_fraction:
-                    first = b_all + o + j * _POLYGON_DRAWS
-                    n_vertices[k, j] = _convex_polygon(
-                        u[k, first : first + _POLYGON_DRAWS], radii[k, t + j], vertices[k, j]
+                    first = b_all + o + j * POLYGON_DRAWS
+                    n_vertices[k, j] = convex_polygon(
+                        u[k, first : first + POLYGON_DRAWS], radii[k, t + j], vertices[k, j]
                     )
         for b in range(b_all):
             lim = field_size / 2.0 - radii[k, b] - min_gap
@@ -529,53 +407,6 @@ def _draw(
                 placed[k] = False
                 break
     return centers, radii, vertices, n_vertices, placed
-
-
-@inlined
-def _convex_polygon(shape, radius, out):
-    """A CCW convex polygon from 10 uniform numbers ``shape``, no rejection; returns its count.
-
-    ``shape[0]`` picks 3 to 7 vertices; they sit on the unit circle at evenly spaced angles,
-    each moved by at most ± ``ANGLE_JITTER`` / 2 of the spacing (``shape[1:8]``), so
-    consecutive angles stay strictly increasing and every gap is below 1.3 · 2π/3 < π: the
-    polygon is strictly convex, counter-clockwise, and holds the centre strictly inside. An
-    affine squash of x into [0.5, 1) (``shape[8]``) and a rotation (``shape[9]``) keep all of
-    that; the result is scaled so its largest vertex distance (circumradius) is ``radius`` (m).
-    The vertices go into ``out`` (V, 2); unused slots repeat the first vertex.
-    """
-    v = MAX_POLYGON_VERTICES
-    count = 3 + min(int(shape[0] * (v - 2)), v - 3)
-    spacing = 2.0 * np.pi / count
-    squash = 0.5 + 0.5 * shape[1 + v]
-    rot = 2.0 * np.pi * shape[2 + v]
-    c, s = np.cos(rot), np.sin(rot)
-    far = 0.0
-    for j in range(count):
-        angle = (j + ANGLE_JITTER * (shape[1 + j] - 0.5)) * spacing
-        x = np.cos(angle) * squash
-        y = np.sin(angle)
-        out[j, 0] = x * c - y * s
-        out[j, 1] = x * s + y * c
-        far = max(far, np.sqrt(out[j, 0] * out[j, 0] + out[j, 1] * out[j, 1]))
-    scale = radius / far
-    for j in range(v):
-        if j < count:
-            out[j, 0] *= scale
-            out[j, 1] *= scale
-        else:
-            out[j, 0] = out[0, 0]
-            out[j, 1] = out[0, 1]
-    return count
-
-
-@kernel
-def _convex_polygons(shape, radius):
-    """:func:`_convex_polygon` for K polygons: (K, V, 2) vertices and (K,) counts."""
-    vertices = np.zeros((shape.shape[0], MAX_POLYGON_VERTICES, 2))
-    counts = np.zeros(shape.shape[0], dtype=np.int64)
-    for k in range(shape.shape[0]):
-        counts[k] = _convex_polygon(shape[k], radius[k], vertices[k])
-    return vertices, counts
 
 
 def paper_field(dt: float = 0.1, max_accel: float = 1.0) -> Scenario:

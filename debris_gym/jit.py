@@ -26,6 +26,8 @@ COMPILED_MODULES = (
     "batch_geometry",
     "swept_contacts",
     "generators",
+    "convex_polygons",
+    "orbit_separation",
     "orbit_fields",
     "geometry_kernels",
     "goal",
@@ -35,9 +37,10 @@ COMPILED_MODULES = (
 )
 """Modules of this package with numba-compiled functions (their caches are dropped together)."""
 
-STRUCTURE_MODULES = ("mission_data",)
-"""Modules whose named tuples the compiled signatures are made of: the compiled code reads
-their fields by position, so a change to them drops the cache too."""
+STRUCTURE_MODULES = ("mission_data", "field_spec")
+"""Modules whose named tuples the compiled signatures are made of (the compiled code reads their
+fields by position), or whose constants compiled code bakes in (``MAX_POLYGON_VERTICES``): a
+change to them drops the cache too."""
 
 COMPILE_OPTIONS: dict[str, object] = {
     "cache": True,

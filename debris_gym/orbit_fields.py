@@ -23,17 +23,10 @@ orbit that keeps, over the checked time (all time for ``"bounded"``):
 * a centre distance of at least r_i + r_j + max(s_i, s_j) to every body placed before it
   (s = ``min_gap``, plus ``target_clearance`` around targets).
 
-The relative motion of two bodies (or of a body and the dock) is itself CWH motion, so their
-distance is a trig function of time. In the plane, for two drift-free orbits, with relative
-amplitude R and along-track centre offset D, the squared distance over the relative phase θ is
-R² + D² + 4DR cos θ + 3R² cos² θ, a quadratic in cos θ whose minimum is exact:
-(|D| − 2R)² when |D| ≥ 1.5 R, else R² − D²/3 (:func:`_apart`). In 3D the cross-track term
-joins when the plane alone does not keep them apart, and a drifting pair is not periodic: there
-the squared distance f, whose second derivative is bounded from the pair's elements (relative
-amplitudes, speed and acceleration), is searched by branch and bound (:func:`_search`): over an
-interval of width w, f >= min(f at its ends) − max|f''| · w²/8, so the search proves the gap or
-finds a violation, down to about :data:`SEARCH_TOLERANCE` m, where an undecided pair is refused.
-Every pair first gets a cheap axis-separation test.
+The relative motion of two bodies (or of a body and the dock) is itself CWH motion, so whether
+they keep a distance is decided from their element differences: exactly for drift-free pairs in
+the plane, by a branch and bound that proves the gap or finds a violation otherwise
+(:func:`debris_gym.orbit_separation.apart`).
 
 Solvability in space-time (the argument; tested against an independent time-expanded search in
 ``tests/test_orbit_fields.py``). With ``min_gap > 2 · chaser_radius`` and the other conditions
@@ -59,31 +52,40 @@ the counter-based generator SplitMix64 ([Steele14]): uniform number i of a try i
 SplitMix64 seeded with the try's key, computed on demand, so candidates are decoded only as far
 as they are tried. Try 0's key is the word itself; a field where some body found no candidate is
 tried again, up to ``max_tries`` times, with the key of try j the j-th SplitMix64 output of the
-word mixed once more (:func:`_try_key`).
+word mixed once more (:func:`_try_key`); then up to :data:`WIDE_TRIES` times more with
+:data:`WIDE_CANDIDATES` candidates per body (a field placed in its first tries is the same
+whether or not the wide ones exist). The kernels read their settings and write their results
+as named records (:class:`OrbitRules`, :class:`PlaceScratch`, :class:`DrawnOrbits`).
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 
-from debris_gym.generators import (
-    _POLYGON_DRAWS,
-    FIELD_MOTIONS,
+from debris_gym.convex_polygons import POLYGON_DRAWS, convex_polygon
+from debris_gym.field_spec import (
     MAX_POLYGON_VERTICES,
+    MAX_TRIES,
     FieldArrays,
     FieldSpec,
-    _convex_polygon,
+    check_motion,
+    checked_horizon,
     route_by_construction,
 )
 from debris_gym.jit import inlined, kernel
-from debris_gym.scenario_checks import MAX_SPIN, number
+from debris_gym.orbit_separation import apart
 
 __all__ = [
     "ORBIT_CANDIDATES",
+    "WIDE_CANDIDATES",
+    "WIDE_TRIES",
+    "DrawnOrbits",
     "OrbitDrawer",
+    "OrbitRules",
+    "PlaceScratch",
     "check_motion",
     "checked_horizon",
     "moving_unplaceable",
@@ -93,16 +95,19 @@ __all__ = [
 ]
 
 ORBIT_CANDIDATES = {2: 64, 3: 32}
-"""Candidate orbits per body in one try, by dim: enough that a default field places every body in
-~99.8 % (2D) / ~99.9 % (3D) of tries (measured: 16 candidates place 74 % of 2D fields, 32 96 %,
-64 99.8 %; 3D places ~100 % from 16 on); a field that fails is tried again with a new key."""
+"""Candidate orbits per body in one of the first ``max_tries`` tries, by dim: a default field
+places every body in almost every try (docs/benchmarks.md); a field that fails is tried again
+with a new key."""
 
-SEARCH_TOLERANCE = 0.25
-"""Smallest distance slack (m) the branch and bound of a pair resolves: a pair whose smallest
-distance it cannot place above ``need`` at that resolution is refused (conservatively)."""
+WIDE_CANDIDATES = 4096
+"""Candidate orbits per body in the tries after the first ``max_tries``: a crowded field (for
+example 50 obstacles in the default 2D world, whose drift-free orbits all crowd the along-track
+axis) rarely finds a place for its last bodies among 64 candidates, and almost always among
+these. Only a field that failed every one of its first tries gets here, so the fields drawn in
+those tries are the same as without the wide ones."""
 
-SEARCH_STACK = 128
-"""Intervals the branch and bound holds at once (depth-first: ~8 + one per halving)."""
+WIDE_TRIES = 32
+"""Tries with :data:`WIDE_CANDIDATES` candidates after the first ``max_tries``."""
 
 _GAMMA = np.uint64(0x9E3779B97F4A7C15)
 """SplitMix64's counter increment (2^64 / golden ratio, odd) [Steele14]."""
@@ -115,30 +120,85 @@ _ONE = np.uint64(1)
 _UNIT = 2.0**-53
 
 
-def check_motion(spec: FieldSpec) -> None:
-    """Check the motion keys of ``spec`` (``FieldSpec.__post_init__`` calls this).
+class OrbitRules(NamedTuple):
+    """What the draw of one spec's moving fields obeys (built once by :class:`OrbitDrawer`,
+    read by name in the kernels). Lengths in m, n in rad/s, times in s.
 
-    Raises:
-        ValueError: naming the key (``FieldSpec.<key>``) and its allowed range.
+    Attributes:
+        dim: 2 or 3.
+        n_targets, n_obstacles: bodies per field T and O.
+        target_radius_lo, target_radius_hi: target radius range.
+        obstacle_radius_lo, obstacle_radius_hi: obstacle (bounding) radius range.
+        polygon_fraction: share of 2D obstacles that are polygons.
+        half_size: half the world edge.
+        min_gap: gap every body keeps to the bounds and to every other body.
+        target_clearance: extra gap around targets.
+        dock_clearance: gap every body's surface keeps to the dock, at all times.
+        target_start: smallest dock-to-target centre distance at t = 0 (less the radius).
+        mean_motion: n.
+        horizon: time span the field is checked over (all time when not drifting).
+        drifting: the orbits' centres drift (|x_c| drawn in the drift range).
+        drift_lo, drift_hi: range of |x_c|.
+        rho_max: largest in-plane (and cross-track) amplitude.
+        spin_max: polygons' tumble rates are drawn in ±spin_max (rad/s).
+        tries: tries with ``candidates`` candidates per body.
+        candidates: candidates per body in those tries.
+        wide_tries: tries after them with ``wide_candidates`` candidates per body.
+        wide_candidates: candidates per body in those.
     """
-    if spec.motion not in FIELD_MOTIONS:
-        raise ValueError(f"FieldSpec.motion={spec.motion!r}; allowed: {FIELD_MOTIONS}")
-    low_n = 0.0 if spec.motion == "frozen" else 1e-9  # moving bodies need n > 0
-    number(spec.mean_motion, "FieldSpec.mean_motion", low=low_n, high=1.0, unit="rad/s")
-    number(spec.horizon, "FieldSpec.horizon", low=0.0, high=1e7, unit="s")
-    number(spec.rho_max, "FieldSpec.rho_max", low=0.0, high=1e6, unit="m")
-    number(spec.spin_max, "FieldSpec.spin_max", low=0.0, high=MAX_SPIN, unit="rad/s")
-    offset = spec.drift_offset
-    if not (isinstance(offset, tuple) and len(offset) == 2):
-        raise ValueError(f"FieldSpec.drift_offset must be a (min, max) pair in m, got {offset!r}")
-    low = number(offset[0], "FieldSpec.drift_offset[0]", low=0.0, high=1e6, unit="m")
-    number(offset[1], "FieldSpec.drift_offset[1]", low=low, high=1e6, unit="m")
+
+    dim: int
+    n_targets: int
+    n_obstacles: int
+    target_radius_lo: float
+    target_radius_hi: float
+    obstacle_radius_lo: float
+    obstacle_radius_hi: float
+    polygon_fraction: float
+    half_size: float
+    min_gap: float
+    target_clearance: float
+    dock_clearance: float
+    target_start: float
+    mean_motion: float
+    horizon: float
+    drifting: bool
+    drift_lo: float
+    drift_hi: float
+    rho_max: float
+    spin_max: float
+    tries: int
+    candidates: int
+    wide_tries: int
+    wide_candidates: int
 
 
-def checked_horizon(spec: FieldSpec) -> float:
-    """The time span (s) a moving field of ``spec`` is checked over: ``horizon``, at least one
-    orbit 2π/n (a drift-free field is then valid for ever, since its motion repeats)."""
-    return max(float(spec.horizon), 2.0 * math.pi / spec.mean_motion)
+class DrawnOrbits(NamedTuple):
+    """K moving fields as the kernels write them, one row per field (shapes as
+    :class:`~debris_gym.field_spec.FieldArrays`; ``placed`` (K,): every body found an orbit)."""
+
+    centers: np.ndarray
+    velocities: np.ndarray
+    radii: np.ndarray
+    vertices: np.ndarray
+    n_vertices: np.ndarray
+    spins: np.ndarray
+    placed: np.ndarray
+
+
+class PlaceScratch(NamedTuple):
+    """Working arrays of one try (reused across tries and fields).
+
+    Attributes:
+        spacing: (B,) gap each body demands (m): ``min_gap``, plus ``target_clearance`` for
+            targets.
+        elem: (B, 6) elements x_c, y_c, a, b, a_z, b_z (m) of the bodies placed so far.
+        shape: (:data:`~debris_gym.convex_polygons.POLYGON_DRAWS`,) one polygon's numbers.
+    """
+
+    spacing: np.ndarray
+    elem: np.ndarray
+    shape: np.ndarray
 
 
 def moving_unplaceable(spec: FieldSpec) -> str | None:
@@ -177,7 +237,7 @@ def random_orbit_fields(
     spec: FieldSpec,
     *,
     capture_radius: float,
-    max_tries: int = 50,
+    max_tries: int = MAX_TRIES,
 ) -> FieldArrays:
     """Draw one moving field per generator (the moving branch of
     :func:`~debris_gym.generators.random_fields`); ``velocities`` and ``spins`` are filled.
@@ -192,17 +252,26 @@ def random_orbit_fields(
     return orbit_drawer(spec, capture_radius, max_tries).draw(list(rngs))
 
 
-def orbit_drawer(spec: FieldSpec, capture_radius: float, max_tries: int = 50) -> OrbitDrawer:
+def orbit_drawer(
+    spec: FieldSpec, capture_radius: float, max_tries: int = MAX_TRIES, wide_tries: int = WIDE_TRIES
+) -> OrbitDrawer:
     """An :class:`OrbitDrawer` for ``spec``, the spec checked here once.
+
+    Args:
+        spec: the field parameters (a moving ``motion``).
+        capture_radius: capture depth (m) the solvability conditions must leave room for.
+        max_tries: tries with :data:`ORBIT_CANDIDATES` candidates per body.
+        wide_tries: tries after them with :data:`WIDE_CANDIDATES` candidates per body.
 
     Raises:
         ValueError: the spec breaks the solvability conditions (naming them) or can never be
-            placed; ``max_tries`` is not a whole number >= 1.
+            placed; ``max_tries`` is not a whole number >= 1 or ``wide_tries`` one >= 0.
     """
-    if isinstance(max_tries, bool) or not isinstance(max_tries, (int, np.integer)):
-        raise ValueError(f"max_tries must be a whole number >= 1, got {max_tries!r}")
-    if max_tries < 1:
-        raise ValueError(f"max_tries={max_tries} is out of range; allowed: >= 1")
+    for key, value, least in (("max_tries", max_tries, 1), ("wide_tries", wide_tries, 0)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+            raise ValueError(f"{key} must be a whole number >= {least}, got {value!r}")
+        if value < least:
+            raise ValueError(f"{key}={value} is out of range; allowed: >= {least}")
     if spec.motion == "frozen":
         raise ValueError("FieldSpec.motion='frozen': an orbit drawer needs 'bounded' or 'drifting'")
     if not route_by_construction(spec, capture_radius):
@@ -218,32 +287,49 @@ def orbit_drawer(spec: FieldSpec, capture_radius: float, max_tries: int = 50) ->
     why = moving_unplaceable(spec)
     if why is not None:
         raise ValueError(why)
-    return OrbitDrawer(spec, int(max_tries))
+    return OrbitDrawer(spec, int(max_tries), int(wide_tries))
 
 
 class OrbitDrawer:
     """Draws moving fields of one checked spec (made by :func:`orbit_drawer`): the kernel's
-    arguments are built once, so a draw is one word per generator and one compiled call."""
+    rules are built once, so a draw is one word per generator and one compiled call."""
 
-    __slots__ = ("_args", "_dim", "_half", "_targets", "max_tries", "spec")
+    __slots__ = ("max_tries", "rules", "spec")
 
-    def __init__(self, spec: FieldSpec, max_tries: int) -> None:
+    def __init__(self, spec: FieldSpec, max_tries: int, wide_tries: int = WIDE_TRIES) -> None:
         self.spec, self.max_tries = spec, max_tries
-        self._dim, self._half, self._targets = spec.dim, spec.field_size / 2.0, spec.n_targets
-        self._args = (
-            max_tries, spec.dim, spec.n_targets, spec.n_obstacles, *spec.target_radius,
-            *spec.obstacle_radius, spec.polygon_fraction, spec.field_size, spec.min_gap,
-            spec.target_clearance, spec.dock_clearance,
-            max(spec.min_target_distance, spec.dock_clearance), spec.mean_motion,
-            checked_horizon(spec), spec.motion == "drifting", *spec.drift_offset, spec.rho_max,
-            spec.spin_max, ORBIT_CANDIDATES[spec.dim],
-        )  # fmt: skip
+        self.rules = OrbitRules(
+            dim=spec.dim,
+            n_targets=spec.n_targets,
+            n_obstacles=spec.n_obstacles,
+            target_radius_lo=float(spec.target_radius[0]),
+            target_radius_hi=float(spec.target_radius[1]),
+            obstacle_radius_lo=float(spec.obstacle_radius[0]),
+            obstacle_radius_hi=float(spec.obstacle_radius[1]),
+            polygon_fraction=float(spec.polygon_fraction),
+            half_size=float(spec.field_size) / 2.0,
+            min_gap=float(spec.min_gap),
+            target_clearance=float(spec.target_clearance),
+            dock_clearance=float(spec.dock_clearance),
+            target_start=float(max(spec.min_target_distance, spec.dock_clearance)),
+            mean_motion=float(spec.mean_motion),
+            horizon=checked_horizon(spec),
+            drifting=spec.motion == "drifting",
+            drift_lo=float(spec.drift_offset[0]),
+            drift_hi=float(spec.drift_offset[1]),
+            rho_max=float(spec.rho_max),
+            spin_max=float(spec.spin_max),
+            tries=int(max_tries),
+            candidates=ORBIT_CANDIDATES[spec.dim],
+            wide_tries=int(wide_tries),
+            wide_candidates=WIDE_CANDIDATES,
+        )
 
     def draw(self, rngs: Sequence[np.random.Generator]) -> FieldArrays:
         """One field per generator, each from one 64-bit word of its own generator.
 
         Raises:
-            ValueError: some field found no valid try in ``max_tries`` (naming what to change).
+            ValueError: some field found no valid try (naming what to change).
         """
         if len(rngs) == 1:
             words = rngs[0].bit_generator.random_raw(1)
@@ -254,23 +340,44 @@ class OrbitDrawer:
     def from_words(self, words: np.ndarray) -> FieldArrays:
         """The fields of the 64-bit words ``words`` (K,) uint64 (what :meth:`draw` takes from
         the generators)."""
-        centers, velocities, radii, vertices, n_vertices, spins, placed = _draw_orbits(
-            words, *self._args
-        )
-        if not placed.all():
-            spec = self.spec
+        drawn = self.place(words)
+        if not drawn.placed.all():
+            spec, rules = self.spec, self.rules
             raise ValueError(
                 f"could not place n_targets={spec.n_targets} and n_obstacles={spec.n_obstacles} "
                 f"on relative orbits (motion={spec.motion!r}) in field_size={spec.field_size} m "
-                f"with min_gap={spec.min_gap} m after {self.max_tries} tries; lower n_obstacles "
-                "or the radii, raise field_size, or give the orbits room (rho_max: every "
-                "drift-free orbit is centred on the along-track axis, so small amplitudes crowd "
-                "it)"
+                f"with min_gap={spec.min_gap} m after {rules.tries} tries and "
+                f"{rules.wide_tries} wider ones; lower n_obstacles or the radii, raise "
+                "field_size, or give the orbits room (rho_max: every drift-free orbit is "
+                "centred on the along-track axis, so small amplitudes crowd it)"
             )
+        rules = self.rules
         return FieldArrays(
-            self._dim, self._half, self._targets, centers, radii, vertices, n_vertices,
-            velocities=velocities, spins=spins,
+            rules.dim, rules.half_size, rules.n_targets, drawn.centers, drawn.radii,
+            drawn.vertices, drawn.n_vertices, velocities=drawn.velocities, spins=drawn.spins,
         )  # fmt: skip
+
+    def place(self, words: np.ndarray) -> DrawnOrbits:
+        """Run the compiled draw on ``words`` (K,) uint64; rows whose ``placed`` is False found
+        no valid try (their other arrays are meaningless)."""
+        rules = self.rules
+        num, dim = len(words), rules.dim
+        b_all = rules.n_targets + rules.n_obstacles
+        v_max = MAX_POLYGON_VERTICES if dim == 2 else 0
+        out = DrawnOrbits(
+            centers=np.zeros((num, b_all, dim)),
+            velocities=np.zeros((num, b_all, dim)),
+            radii=np.empty((num, b_all)),
+            vertices=np.zeros((num, rules.n_obstacles, v_max, 2)),
+            n_vertices=np.zeros((num, rules.n_obstacles), dtype=np.int64),
+            spins=np.zeros((num, b_all)),
+            placed=np.zeros(num, dtype=np.bool_),
+        )
+        spacing = np.full(b_all, rules.min_gap)
+        spacing[: rules.n_targets] += rules.target_clearance
+        scratch = PlaceScratch(spacing, np.zeros((b_all, 6)), np.empty(POLYGON_DRAWS))
+        _draw_orbits(np.ascontiguousarray(words, dtype=np.uint64), rules, scratch, out)
+        return out
 
 
 def stream_uniform(key: int, index: int) -> float:
@@ -305,14 +412,12 @@ def _try_key(word, j):
 
 
 @kernel
-def _draw_orbits(
-    words, max_tries, dim, t, o, target_lo, target_hi, obstacle_lo, obstacle_hi,
-    polygon_fraction, field_size, min_gap, target_clearance, dock_clearance, target_start, n,
-    horizon, drifting, drift_lo, drift_hi, rho_max, spin_max, n_cand,
-):  # fmt: skip
-    """The bodies of K moving fields from their words ``words`` (K,) uint64 (module docstring):
-    each field tried with the keys :func:`_try_key` until every body is placed, at most
-    ``max_tries`` times.
+def _draw_orbits(words, rules, scratch, out):
+    """The bodies of K moving fields from their words ``words`` (K,) uint64 (module docstring),
+    written into ``out`` (:class:`DrawnOrbits`): each field tried with the keys
+    :func:`_try_key` until every body is placed, ``rules.tries`` times with
+    ``rules.candidates`` candidates per body, then ``rules.wide_tries`` times with
+    ``rules.wide_candidates``.
 
     Stream layout of a try (indices of :func:`_uniform`): B radii (targets first); in 2D O
     polygon flags, O × 10 polygon shape numbers and O spins; then B × C candidates of P numbers:
@@ -320,83 +425,62 @@ def _draw_orbits(
     body's elements (x_c, y_c, a = ρ cos α, b = ρ sin α, a_z = ρ_z cos β, b_z = ρ_z sin β)
     give x = x_c + a sin nt + b cos nt, y = y_c − 1.5 n x_c t + 2(a cos nt − b sin nt),
     z = a_z sin nt + b_z cos nt; its state at t = 0 is what the field hands out.
-
-    Returns ``(centers, velocities, radii, vertices, n_vertices, spins, placed)``.
     """
-    num = words.shape[0]
-    b_all = t + o
-    p = 3 + (2 if dim == 3 else 0) + (1 if drifting else 0)
-    radii = np.empty((num, b_all))
-    v_max = MAX_POLYGON_VERTICES if dim == 2 else 0
-    vertices = np.zeros((num, o, v_max, 2))
-    n_vertices = np.zeros((num, o), dtype=np.int64)
-    spins = np.zeros((num, b_all))
-    centers = np.zeros((num, b_all, dim))
-    velocities = np.zeros((num, b_all, dim))
-    placed = np.zeros(num, dtype=np.bool_)
-    start = b_all + (o * (2 + _POLYGON_DRAWS) if dim == 2 else 0)
-    spacing = np.full(b_all, float(min_gap))
-    for b in range(t):
-        spacing[b] += target_clearance
-    elem = np.zeros((b_all, 6))  # x_c, y_c, a, b, a_z, b_z of the bodies placed so far
-    shape = np.empty(_POLYGON_DRAWS)
-    half = field_size / 2.0
-    for k in range(num):
-        for attempt in range(max_tries):
+    for k in range(words.shape[0]):
+        for attempt in range(rules.tries + rules.wide_tries):
             key = _try_key(words[k], attempt)
-            placed[k] = _place(
-                key, k, dim, t, o, target_lo, target_hi, obstacle_lo, obstacle_hi,
-                polygon_fraction, min_gap, dock_clearance, target_start, n, horizon, drifting,
-                drift_lo, drift_hi, rho_max, spin_max, n_cand, p, start, half, spacing, elem,
-                shape, radii, vertices, n_vertices, spins, centers, velocities,
-            )  # fmt: skip
-            if placed[k]:
+            n_cand = rules.candidates if attempt < rules.tries else rules.wide_candidates
+            out.placed[k] = _place(key, k, n_cand, rules, scratch, out)
+            if out.placed[k]:
                 break
-    return centers, velocities, radii, vertices, n_vertices, spins, placed
 
 
 @kernel
-def _place(
-    key, k, dim, t, o, target_lo, target_hi, obstacle_lo, obstacle_hi, polygon_fraction,
-    min_gap, dock_clearance, target_start, n, horizon, drifting, drift_lo, drift_hi, rho_max,
-    spin_max, n_cand, p, start, half, spacing, elem, shape, radii, vertices, n_vertices, spins,
-    centers, velocities,
-):  # fmt: skip
-    """One try of field ``k`` from the stream of ``key`` (layout: :func:`_draw_orbits`),
-    written into row ``k`` of the outputs; True if every body found a candidate."""
+def _place(key, k, n_cand, rules, scratch, out):
+    """One try of field ``k`` from the stream of ``key`` with ``n_cand`` candidates per body
+    (layout: :func:`_draw_orbits`), written into row ``k`` of ``out``; True if every body found
+    a candidate."""
+    dim, t, o = rules.dim, rules.n_targets, rules.n_obstacles
+    n, horizon = rules.mean_motion, rules.horizon
     b_all = t + o
+    p = 3 + (2 if dim == 3 else 0) + (1 if rules.drifting else 0)
+    start = b_all + (o * (2 + POLYGON_DRAWS) if dim == 2 else 0)
+    radii, vertices, n_vertices, spins = out.radii, out.vertices, out.n_vertices, out.spins
+    spacing, elem, shape = scratch.spacing, scratch.elem, scratch.shape
     for b in range(b_all):
         if b < t:
-            radii[k, b] = target_lo + (target_hi - target_lo) * _uniform(key, b)
+            lo, hi = rules.target_radius_lo, rules.target_radius_hi
         else:
-            radii[k, b] = obstacle_lo + (obstacle_hi - obstacle_lo) * _uniform(key, b)
+            lo, hi = rules.obstacle_radius_lo, rules.obstacle_radius_hi
+        radii[k, b] = lo + (hi - lo) * _uniform(key, b)
     if dim == 2:
         for j in range(o):
             # a failed try may have left a polygon here
             n_vertices[k, j] = 0
             vertices[k, j] = 0.0
             spins[k, t + j] = 0.0
-            if _uniform(key, b_all + j) < polygon_fraction:
-                first = b_all + o + j * _POLYGON_DRAWS
-                for i in range(_POLYGON_DRAWS):
+            if _uniform(key, b_all + j) < rules.polygon_fraction:
+                first = b_all + o + j * POLYGON_DRAWS
+                for i in range(POLYGON_DRAWS):
                     shape[i] = _uniform(key, first + i)
-                n_vertices[k, j] = _convex_polygon(shape, radii[k, t + j], vertices[k, j])
-                spin_u = _uniform(key, b_all + o + o * _POLYGON_DRAWS + j)
-                spins[k, t + j] = spin_max * (2.0 * spin_u - 1.0)
+                n_vertices[k, j] = convex_polygon(shape, radii[k, t + j], vertices[k, j])
+                spin_u = _uniform(key, b_all + o + o * POLYGON_DRAWS + j)
+                spins[k, t + j] = rules.spin_max * (2.0 * spin_u - 1.0)
     for b in range(b_all):
         r = radii[k, b]
-        lim = half - r - min_gap
-        dock_need = dock_clearance + r
+        lim = rules.half_size - r - rules.min_gap
+        dock_need = rules.dock_clearance + r
         found = False
         for c in range(n_cand):
             q = start + (b * n_cand + c) * p
             xc = 0.0
-            if drifting:
+            if rules.drifting:
                 w = _uniform(key, q + p - 1)
-                mag = drift_lo + (drift_hi - drift_lo) * (2.0 * w if w < 0.5 else 2.0 * w - 1.0)
+                span = rules.drift_hi - rules.drift_lo
+                mag = rules.drift_lo + span * (2.0 * w if w < 0.5 else 2.0 * w - 1.0)
                 xc = -mag if w < 0.5 else mag
             slide = -1.5 * n * xc * horizon  # along-track displacement of the centre
-            cap = min(rho_max, lim - abs(xc), (2.0 * lim - abs(slide)) / 4.0)
+            cap = min(rules.rho_max, lim - abs(xc), (2.0 * lim - abs(slide)) / 4.0)
             if cap < 0.0:
                 continue
             rho = cap * np.sqrt(_uniform(key, q))  # area-uniform in the (x, y/2) disc
@@ -409,22 +493,22 @@ def _place(
             ez = 0.0
             fz = 0.0
             if dim == 3:
-                rho_z = min(rho_max, lim) * _uniform(key, q + 3)
+                rho_z = min(rules.rho_max, lim) * _uniform(key, q + 3)
                 beta = 2.0 * np.pi * _uniform(key, q + 4)
                 ez = rho_z * np.cos(beta)
                 fz = rho_z * np.sin(beta)
             if b < t:  # a target starts min_target_distance from the dock
                 x0 = xc + eb
                 y0 = yc + 2.0 * ea
-                reach = target_start + r
+                reach = rules.target_start + r
                 if x0 * x0 + y0 * y0 + fz * fz < reach * reach:
                     continue
-            if not _apart(xc, yc, ea, eb, ez, fz, dock_need, dim, n, horizon):
+            if not apart(xc, yc, ea, eb, ez, fz, dock_need, dim, n, horizon):
                 continue
             clear = True
             for j in range(b):
                 need = r + radii[k, j] + max(spacing[b], spacing[j])
-                if not _apart(
+                if not apart(
                     xc - elem[j, 0], yc - elem[j, 1], ea - elem[j, 2], eb - elem[j, 3],
                     ez - elem[j, 4], fz - elem[j, 5], need, dim, n, horizon,
                 ):  # fmt: skip
@@ -437,128 +521,15 @@ def _place(
                 elem[b, 3] = eb
                 elem[b, 4] = ez
                 elem[b, 5] = fz
-                centers[k, b, 0] = xc + eb
-                centers[k, b, 1] = yc + 2.0 * ea
-                velocities[k, b, 0] = n * ea
-                velocities[k, b, 1] = -1.5 * n * xc - 2.0 * n * eb
+                out.centers[k, b, 0] = xc + eb
+                out.centers[k, b, 1] = yc + 2.0 * ea
+                out.velocities[k, b, 0] = n * ea
+                out.velocities[k, b, 1] = -1.5 * n * xc - 2.0 * n * eb
                 if dim == 3:
-                    centers[k, b, 2] = fz
-                    velocities[k, b, 2] = n * ez
+                    out.centers[k, b, 2] = fz
+                    out.velocities[k, b, 2] = n * ez
                 found = True
                 break
         if not found:
             return False
-    return True
-
-
-@inlined
-def _apart(dxc, dyc, da, db, daz, dbz, need, dim, n, horizon):
-    """True if two bodies whose element differences are given stay ``need`` (m) or more apart
-    (centre to centre) over the checked time: all time when ``dxc == 0`` (the relative motion
-    repeats), else over ``[0, horizon]``. Exact for drift-free pairs in 2D; a proven lower bound
-    otherwise (module docstring), so False may be a conservative refusal."""
-    rr = np.sqrt(da * da + db * db)
-    rz = np.sqrt(daz * daz + dbz * dbz) if dim == 3 else 0.0
-    need2 = need * need
-    # cheap accept: the relative motion stays apart along x (|Δx| >= |Δx_c| − R) or along y
-    # (|Δy| >= distance of the sliding centre offset from 0, less 2R)
-    if abs(dxc) - rr >= need:
-        return True
-    slide = 1.5 * n * dxc * horizon
-    lo_y = min(dyc, dyc - slide)
-    hi_y = max(dyc, dyc - slide)
-    y_far = lo_y if lo_y > 0.0 else (-hi_y if hi_y < 0.0 else 0.0)
-    if y_far - 2.0 * rr >= need:
-        return True
-    if dxc == 0.0:
-        # in-plane minimum, exact: min over c = cos θ of R² + D² + 4DRc + 3R²c²
-        d = abs(dyc)
-        if d >= 1.5 * rr:
-            plane = (d - 2.0 * rr) * (d - 2.0 * rr)
-        else:
-            plane = rr * rr - d * d / 3.0
-        if plane >= need2 or dim == 2:
-            return plane >= need2
-        # 3D: the cross-track term may keep them apart; search the phase θ = nt in [0, 2π].
-        # d²(θ) = R² sin²u + (D + 2R cos u)² + R_z² sin²v (u, v: θ + phases) has
-        # d²'' = −4DR cos u − 6R² cos 2u + 2R_z² cos 2v, so |d²''| <= 4|D|R + 6R² + 2R_z²
-        bend = 4.0 * abs(dyc) * rr + 6.0 * rr * rr + 2.0 * rz * rz
-        return _search(0.0, da, db, dyc, daz, dbz, need, 1.0, 0.0, 2.0 * np.pi, bend)
-    # drifting pair: search time t in [0, horizon]; d²'' = 2|Δv|² + 2 Δp·Δa, with
-    # |Δv| <= n√(R² + (1.5|Δx_c| + 2R)² + R_z²), |Δa| <= n²√(5R² + R_z²) and |Δp| bounded by the
-    # extent of the relative motion over the horizon
-    speed = n * np.sqrt(rr * rr + (1.5 * abs(dxc) + 2.0 * rr) ** 2 + rz * rz)
-    accel = n * n * np.sqrt(5.0 * rr * rr + rz * rz)
-    far_y = max(abs(dyc), abs(dyc - slide)) + 2.0 * rr
-    far = np.sqrt((abs(dxc) + rr) ** 2 + far_y * far_y + rz * rz)
-    bend = 2.0 * speed * speed + 2.0 * far * accel
-    return _search(dxc, da, db, dyc, daz, dbz, need, n, -1.5 * n * dxc, horizon, bend)
-
-
-@inlined
-def _distance2(dxc, da, db, dyc, daz, dbz, rate, slope, s):
-    """Squared centre distance (m²) of a pair at parameter ``s``: phase ``rate · s`` (rad),
-    along-track centre offset ``dyc + slope · s`` (m)."""
-    th = rate * s
-    sn = np.sin(th)
-    co = np.cos(th)
-    ex = dxc + da * sn + db * co
-    ey = dyc + slope * s + 2.0 * (da * co - db * sn)
-    ez = daz * sn + dbz * co
-    return ex * ex + ey * ey + ez * ez
-
-
-@inlined
-def _search(dxc, da, db, dyc, daz, dbz, need, rate, slope, span, bend):
-    """True if the pair's distance (:func:`_distance2`) is >= ``need`` for every s in
-    ``[0, span]``, proven by branch and bound on the squared distance f: on an interval of
-    width w whose ends are known, f >= min(f(ends)) − ``bend`` · w² / 8 (``bend`` >= |f''|, the
-    error of linear interpolation). An interval that cannot be decided once that margin is below
-    2 · need · :data:`SEARCH_TOLERANCE` (about :data:`SEARCH_TOLERANCE` m of distance) counts
-    as too close, so a pair that stays ``need`` + :data:`SEARCH_TOLERANCE` apart always passes.
-    """
-    need2 = need * need
-    tol2 = 2.0 * need * SEARCH_TOLERANCE
-    stack = np.empty((SEARCH_STACK, 4))  # lo, hi, f(lo), f(hi)
-    top = 0
-    pieces = 16
-    f_lo = _distance2(dxc, da, db, dyc, daz, dbz, rate, slope, 0.0)
-    if f_lo < need2:
-        return False
-    for i in range(pieces):
-        lo = span * i / pieces
-        hi = span * (i + 1) / pieces
-        f_hi = _distance2(dxc, da, db, dyc, daz, dbz, rate, slope, hi)
-        if f_hi < need2:
-            return False
-        stack[top, 0] = lo
-        stack[top, 1] = hi
-        stack[top, 2] = f_lo
-        stack[top, 3] = f_hi
-        top += 1
-        f_lo = f_hi
-    while top > 0:
-        top -= 1
-        lo = stack[top, 0]
-        hi = stack[top, 1]
-        f_lo = stack[top, 2]
-        f_hi = stack[top, 3]
-        margin = bend * (hi - lo) * (hi - lo) / 8.0
-        if min(f_lo, f_hi) - margin >= need2:
-            continue
-        if margin < tol2 or top + 2 > SEARCH_STACK:
-            return False
-        mid = 0.5 * (lo + hi)
-        f_mid = _distance2(dxc, da, db, dyc, daz, dbz, rate, slope, mid)
-        if f_mid < need2:
-            return False
-        stack[top, 0] = lo
-        stack[top, 1] = mid
-        stack[top, 2] = f_lo
-        stack[top, 3] = f_mid
-        stack[top + 1, 0] = mid
-        stack[top + 1, 1] = hi
-        stack[top + 1, 2] = f_mid
-        stack[top + 1, 3] = f_hi
-        top += 2
     return True

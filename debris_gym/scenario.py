@@ -18,8 +18,10 @@ state and attitude at time t come from.
 
 Checks (:mod:`debris_gym.scenario_checks`, listed in ``docs/validation.md``): every value is
 checked when a :class:`Scenario` is built; the layout of the world (size, bodies inside the bounds
-and apart, the dock clear) when a scenario comes from outside the library — :meth:`from_dict`,
-:meth:`load` and :func:`as_scenario`, through which every pinned field enters an env.
+and apart, the dock clear, moving bodies' speeds) when a scenario comes from outside the library
+— :meth:`from_dict`, :meth:`load` and :func:`as_scenario`, through which every pinned field
+enters an env; and a moving field's motion over the env's episode
+(:meth:`Scenario.check_motion`, :mod:`debris_gym.horizon_checks`) when an env pins it.
 """
 
 from __future__ import annotations
@@ -27,118 +29,51 @@ from __future__ import annotations
 import json
 import math
 import os
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from debris_gym.body import BODY_KEYS, Body
+from debris_gym.config import OPTIONS
 from debris_gym.dynamics import discretize
 from debris_gym.files import write_atomic
+from debris_gym.horizon_checks import describe, first_motion_fault
 from debris_gym.scenario_checks import (
+    BODY_COUNTS,
     MOTION_MODELS,
+    body_names,
+    check_count,
     check_layout,
-    check_polygon,
     check_values,
-    number,
-    vector,
 )
+from debris_gym.scenario_values import mapping, number, sequence, show, vector
 
-__all__ = ["MOTION_MODELS", "Body", "Scenario", "as_scenario"]
+__all__ = ["BODY_KEYS", "MOTION_FAULTS", "MOTION_MODELS", "Body", "Scenario", "as_scenario"]
 
 REQUIRED_KEYS = ("dim", "bounds", "dock", "targets", "mean_motion", "dt", "max_accel")
 """Keys a scenario dict / JSON file must have: the physical parameters too, since a saved field is
 flown with its own physics (an absent ``dt`` must not silently mean 1 s)."""
 
-OPTIONAL_KEYS = {"obstacles": (), "motion": "frozen", "name": ""}
+OPTIONAL_KEYS = {"obstacles": (), "motion": "frozen", "name": "", "motion_faults": "refuse"}
 """Keys a scenario dict may leave out, with the value they then take."""
 
-BODY_KEYS = ("position", "radius", "velocity", "vertices", "spin")
-"""Keys of one body's dict; ``position`` always, ``radius`` unless ``vertices`` give it."""
+MOTION_FAULTS = ("refuse", "warn")
+"""What an env does with a moving field whose bodies break the layout rules within its episode
+(:meth:`Scenario.check_motion`): ``"refuse"`` it (``ValueError``, the default) or ``"warn"``
+(fly it, with a ``UserWarning`` naming the first fault: the user asked for a field whose
+targets may leave the world or whose bodies may pass through each other)."""
 
+MAX_FILE_BYTES = 64 * 2**20
+"""Largest scenario file read (bytes): the largest scenario (20 targets, 2 000 obstacles, every
+one a 64-vertex polygon) takes under 10 MB as ``save`` writes it."""
 
-def _sequence(value: Any, key: str, what: str) -> list[Any] | tuple[Any, ...]:
-    if not isinstance(value, (list, tuple)):
-        raise ValueError(f"{key} must be a list of {what}, got {value!r}")
-    return value
-
-
-def _mapping(value: Any, key: str) -> Mapping[str, Any]:
-    if not isinstance(value, Mapping):
-        raise ValueError(f"{key} must be a dict (a JSON object), got {type(value).__name__}")
-    return value
-
-
-@dataclass(frozen=True)
-class Body:
-    """One piece of debris (a target or an obstacle).
-
-    Attributes:
-        position: centre (m), length ``dim``.
-        radius: circle / sphere radius (m); for a polygon, its bounding (circum-)radius.
-        velocity: initial velocity in LVLH (m/s) at t = 0; zero for frozen fields.
-        vertices: 2D convex polygon vertices relative to ``position`` (m), counter-clockwise,
-            at t = 0; ``None`` for a circle or sphere.
-        spin: tumble rate (rad/s, counter-clockwise) of the body's attitude in the inertial
-            frame; 0 keeps it inertially fixed. Turns 2D polygons only; 0 in frozen fields.
-    """
-
-    position: tuple[float, ...]
-    radius: float
-    velocity: tuple[float, ...] = ()
-    vertices: tuple[tuple[float, float], ...] | None = None
-    spin: float = 0.0
-
-    @property
-    def is_polygon(self) -> bool:
-        """True for a 2D convex polygon, False for a circle / sphere."""
-        return self.vertices is not None
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain-JSON form."""
-        out: dict[str, Any] = {
-            "position": list(self.position),
-            "radius": self.radius,
-            # a body built without a velocity is at rest: written as zeros, which from_dict reads
-            "velocity": list(self.velocity) if self.velocity else [0.0] * len(self.position),
-        }
-        if self.vertices is not None:
-            out["vertices"] = [list(v) for v in self.vertices]
-        if self.spin:
-            out["spin"] = self.spin
-        return out
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any], dim: int, key: str = "body") -> Body:
-        """Inverse of :meth:`to_dict`; ``key`` (e.g. ``"targets[2]"``) prefixes error messages.
-
-        ``radius`` may be left out of a polygon's dict: it is then the vertices' circumradius.
-
-        Raises:
-            ValueError: a missing, unknown or wrong-typed key, named as ``key.name``.
-        """
-        data = _mapping(data, key)
-        unknown = sorted(set(data) - set(BODY_KEYS))
-        if unknown:
-            raise ValueError(f"{key} has unknown keys {unknown}; allowed: {list(BODY_KEYS)}")
-        if "position" not in data:
-            raise ValueError(f"{key}.position is missing (the body's centre, {dim} numbers in m)")
-        position = vector(data["position"], dim, f"{key}.position")
-        velocity = vector(data.get("velocity", [0.0] * dim), dim, f"{key}.velocity", "m/s")
-        radius = number(data["radius"], f"{key}.radius", unit="m") if "radius" in data else None
-        vertices = data.get("vertices")
-        if vertices is not None:
-            if dim != 2:
-                raise ValueError(f"{key}.vertices: polygons are only allowed in 2D scenarios")
-            vertices = check_polygon(vertices, radius, f"{key}.vertices")
-            if radius is None:
-                radius = float(max(math.hypot(x, y) for x, y in vertices))
-        if radius is None:
-            raise ValueError(f"{key}.radius is missing (a circle or sphere needs its radius in m)")
-        spin = number(data.get("spin", 0.0), f"{key}.spin", unit="rad/s")
-        return cls(
-            position=position, radius=radius, velocity=velocity, vertices=vertices, spin=spin
-        )
+MAX_OBJECTS = 1 + sum(int(OPTIONS[option].high) for option in BODY_COUNTS.values())
+"""Most JSON objects (``{...}``) a scenario file holds: the scenario and one per body. A file
+with more is refused as soon as the parser meets one more, before it is read whole into Python
+objects (a 1e6-body file would otherwise take tens of seconds and most of a gigabyte)."""
 
 
 @dataclass(frozen=True)
@@ -157,6 +92,9 @@ class Scenario:
         motion: debris motion model: ``"cwh"`` (unforced CWH motion, the v1 world) or
             ``"frozen"`` (fixed in LVLH, the v0 world); see the module docstring.
         name: free-form label, e.g. the preset or generator it came from.
+        motion_faults: what an env does when the bodies' motion breaks the layout rules within
+            its episode (:meth:`check_motion`): ``"refuse"`` (the default) or ``"warn"``
+            (:data:`MOTION_FAULTS`; moving fields only).
     """
 
     dim: int
@@ -169,6 +107,7 @@ class Scenario:
     max_accel: float = 1.0
     motion: str = "frozen"
     name: str = ""
+    motion_faults: str = "refuse"
     # derived data, fresh for every object (init=False: dataclasses.replace must not share it)
     _cache: dict[str, Any] = field(
         default_factory=dict, init=False, compare=False, repr=False, hash=False
@@ -176,6 +115,15 @@ class Scenario:
 
     def __post_init__(self) -> None:
         check_values(self)
+        if self.motion_faults not in MOTION_FAULTS:
+            raise ValueError(
+                f"motion_faults must be one of {MOTION_FAULTS}, got {show(self.motion_faults)}"
+            )
+        if self.motion_faults != "refuse" and self.motion != "cwh":
+            raise ValueError(
+                f"motion_faults={self.motion_faults!r} applies to moving fields only "
+                f"(motion='cwh'); this one has motion={self.motion!r}"
+            )
 
     def check_layout(self) -> Scenario:
         """Check the world's geometry (bounds, bodies inside and apart, dock clear); return self.
@@ -190,6 +138,46 @@ class Scenario:
         if not self._cache.get("layout_checked"):
             check_layout(self)
             self._cache["layout_checked"] = True
+        return self
+
+    def check_motion(self, steps: int) -> Scenario:
+        """Check a moving field over ``steps`` steps of its ``dt`` (an env's episode); return
+        self.
+
+        Every body, by its bounding circle / sphere, stays inside the bounds and no two bodies
+        overlap at any instant of ``[0, steps · dt]`` (:mod:`debris_gym.horizon_checks`; exact
+        to a relative 1e-9 of the world's size). A frozen field has nothing to check. The
+        result is remembered per object (the longest horizon checked).
+
+        Raises:
+            ValueError: the first fault found, naming the bodies and the time — unless
+                ``motion_faults`` is ``"warn"``, which gives a ``UserWarning`` instead.
+        """
+        if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 0:
+            raise ValueError(f"steps must be a whole number >= 0, got {show(steps)}")
+        if not self.moving or steps <= self._cache.get("motion_steps", -1):
+            return self
+        radii = np.array([b.radius for b in self.bodies])
+        fault = first_motion_fault(
+            self.initial_body_states(), radii, self.low, self.high, self.mean_motion, self.dt,
+            int(steps),
+        )  # fmt: skip
+        if fault is not None:
+            what = describe(fault, body_names(self), radii)
+            horizon = f"within {int(steps)} steps of {self.dt:g} s (the env's episode)"
+            if self.motion_faults == "refuse":
+                raise ValueError(
+                    f"{what}, {horizon}: a moving field's bodies must stay wholly inside the "
+                    "bounds and apart (by their bounding circles / spheres) over the episode; "
+                    "to fly it anyway, set the scenario's motion_faults='warn'"
+                )
+            warnings.warn(
+                f"{what}, {horizon}; flown anyway (motion_faults='warn'): a target that leaves "
+                "the world cannot be captured",
+                UserWarning,
+                stacklevel=2,
+            )
+        self._cache["motion_steps"] = int(steps)
         return self
 
     # --- derived data -------------------------------------------------------------------------
@@ -295,6 +283,7 @@ class Scenario:
             "max_accel": self.max_accel,
             "motion": self.motion,
             "name": self.name,
+            **({"motion_faults": self.motion_faults} if self.motion_faults != "refuse" else {}),
         }
 
     @classmethod
@@ -302,12 +291,13 @@ class Scenario:
         """Build and check a scenario from :meth:`to_dict` output (or hand-written JSON).
 
         Required keys: :data:`REQUIRED_KEYS`; optional: :data:`OPTIONAL_KEYS`. Runs every rule of
-        :mod:`debris_gym.scenario_checks`, values and layout.
+        :mod:`debris_gym.scenario_checks`, values and layout; the body counts first, before a
+        single body is built.
 
         Raises:
             ValueError: naming the missing, unknown or invalid key (e.g. ``targets[2].radius``).
         """
-        data = _mapping(data, "scenario")
+        data = mapping(data, "scenario")
         unknown = sorted(set(data) - set(REQUIRED_KEYS) - set(OPTIONAL_KEYS))
         if unknown:
             allowed = sorted([*REQUIRED_KEYS, *OPTIONAL_KEYS])
@@ -321,30 +311,32 @@ class Scenario:
             )
         dim = data["dim"]
         if isinstance(dim, bool) or not isinstance(dim, int) or dim not in (2, 3):
-            raise ValueError(f"dim must be the integer 2 or 3, got {dim!r}")
-        bounds = _sequence(data["bounds"], "bounds", f"{dim} [low, high] pairs (m)")
+            raise ValueError(f"dim must be the integer 2 or 3, got {show(dim)}")
+        bounds = sequence(data["bounds"], "bounds", f"{dim} [low, high] pairs (m)")
         if len(bounds) != dim:
             raise ValueError(f"bounds must be dim={dim} [low, high] pairs (m), got {len(bounds)}")
-        bodies = {}
-        for kind in ("targets", "obstacles"):
-            items = _sequence(data.get(kind, ()), kind, "body dicts")
-            bodies[kind] = tuple(
-                Body.from_dict(b, dim, f"{kind}[{i}]") for i, b in enumerate(items)
-            )
-        for key in ("motion", "name"):
+        items = {kind: sequence(data.get(kind, ()), kind, "body dicts") for kind in BODY_COUNTS}
+        for kind, bodies in items.items():
+            check_count(kind, len(bodies))
+        built = {
+            kind: tuple(Body.from_dict(b, dim, f"{kind}[{i}]") for i, b in enumerate(bodies))
+            for kind, bodies in items.items()
+        }
+        for key in ("motion", "name", "motion_faults"):
             if not isinstance(data.get(key, ""), str):
-                raise ValueError(f"{key} must be a string, got {data[key]!r}")
+                raise ValueError(f"{key} must be a string, got {show(data[key])}")
         scenario = cls(
             dim=dim,
             bounds=tuple(vector(pair, 2, f"bounds[{a}]") for a, pair in enumerate(bounds)),
             dock=vector(data["dock"], dim, "dock"),
-            targets=bodies["targets"],
-            obstacles=bodies["obstacles"],
+            targets=built["targets"],
+            obstacles=built["obstacles"],
             mean_motion=number(data["mean_motion"], "mean_motion", unit="rad/s"),
             dt=number(data["dt"], "dt", unit="s"),
             max_accel=number(data["max_accel"], "max_accel", unit="m/s²"),
             motion=data.get("motion", OPTIONAL_KEYS["motion"]),
             name=data.get("name", OPTIONAL_KEYS["name"]),
+            motion_faults=data.get("motion_faults", OPTIONAL_KEYS["motion_faults"]),
         )
         return scenario.check_layout()
 
@@ -356,19 +348,35 @@ class Scenario:
     def load(cls, path: str | os.PathLike[str]) -> Scenario:
         """Read and check a scenario written by :meth:`save` (or by hand).
 
+        A file is refused before it is read whole when it is larger than
+        :data:`MAX_FILE_BYTES`, and while it is parsed once it holds more than
+        :data:`MAX_OBJECTS` objects (bodies), so a huge file costs neither time nor memory.
+
         Raises:
-            ValueError: the file is not UTF-8 JSON (naming the file, line and column) or its
-                scenario breaks a rule (naming the file and the key).
+            ValueError: naming the file: a directory, too large, not UTF-8 JSON (naming the line
+                and column), a key twice in one object, or a scenario that breaks a rule
+                (naming the key).
             OSError: the file cannot be read.
         """
         name = os.fspath(path)
-        with open(path, encoding="utf-8") as fh:
-            try:
-                text = fh.read()
-            except UnicodeDecodeError as exc:
-                raise ValueError(f"scenario file {name!r} is not UTF-8 text: {exc}") from exc
+        if os.path.isdir(path):
+            raise ValueError(
+                f"scenario path {name!r} is a directory; give the path of a scenario JSON file "
+                "(Scenario.save writes one)"
+            )
+        with open(path, "rb") as fh:
+            raw = _read_at_most(fh, MAX_FILE_BYTES)
+        if raw is None:
+            raise ValueError(
+                f"scenario file {name!r} is larger than {MAX_FILE_BYTES // 2**20} MiB; a "
+                f"scenario (at most {MAX_OBJECTS - 1} bodies) is far smaller"
+            )
         try:
-            data = json.loads(text)
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise ValueError(f"scenario file {name!r} is not UTF-8 text: {exc}") from exc
+        try:
+            data = _parse(text)
         except json.JSONDecodeError as exc:
             raise ValueError(
                 f"scenario file {name!r} is not valid JSON: {exc.msg} at line "
@@ -376,28 +384,110 @@ class Scenario:
             ) from exc
         except RecursionError as exc:
             raise ValueError(f"scenario file {name!r} nests too deeply") from exc
+        except ValueError as exc:
+            raise ValueError(f"scenario file {name!r}: {exc}") from exc
         try:
             return cls.from_dict(data)
         except ValueError as exc:
             raise ValueError(f"scenario file {name!r}: {exc}") from exc
 
 
-def as_scenario(value: Scenario | Mapping[str, Any] | str | os.PathLike[str]) -> Scenario:
+def _read_at_most(fh: Any, limit: int) -> bytes | None:
+    """The whole of the binary file ``fh``, or None if it holds more than ``limit`` bytes (a
+    regular file is judged by its size before anything is read; a pipe or device is read in
+    pieces and stops one byte past the limit)."""
+    size = os.fstat(fh.fileno()).st_size
+    if size > limit:
+        return None
+    pieces, total = [], 0
+    while total <= limit:
+        piece = fh.read(min(max(size + 1, 1 << 16), limit + 1 - total))
+        if not piece:
+            break
+        pieces.append(piece)
+        total += len(piece)
+    return None if total > limit else b"".join(pieces)
+
+
+def _parse(text: str) -> Any:
+    """``json.loads(text)``, refusing (``ValueError``) a document of more than
+    :data:`MAX_OBJECTS` objects as soon as the parser meets one more, and an object with a key
+    twice; an integer too long for Python to convert becomes a :class:`_LongInteger`."""
+    objects = 0
+
+    def build(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+        nonlocal objects
+        objects += 1
+        if objects > MAX_OBJECTS:
+            limits = ", ".join(
+                f"{kind} {OPTIONS[option].describe()}" for kind, option in BODY_COUNTS.items()
+            )
+            raise ValueError(
+                f"targets and obstacles hold more than {MAX_OBJECTS - 1} bodies (JSON objects); "
+                f"allowed: {limits} (the env's n_targets and n_obstacles)"
+            )
+        out = dict(pairs)
+        if len(out) != len(pairs):
+            seen: set[str] = set()
+            twice = next(k for k, _ in pairs if k in seen or seen.add(k))
+            raise ValueError(f"an object has the key {twice!r} twice; each key may appear once")
+        return out
+
+    return json.loads(text, object_pairs_hook=build, parse_int=_integer)
+
+
+_MAX_DIGITS = 4000
+"""Longest integer literal converted to an int (Python refuses more than 4 300 digits)."""
+
+
+class _LongInteger(float):
+    """A JSON integer too long to convert: ±inf as a number (so every rule refuses it as not
+    finite, naming its key), shown as its length."""
+
+    digits: int
+
+    def __new__(cls, text: str) -> _LongInteger:
+        out = super().__new__(cls, "-inf" if text.startswith("-") else "inf")
+        out.digits = len(text.lstrip("-"))
+        return out
+
+    def __repr__(self) -> str:
+        return f"a {self.digits}-digit integer"
+
+
+def _integer(text: str) -> int | float:
+    return int(text) if len(text) <= _MAX_DIGITS else _LongInteger(text)
+
+
+def as_scenario(
+    value: Scenario | Mapping[str, Any] | str | os.PathLike[str],
+    *,
+    horizon_steps: int | None = None,
+) -> Scenario:
     """Accept a Scenario, its dict form, or a path to its JSON file; every rule is checked.
 
     This is how a pinned field enters an env (``reset(options={"scenario": ...})``), so a
     hand-built :class:`Scenario` gets its layout checked here too.
 
+    Args:
+        value: the field.
+        horizon_steps: the env's episode in steps: a moving field's motion is checked over
+            that many steps of its ``dt`` (:meth:`Scenario.check_motion`); None skips it.
+
     Raises:
         ValueError: ``value`` is none of those, or breaks a rule (naming the key).
     """
     if isinstance(value, Scenario):
-        return value.check_layout()
-    if isinstance(value, Mapping):
-        return Scenario.from_dict(value)
-    if isinstance(value, (str, os.PathLike)):
-        return Scenario.load(value)
-    raise ValueError(
-        f"scenario must be a Scenario, its dict form or a path to its JSON file, got "
-        f"{type(value).__name__}"
-    )
+        scenario = value.check_layout()
+    elif isinstance(value, Mapping):
+        scenario = Scenario.from_dict(value)
+    elif isinstance(value, (str, os.PathLike)):
+        scenario = Scenario.load(value)
+    else:
+        raise ValueError(
+            f"scenario must be a Scenario, its dict form or a path to its JSON file, got "
+            f"{type(value).__name__}"
+        )
+    if horizon_steps is not None:
+        scenario.check_motion(horizon_steps)
+    return scenario

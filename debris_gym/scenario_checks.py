@@ -1,18 +1,21 @@
 """The rules a debris field must satisfy: the one place scenarios are checked.
 
-Two levels, both raising ``ValueError`` that names the offending key (as a path such as
+Three levels, each raising ``ValueError`` that names the offending key (as a path such as
 ``targets[2].radius`` or ``obstacles[0].vertices``), its value and what is allowed:
 
 * :func:`check_values` — every value on its own, run by ``Scenario.__post_init__`` (so on every
   construction, the generators' too; O(bodies · vertices)): types and shapes, finite numbers,
   radii, convex polygons, body counts, and the physical parameters inside the env's option
-  ranges (:data:`debris_gym.config.OPTIONS`).
-* :func:`check_layout` — the geometry of the world, run when a scenario comes from outside the
-  library (``Scenario.from_dict`` / ``load`` and :func:`debris_gym.scenario.as_scenario`, the
-  entry of every pinned field into an env): world size, every body inside the bounds, no two
-  bodies overlapping, the dock inside the bounds and clear of every body at t = 0. It reads body
-  positions only through ``Scenario.body_positions(t)`` at the times it is given, so a field
-  whose bodies move can be checked over a horizon by passing more times.
+  ranges (:data:`debris_gym.config.OPTIONS`). The single values' rules are
+  :mod:`debris_gym.scenario_values`.
+* :func:`check_layout` — the geometry of the world at t = 0, run when a scenario comes from
+  outside the library (``Scenario.from_dict`` / ``load`` and
+  :func:`debris_gym.scenario.as_scenario`, the entry of every pinned field into an env): world
+  size, every body inside the bounds, no two bodies overlapping, the dock inside the bounds and
+  clear of every body, and in a moving field every body's speed within
+  :func:`max_body_speed`.
+* the motion over an episode, :mod:`debris_gym.horizon_checks`, when an env pins a moving
+  field.
 
 Units are SI: m, s, rad/s, m/s². ``docs/validation.md`` ("Scenarios") lists every rule.
 """
@@ -20,197 +23,105 @@ Units are SI: m, s, rad/s, m/s². ``docs/validation.md`` ("Scenarios") lists eve
 from __future__ import annotations
 
 import itertools
-import math
 import numbers
-from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
-from debris_gym.config import OPTIONS, Option
-
-if TYPE_CHECKING:  # the scenario module imports this one
-    from debris_gym.scenario import Scenario
+from debris_gym.body import Body
+from debris_gym.config import OPTIONS
+from debris_gym.scenario_values import (
+    MAX_SPIN,
+    MAX_VERTICES,
+    MAX_WORLD_COORDINATE,
+    MIN_WORLD_SIZE,
+    MOTION_MODELS,
+    RELATIVE_TOLERANCE,
+    check_polygon,
+    interval,
+    number,
+    polygon_shapes,
+    radius_matches,
+    vector,
+)
 
 __all__ = [
+    "BODY_COUNTS",
+    "MAX_SPIN",
+    "MAX_VERTICES",
     "MAX_WORLD_COORDINATE",
     "MIN_WORLD_SIZE",
     "MOTION_MODELS",
+    "ScenarioFields",
     "body_names",
+    "check_count",
     "check_dock_clear",
     "check_layout",
     "check_polygon",
     "check_values",
+    "max_body_speed",
     "number",
     "vector",
 ]
 
-MIN_WORLD_SIZE = float(OPTIONS["field_size"].low)
-"""Shortest allowed edge of the world box (m), the env's smallest ``field_size``.
-
-Rewards and observations are scaled by L = half the world's largest edge: in a world of a few
-metres one step's progress term reaches thousands, and the env's default capture zone (5 m) is
-larger than the world itself."""
-
-MAX_WORLD_COORDINATE = float(OPTIONS["field_size"].high)
-"""Largest allowed |bound| (m): the world lies within the env's largest ``field_size`` of the
-LVLH origin (the reference orbit), where the linear CWH model holds."""
-
-MOTION_MODELS = ("frozen", "cwh")
-"""Debris motion models a scenario may declare: ``"frozen"`` (every body fixed in LVLH, the v0
-world) and ``"cwh"`` (every body on unforced CWH motion from its ``velocity``, the v1 world)."""
-
-MAX_SPIN = 1.0
-"""Largest tumble rate |spin| (rad/s) of a body: a turn every 6 s, faster than any debris
-tumble worth flying beside."""
-
-RELATIVE_TOLERANCE = 1e-9
-"""Rounding allowance of the geometric comparisons, relative to the lengths compared."""
+BODY_COUNTS = {"targets": "n_targets", "obstacles": "n_obstacles"}
+"""Body list → the env option whose range bounds its length (:func:`check_count`)."""
 
 _PAIR_BLOCK = 256
 """Bodies per block of the pairwise overlap test (bounds its temporaries to ~B · 256 numbers)."""
 
 
-# --- single values ------------------------------------------------------------------------------
+class ScenarioFields(Protocol):
+    """What the rules read of a scenario: :class:`debris_gym.scenario.Scenario` is one (that
+    module imports this one, so the rules name the fields they read rather than the class)."""
 
-
-def number(
-    value: Any, key: str, *, low: float | None = None, high: float | None = None, unit: str = ""
-) -> float:
-    """``value`` as a finite float within ``[low, high]``, else ``ValueError`` naming ``key``.
-
-    Booleans and strings are not numbers here (``"5"`` would otherwise pass as 5.0).
-    """
-    allowed = _interval(low, high, unit)
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{key} must be a number, got {_show(value)}; allowed: {allowed}")
-    try:
-        out = float(value)
-    except OverflowError:  # an int beyond float range
-        out = math.inf
-    if not math.isfinite(out):
-        raise ValueError(f"{key} must be finite, got {_show(value)}; allowed: {allowed}")
-    if (low is not None and out < low) or (high is not None and out > high):
-        raise ValueError(f"{key}={out!r}{_unit(unit)} is out of range; allowed: {allowed}")
-    return out
-
-
-def _show(value: Any) -> str:
-    """``repr(value)``, cut short (a 400-digit integer is still named, not printed whole)."""
-    text = repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."
-
-
-def vector(value: Any, dim: int, key: str, unit: str = "m") -> tuple[float, ...]:
-    """``value`` as ``dim`` finite floats, else ``ValueError`` naming ``key`` (or ``key[i]``)."""
-    if isinstance(value, np.ndarray):
-        value = value.tolist()
-    if not isinstance(value, (list, tuple)):
-        raise ValueError(f"{key} must be a list of {dim} numbers ({unit}), got {_show(value)}")
-    if len(value) != dim:
-        raise ValueError(
-            f"{key} must have {dim} components ({unit}), got {len(value)}: {_show(value)}"
-        )
-    return tuple(number(v, f"{key}[{i}]", unit=unit) for i, v in enumerate(value))
-
-
-def _option(key: str, value: Any, name: str | None = None) -> float:
-    """A scenario value checked against the env option ``key`` of :data:`OPTIONS`."""
-    opt: Option = OPTIONS[key]
-    return number(value, name or key, low=opt.low, high=opt.high, unit=opt.unit)
-
-
-def _interval(low: float | None, high: float | None, unit: str) -> str:
-    if low is None and high is None:
-        return f"a finite number{f' ({unit})' if unit else ''}"
-    lo = "-inf" if low is None else f"{low:g}"
-    hi = "inf" if high is None else f"{high:g}"
-    return f"[{lo}, {hi}]{_unit(unit)}"
-
-
-def _unit(unit: str) -> str:
-    return f" {unit}" if unit else ""
-
-
-# --- polygons -----------------------------------------------------------------------------------
-
-
-def check_polygon(vertices: Any, radius: float | None, key: str) -> tuple[tuple[float, float], ...]:
-    """Check one 2D polygon and return its vertices as float pairs.
-
-    Rules: at least 3 finite vertices (m, relative to the body's position), strictly convex and
-    counter-clockwise (every turn to the left), simple (the boundary winds once around: a
-    pentagram turns left at every corner but winds twice), and, when ``radius`` is given, equal
-    to the vertices' circumradius about the position (their largest distance from it) within
-    :data:`RELATIVE_TOLERANCE`.
-    """
-    if isinstance(vertices, np.ndarray):
-        vertices = vertices.tolist()
-    if not isinstance(vertices, (list, tuple)):
-        raise ValueError(f"{key} must be a list of [x, y] vertices (m), got {vertices!r}")
-    if len(vertices) < 3:
-        raise ValueError(f"{key}: a polygon needs at least 3 vertices, got {len(vertices)}")
-    pts = tuple(vector(v, 2, f"{key}[{k}]") for k, v in enumerate(vertices))
-    xy = np.asarray(pts)
-    left, turns, circumradius = _polygon_shapes(xy, np.array([len(pts)]))
-    if left[0] < len(pts):
-        k = int(left[0])
-        raise ValueError(
-            f"{key} must form a strictly convex, counter-clockwise polygon; the turn at vertex "
-            f"{k} ({list(pts[k])!r} m) is not to the left"
-        )
-    if turns[0] != 1:
-        raise ValueError(
-            f"{key} winds {turns[0]} times around its inside; a convex polygon winds once "
-            "(is it a star whose turns are all left?)"
-        )
-    if radius is not None and not _radius_matches(np.array([radius]), circumradius)[0]:
-        raise ValueError(
-            f"{key.rsplit('.', 1)[0]}.radius={radius!r} m disagrees with the circumradius of "
-            f"its vertices, {float(circumradius[0])!r} m (largest vertex distance from the "
-            "position); give that value or leave radius out to derive it"
-        )
-    return pts
-
-
-def _polygon_shapes(xy: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, ...]:
-    """The shape rules of P polygons at once, vertices (sum(counts), 2) one polygon after another.
-
-    Returns ``(first, turns, circumradius)`` per polygon: the first vertex whose turn is not
-    strictly to the left (``counts`` if none), the winding number of the boundary (round(total
-    turning / 2π)), and the largest vertex distance from the body's position (m). Turns are
-    measured on vertices scaled by the polygon's size, so huge coordinates do not overflow.
-    """
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    poly = np.repeat(np.arange(len(counts)), counts)
-    index = np.arange(len(xy))
-    following = index + 1
-    following[starts + counts - 1] = starts  # the last vertex turns into the first
-    size = np.maximum.reduceat(np.abs(xy).max(axis=1), starts)
-    unit = xy / np.where(size > 0.0, size, 1.0)[poly, None]
-    edges = unit[following] - unit
-    ahead = edges[following]
-    cross = edges[:, 0] * ahead[:, 1] - edges[:, 1] * ahead[:, 0]
-    dot = edges[:, 0] * ahead[:, 0] + edges[:, 1] * ahead[:, 1]
-    # the turn between edge k (vertex k -> k+1) and edge k+1 happens at vertex k+1
-    bad = np.where(cross > RELATIVE_TOLERANCE, counts[poly], following - starts[poly])
-    first = np.minimum.reduceat(bad, starts)
-    turns = np.rint(np.add.reduceat(np.arctan2(cross, dot), starts) / (2.0 * math.pi))
-    circumradius = np.maximum.reduceat(np.hypot(xy[:, 0], xy[:, 1]), starts)
-    return first, turns.astype(np.int64), circumradius
-
-
-def _radius_matches(radius: np.ndarray, circumradius: np.ndarray) -> np.ndarray:
-    """``math.isclose(radius, circumradius, rel_tol=RELATIVE_TOLERANCE)``, element-wise."""
-    return np.abs(radius - circumradius) <= RELATIVE_TOLERANCE * np.maximum(
-        np.abs(radius), np.abs(circumradius)
-    )
+    @property
+    def dim(self) -> int: ...
+    @property
+    def bounds(self) -> tuple[tuple[float, float], ...]: ...
+    @property
+    def dock(self) -> tuple[float, ...]: ...
+    @property
+    def targets(self) -> tuple[Body, ...]: ...
+    @property
+    def obstacles(self) -> tuple[Body, ...]: ...
+    @property
+    def mean_motion(self) -> float: ...
+    @property
+    def dt(self) -> float: ...
+    @property
+    def max_accel(self) -> float: ...
+    @property
+    def motion(self) -> str: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def bodies(self) -> tuple[Body, ...]: ...
+    @property
+    def low(self) -> np.ndarray: ...
+    @property
+    def high(self) -> np.ndarray: ...
+    @property
+    def size(self) -> float: ...
+    def body_positions(self, t: float = 0.0) -> np.ndarray: ...
 
 
 # --- the whole scenario, value by value ---------------------------------------------------------
 
 
-def check_values(scenario: Scenario) -> None:
+def check_count(kind: str, count: int) -> None:
+    """``count`` bodies in the list ``kind`` ("targets" or "obstacles") are allowed, else
+    ``ValueError`` naming the list and the env option that bounds it (checked before a single
+    body is built)."""
+    option = BODY_COUNTS[kind]
+    opt = OPTIONS[option]
+    if not opt.low <= count <= opt.high:
+        raise ValueError(
+            f"{kind} has {count} bodies; allowed: {opt.describe()} (the env's {option})"
+        )
+
+
+def check_values(scenario: ScenarioFields) -> None:
     """Every value of ``scenario`` on its own (see the module docstring); ``ValueError`` if not.
 
     Raises:
@@ -228,19 +139,14 @@ def check_values(scenario: Scenario) -> None:
         if not lo < hi:
             raise ValueError(f"bounds[{axis}]={[lo, hi]!r} m must have low < high")
     vector(scenario.dock, dim, "dock")
-    counts = (("targets", "n_targets"), ("obstacles", "n_obstacles"))
-    for kind, option in counts:
+    for kind in BODY_COUNTS:
         bodies = getattr(scenario, kind)
         if not isinstance(bodies, tuple):
             raise ValueError(f"{kind} must be a tuple of Body, got {type(bodies).__name__}")
-        opt = OPTIONS[option]
-        if not opt.low <= len(bodies) <= opt.high:
-            raise ValueError(
-                f"{kind} has {len(bodies)} bodies; allowed: {opt.describe()} (the env's {option})"
-            )
+        check_count(kind, len(bodies))
     if not _bodies_pass(scenario):  # the fast screen found something: find and name it
         radius_min = {"targets": "target_radius_min", "obstacles": "obstacle_radius_min"}
-        for kind, _ in counts:
+        for kind in BODY_COUNTS:
             min_radius = float(OPTIONS[radius_min[kind]].low)
             for i, body in enumerate(getattr(scenario, kind)):
                 _check_body(body, dim, f"{kind}[{i}]", min_radius, scenario.motion)
@@ -255,6 +161,12 @@ def check_values(scenario: Scenario) -> None:
         raise ValueError(f"name must be a string, got {scenario.name!r}")
 
 
+def _option(key: str, value: Any) -> float:
+    """A scenario value checked against the env option ``key`` of :data:`OPTIONS`."""
+    opt = OPTIONS[key]
+    return number(value, key, low=opt.low, high=opt.high, unit=opt.unit)
+
+
 _PLAIN = (float, int)
 """Number types the fast screen accepts as they are (``bool`` is a type of its own here)."""
 
@@ -263,13 +175,11 @@ def _plain(values: Any) -> bool:
     return all(type(v) in _PLAIN for v in values)
 
 
-def _bodies_pass(scenario: Scenario) -> bool:
+def _bodies_pass(scenario: ScenarioFields) -> bool:
     """Whether every body passes :func:`_check_body`, checked as arrays (a random field's
     thousands of bodies are built on every reset). True only if every rule holds; False sends
     :func:`check_values` through the bodies one by one, which names the first fault (and
     accepts what this screen left to it, such as numpy scalars)."""
-    from debris_gym.scenario import Body  # here: the scenario module imports this one
-
     dim = scenario.dim
     bodies = scenario.bodies
     if not all(type(b) is Body for b in bodies):
@@ -295,7 +205,9 @@ def _bodies_pass(scenario: Scenario) -> bool:
         return False
 
 
-def _body_arrays_pass(scenario: Scenario, positions: list, velocities: list, radii: list) -> bool:
+def _body_arrays_pass(
+    scenario: ScenarioFields, positions: list, velocities: list, radii: list
+) -> bool:
     """The array part of :func:`_bodies_pass`, on values already known to be plain numbers."""
     dim, bodies = scenario.dim, scenario.bodies
     if not np.isfinite(np.array(positions, dtype=float)).all():
@@ -329,6 +241,7 @@ def _body_arrays_pass(scenario: Scenario, positions: list, velocities: list, rad
     if not (
         all(type(v) is tuple for v in shapes)
         and np.all(counts >= 3)
+        and np.all(counts <= MAX_VERTICES)
         and all(type(p) is tuple and len(p) == 2 for v in shapes for p in v)
         and _plain(itertools.chain.from_iterable(itertools.chain.from_iterable(shapes)))
     ):
@@ -336,15 +249,13 @@ def _body_arrays_pass(scenario: Scenario, positions: list, velocities: list, rad
     xy = np.array(list(itertools.chain.from_iterable(shapes)), dtype=float)
     if not np.isfinite(xy).all():
         return False
-    first, turns, circumradius = _polygon_shapes(xy, counts)
+    first, turns, circumradius = polygon_shapes(xy, counts)
     radius = np.array([b.radius for b in polygons], dtype=float)
-    matches = _radius_matches(radius, circumradius)
+    matches = radius_matches(radius, circumradius)
     return bool(np.all(first == counts) and np.all(turns == 1) and matches.all())
 
 
 def _check_body(body: Any, dim: int, key: str, min_radius: float, motion: str) -> None:
-    from debris_gym.scenario import Body  # here: the scenario module imports this one
-
     if not isinstance(body, Body):
         raise ValueError(f"{key} must be a Body, got {type(body).__name__}")
     vector(body.position, dim, f"{key}.position")
@@ -374,21 +285,27 @@ def _check_body(body: Any, dim: int, key: str, min_radius: float, motion: str) -
 # --- the layout of the world --------------------------------------------------------------------
 
 
-def body_names(scenario: Scenario) -> list[str]:
+def body_names(scenario: ScenarioFields) -> list[str]:
     """Key path of every body in :attr:`Scenario.bodies` order (targets first)."""
     return [f"targets[{i}]" for i in range(len(scenario.targets))] + [
         f"obstacles[{i}]" for i in range(len(scenario.obstacles))
     ]
 
 
-def check_layout(scenario: Scenario, times: Sequence[float] = (0.0,)) -> None:
-    """The world's geometry (see the module docstring); ``ValueError`` naming the key if not.
+def max_body_speed(scenario: ScenarioFields) -> float:
+    """Fastest a body of a moving field may be (m/s): the world's size per step (size / dt, the
+    chaser's own limit: faster, it crosses the world in one step), or, about a fast orbit,
+    2·n·size, twice the speed of the widest relative orbit that fits in the world (so every
+    field the generators draw passes), whichever is larger."""
+    return max(scenario.size / scenario.dt, 2.0 * scenario.mean_motion * scenario.size)
+
+
+def check_layout(scenario: ScenarioFields) -> None:
+    """The world's geometry at t = 0 and the bodies' speeds (see the module docstring);
+    ``ValueError`` naming the key if not.
 
     Args:
         scenario: a scenario whose values passed :func:`check_values`.
-        times: instants (s) at which the bodies must be inside the bounds and apart. The dock
-            must be clear at the first of them only: a body whose later path crosses the start
-            is a legitimate test case.
     """
     low, high = scenario.low, scenario.high
     for axis, (lo, hi) in enumerate(scenario.bounds):
@@ -396,7 +313,7 @@ def check_layout(scenario: Scenario, times: Sequence[float] = (0.0,)) -> None:
         if not MIN_WORLD_SIZE <= size <= MAX_WORLD_COORDINATE:
             raise ValueError(
                 f"bounds[{axis}] spans {size!r} m; allowed: "
-                f"{_interval(MIN_WORLD_SIZE, MAX_WORLD_COORDINATE, 'm')} (the env's field_size "
+                f"{interval(MIN_WORLD_SIZE, MAX_WORLD_COORDINATE, 'm')} (the env's field_size "
                 "range: rewards and observations are scaled by half the world size)"
             )
         if max(abs(lo), abs(hi)) > MAX_WORLD_COORDINATE:
@@ -412,39 +329,59 @@ def check_layout(scenario: Scenario, times: Sequence[float] = (0.0,)) -> None:
         )
     names = body_names(scenario)
     radii = np.array([b.radius for b in scenario.bodies])
-    for k, t in enumerate(times):
-        centres = np.asarray(scenario.body_positions(t), dtype=float)
-        _check_inside(scenario, centres, radii, names, t)
-        _check_apart(scenario, centres, radii, names, t)
-        if k == 0:
-            _check_dock_clear(scenario, dock, centres, radii, names)
+    centres = np.asarray(scenario.body_positions(0.0), dtype=float)
+    _check_inside(scenario, centres, radii, names)
+    _check_apart(scenario, centres, radii, names)
+    _check_dock_clear(scenario, dock, centres, radii, names)
+    if scenario.motion == "cwh":
+        _check_speeds(scenario, names)
 
 
-def _at(t: float) -> str:
-    return "" if t == 0.0 else f" at t = {t:g} s"
+def _check_speeds(scenario: ScenarioFields, names: list[str]) -> None:
+    """Every body's speed is at most :func:`max_body_speed`: with it, no reward term, contact
+    test or observation meets a body that jumps across the world between two step ends."""
+    limit = max_body_speed(scenario)
+    velocities = np.array(
+        [b.velocity if b.velocity else (0.0,) * scenario.dim for b in scenario.bodies],
+        dtype=float,
+    ).reshape(-1, scenario.dim)
+    scale = np.abs(velocities).max(axis=1, initial=0.0)
+    safe = np.where(scale > 0.0, scale, 1.0)
+    speeds = scale * np.sqrt(((velocities / safe[:, None]) ** 2).sum(axis=1))  # no overflow
+    fast = np.flatnonzero(~(speeds <= limit))
+    if fast.size:
+        b = int(fast[0])
+        raise ValueError(
+            f"{names[b]}.velocity={velocities[b].tolist()!r} m/s (speed {speeds[b]:.6g} m/s) is "
+            f"too fast; allowed: speed <= {limit:.6g} m/s (max(size / dt, 2·n·size): the world's "
+            f"size {scenario.size:g} m per step of {scenario.dt:g} s)"
+        )
 
 
-def _outline(scenario: Scenario, b: int, centre: np.ndarray) -> np.ndarray | None:
-    """Polygon vertices of body ``b`` in world coordinates (m), or None for a circle / sphere."""
-    vertices = scenario.bodies[b].vertices
-    return None if vertices is None else centre + np.asarray(vertices, dtype=float)
-
-
-def _check_inside(scenario, centres, radii, names, t) -> None:
+def _check_inside(scenario, centres, radii, names) -> None:
     low, high = scenario.low, scenario.high
     lows, highs = centres - radii[:, None], centres + radii[:, None]
     for b in np.flatnonzero(np.any(lows < low, axis=1) | np.any(highs > high, axis=1)).tolist():
-        outline = _outline(scenario, b, centres[b])
+        outline = _outline(scenario, b)
         if outline is not None and np.all(outline >= low) and np.all(outline <= high):
             continue  # the bounding circle sticks out, the polygon itself does not
         raise ValueError(
             f"{names[b]} (position {centres[b].tolist()!r} m, radius {radii[b].item()!r} m) is not "
-            f"inside the bounds {[list(p) for p in scenario.bounds]!r} m{_at(t)}; every body must "
-            "lie wholly inside them"
+            f"inside the bounds {[list(p) for p in scenario.bounds]!r} m; every body must lie "
+            "wholly inside them"
         )
 
 
-def _check_apart(scenario, centres, radii, names, t) -> None:
+def _outline(scenario: ScenarioFields, b: int) -> np.ndarray | None:
+    """Polygon vertices of body ``b`` in world coordinates at t = 0 (m), or None for a circle /
+    sphere."""
+    body = scenario.bodies[b]
+    if body.vertices is None:
+        return None
+    return np.asarray(body.position, dtype=float) + np.asarray(body.vertices, dtype=float)
+
+
+def _check_apart(scenario, centres, radii, names) -> None:
     """No two bodies overlap (touching is allowed).
 
     Candidate pairs come from sweep and prune: bodies sorted by where their bounding box starts
@@ -453,6 +390,18 @@ def _check_apart(scenario, centres, radii, names, t) -> None:
     then the exact shapes for the pairs those flag. At most :data:`_PAIR_BLOCK` · B candidates
     are held at once, whatever the layout.
     """
+    for i, j, dist in close_pairs(centres, radii):
+        if _shapes_overlap(scenario, i, j, centres, radii):
+            raise ValueError(
+                f"{names[i]} and {names[j]} overlap (centres {centres[i].tolist()!r} and "
+                f"{centres[j].tolist()!r} m, {dist:.6g} m apart, radii {radii[i].item()!r} and "
+                f"{radii[j].item()!r} m); bodies must not overlap"
+            )
+
+
+def close_pairs(centres: np.ndarray, radii: np.ndarray):
+    """Yield ``(i, j, distance)`` (i < j, ascending) for every pair of balls (centres (B, dim)
+    and radii (B,), m) that overlap by more than rounding, found by sweep and prune."""
     count = len(radii)
     if count < 2:
         return
@@ -476,24 +425,18 @@ def _check_apart(scenario, centres, radii, names, t) -> None:
         close = np.flatnonzero(dist < (radii[a] + radii[b]) * (1.0 - RELATIVE_TOLERANCE))
         for m in close[np.lexsort((b[close], a[close]))].tolist():  # report in index order
             i, j = sorted((int(a[m]), int(b[m])))
-            if _shapes_overlap(scenario, i, j, centres, radii):
-                raise ValueError(
-                    f"{names[i]} and {names[j]} overlap{_at(t)} (centres "
-                    f"{centres[i].tolist()!r} and {centres[j].tolist()!r} m, {dist[m]:.6g} m "
-                    f"apart, radii {radii[i].item()!r} and {radii[j].item()!r} m); bodies must "
-                    "not overlap"
-                )
+            yield i, j, float(dist[m])
         k = rows[-1] + 1
 
 
 def _shapes_overlap(scenario, a: int, b: int, centres, radii) -> bool:
     """Whether bodies ``a`` and ``b``, whose bounding circles overlap, overlap themselves."""
-    pa, pb = _outline(scenario, a, centres[a]), _outline(scenario, b, centres[b])
+    pa, pb = _outline(scenario, a), _outline(scenario, b)
     if pa is None and pb is None:
         return True
     if pa is None or pb is None:
         circle, poly = (a, b) if pa is None else (b, a)
-        gap = _polygon_gap(scenario, poly, centres[circle], centres[poly])
+        gap = _polygon_gap(scenario, poly, centres[circle])
         return gap < radii[circle] * (1.0 - RELATIVE_TOLERANCE)
     return not _separated(pa, pb)
 
@@ -519,17 +462,29 @@ def _separated(pa: np.ndarray, pb: np.ndarray) -> bool:
     return False
 
 
-def _polygon_gap(scenario: Scenario, b: int, point: np.ndarray, centre: np.ndarray) -> float:
-    """Signed distance (m) from ``point`` to the polygon of body ``b`` placed at ``centre``,
-    negative inside: the library's one geometry (:class:`~debris_gym.geometry.FieldGeometry`),
-    the one the envs measure gaps with."""
-    from debris_gym.geometry import FieldGeometry  # it imports Scenario, which imports this
+def _polygon_gap(scenario: ScenarioFields, b: int, point: np.ndarray) -> float:
+    """Signed distance (m) from ``point`` to the polygon of body ``b`` at t = 0, negative
+    inside: the library's one geometry (:class:`~debris_gym.batch_geometry.FieldBatch`), the one
+    the envs measure gaps with."""
+    # imported here, not at the top: compiled code (numba) is loaded only when a polygon is
+    # checked, so that `import debris_gym` stays free of it
+    from debris_gym.batch_geometry import FieldBatch
 
-    shift = centre - np.asarray(scenario.bodies[b].position, dtype=float)
-    return float(FieldGeometry(scenario).signed_distance(point - shift)[b])
+    body = scenario.bodies[b]
+    vertices = np.asarray(body.vertices, dtype=float)
+    row = np.zeros(1, dtype=np.int64)
+    batch = FieldBatch(1, 1, 2, max_vertices=len(vertices))
+    batch.load_arrays(
+        row,
+        np.asarray(body.position, dtype=float).reshape(1, 1, 2),
+        np.array([[body.radius]]),
+        vertices[None, None],
+        np.array([[len(vertices)]]),
+    )
+    return float(batch.gaps(np.reshape(point, (1, 2)), row)[0, 0])
 
 
-def check_dock_clear(scenario: Scenario, chaser_radius: float = 0.0) -> None:
+def check_dock_clear(scenario: ScenarioFields, chaser_radius: float = 0.0) -> None:
     """The dock is more than ``chaser_radius`` (m) from every body at t = 0, else ``ValueError``.
 
     :func:`check_layout` asks for a dock outside every body (``chaser_radius`` 0): a scenario
@@ -545,8 +500,9 @@ def check_dock_clear(scenario: Scenario, chaser_radius: float = 0.0) -> None:
 def _check_dock_clear(scenario, dock, centres, radii, names, chaser_radius=0.0) -> None:
     dist = np.sqrt(((centres - dock) ** 2).sum(axis=1))
     for b in np.flatnonzero(dist <= radii + chaser_radius).tolist():
-        outline = _outline(scenario, b, centres[b])
-        if outline is not None and _polygon_gap(scenario, b, dock, centres[b]) > chaser_radius:
+        if scenario.bodies[b].vertices is not None and (
+            _polygon_gap(scenario, b, dock) > chaser_radius
+        ):
             continue
         within = (
             f"within the chaser radius {chaser_radius!r} m of" if chaser_radius else "inside or on"

@@ -19,7 +19,7 @@ from debris_gym.jit import inlined, kernel
 
 
 @inlined
-def _edge(verts, v, cx, cy):
+def polygon_edge(verts, v, cx, cy):
     """Edge v of a polygon: absolute start (x0, y0) and the stored edge vector (ex, ey)."""
     return verts[v, 0] + cx, verts[v, 1] + cy, verts[v, 2], verts[v, 3]
 
@@ -66,7 +66,7 @@ def _segment_touches_polygon(ax, ay, bx, by, cx, cy, verts, m, inflate):
     sx_ = bx - ax
     sy_ = by - ay
     for v in range(m):
-        x0, y0, ex, ey = _edge(verts, v, cx, cy)
+        x0, y0, ex, ey = polygon_edge(verts, v, cx, cy)
         # end points on the inner side of every edge: inside
         inside_a = max(inside_a, (ax - x0) * ey - (ay - y0) * ex)
         inside_b = max(inside_b, (bx - x0) * ey - (by - y0) * ex)
@@ -232,7 +232,11 @@ def moving_path_touches(
 
 
 @kernel
-def _touched(paths, start_gaps, inflate, centers, radii, polygon_start, n_vertices, vertices, out):
+def touched_bodies(
+    paths, start_gaps, inflate, centers, radii, polygon_start, n_vertices, vertices, out
+):  # fmt: skip
+    """:func:`path_touches` for every field i of a batch: ``out[i, b]`` is True for each body b
+    the polyline ``paths[i]`` touches (inflated by ``inflate``, m)."""
     for i in range(paths.shape[0]):
         path_touches(
             paths[i], start_gaps[i], inflate, i, centers, radii, polygon_start, n_vertices,

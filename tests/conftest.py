@@ -3,8 +3,8 @@
 Tests go through public names. The few private ones they touch, each a seam with no public
 counterpart worth having:
 
-- ``generators._draw_fields`` / ``generators._convex_polygons`` (test_scenario.py): the compiled
-  placement and polygon kernels, held to a numpy decoding of the same random block;
+- ``generators._draw_fields`` (test_scenario.py): the compiled placement kernel, held to a
+  numpy decoding of the same random block;
 - ``batch_geometry._ray_polygon`` (test_vector_env.py): one ray against one polygon, the
   un-culled reference of the lidar's culling;
 - ``rendering._window_pyplot`` (test_rendering.py): replaced so that pyplot on Agg stands in for

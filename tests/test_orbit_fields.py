@@ -21,6 +21,7 @@ from hypothesis import strategies as st
 
 from debris_gym.generators import FieldSpec, draw_size, random_field, random_fields, unplaceable
 from debris_gym.orbit_fields import orbit_drawer, stream_uniform
+from debris_gym.orbit_separation import SEARCH_TOLERANCE, apart
 
 N = 1.1314e-3  # rad/s, the default LEO mean motion (~92.6 min orbit)
 PERIOD = 2.0 * math.pi / N
@@ -328,10 +329,9 @@ def elements_of(state: np.ndarray, n: float) -> np.ndarray:
     ratio=st.floats(0.8, 1.2),
 )
 def test_the_pair_check_agrees_with_dense_sampling(dim, drifting, values, ratio):
-    """_apart (exact in 2D, branch and bound otherwise) never passes a pair that comes closer
+    """apart (exact in 2D, branch and bound otherwise) never passes a pair that comes closer
     than ``need`` on a dense time grid, and never refuses one that stays clearly apart; ``need``
     is set near the pair's true closest approach, where a wrong bound would show."""
-    from debris_gym.orbit_fields import SEARCH_TOLERANCE, _apart
 
     v = np.array(values)
     horizon = 1.3 * PERIOD
@@ -355,7 +355,7 @@ def test_the_pair_check_agrees_with_dense_sampling(dim, drifting, values, ratio)
     dist = np.linalg.norm(pos[:, 0] - pos[:, 1], axis=1)
     slack = np.abs(np.diff(dist)).max()  # the true minimum may lie this far below the sampled
     need = max(1.0, ratio * dist.min())
-    ok = _apart(e[0], e[1], e[2], e[3], e[4], e[5], need, dim, N, horizon)
+    ok = apart(e[0], e[1], e[2], e[3], e[4], e[5], need, dim, N, horizon)
     if ok:
         assert dist.min() >= need - 1e-6 * (1.0 + need)
     if dim == 2 and not drifting:

@@ -783,6 +783,7 @@ def test_moving_polygons_are_where_cw_motion_and_their_attitude_put_them(
     np.testing.assert_allclose(drawn.vertices[:-1], vertices[1], rtol=0, atol=1e-9)
 
 
+@pytest.mark.filterwarnings("ignore:.*flown anyway:UserWarning")
 @pytest.mark.parametrize("dim", [2, 3])
 def test_the_env_draws_its_moving_field_at_the_mission_time(dim: int) -> None:
     """Through the env (the moving-world options, a pinned field): after k steps the target is
@@ -793,6 +794,8 @@ def test_the_env_draws_its_moving_field_at_the_mission_time(dim: int) -> None:
     p0, v0 = p0[:dim], v0[:dim]
     obstacle = {"position": (-200.0, 250.0, 0.0)[:dim], "radius": 15.0}  # at rest, off the V-bar
     scen = _moving_scenario([{"position": p0, "radius": 10.0, "velocity": v0}], [obstacle], dim)
+    # the obstacle at rest off the V-bar drifts out of the world within an episode: flown anyway
+    scen = dataclasses.replace(scen, motion_faults="warn")
     env = DebrisFieldEnv(
         dim=dim, debris_motion="bounded", mean_motion=N_LEO, render_mode="rgb_array"
     )

@@ -19,6 +19,7 @@ from hypothesis import strategies as st
 import debris_gym  # noqa: F401 - registers the IDs
 from debris_gym import generators, solvability
 from debris_gym.config import OPTIONS
+from debris_gym.convex_polygons import POLYGON_DRAWS, convex_polygons
 from debris_gym.envs.common import PHYSICS_DIFFER
 from debris_gym.generators import (
     MAX_POLYGON_VERTICES,
@@ -286,7 +287,7 @@ def test_compiled_placement_equals_one_body_after_another(spec):
     lo = np.where(is_target, spec.target_radius[0], spec.obstacle_radius[0])
     hi = np.where(is_target, spec.target_radius[1], spec.obstacle_radius[1])
     np.testing.assert_array_equal(radii, lo + (hi - lo) * u[:, :b_all])
-    polygons = spec.n_obstacles * (1 + generators._POLYGON_DRAWS) if dim == 2 else 0
+    polygons = spec.n_obstacles * (1 + POLYGON_DRAWS) if dim == 2 else 0
     n_cand = generators.candidates(spec)
     coords = u[:, b_all + polygons :].reshape(len(u), b_all, n_cand, dim)
     lim = spec.field_size / 2.0 - radii - spec.min_gap
@@ -320,7 +321,7 @@ def test_a_draw_takes_one_fixed_block_from_its_generator():
     radius=st.floats(0.5, 50.0),
 )  # fmt: skip
 def test_generated_polygons_are_convex_ccw_and_hold_their_centre(shape, radius):
-    vertices, count = generators._convex_polygons(np.array([shape]), np.array([radius]))
+    vertices, count = convex_polygons(np.array([shape]), np.array([radius]))
     m = int(count[0])
     assert 3 <= m <= MAX_POLYGON_VERTICES
     v = vertices[0, :m]
@@ -593,7 +594,7 @@ def test_a_polygon_radius_may_be_left_out_and_is_then_derived():
 @pytest.mark.parametrize(
     "vertices, fragment",
     [
-        ([[1, 0], [0, 1]], "at least 3 vertices"),
+        ([[1, 0], [0, 1]], "has 2 vertices; allowed: 3 to 64"),
         ([[1, 0], [-1, 0], [0, 1], [0, -1]], "turn at vertex 1"),  # a bow tie
         ([[0, -1], [-1, 0], [0, 1]], "not to the left"),  # clockwise
         ([[1, 0], [0, 1], [-1, 0], [-1, 0], [0, -1]], "not to the left"),  # a repeated vertex

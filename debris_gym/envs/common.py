@@ -14,7 +14,7 @@ from gymnasium import spaces
 from gymnasium.envs.registration import EnvSpec
 
 from debris_gym.config import EnvConfig
-from debris_gym.generators import FieldSpec, unplaceable
+from debris_gym.generators import FieldSpec, placement_problem
 from debris_gym.observation import OBS_LIMIT, observation_names
 from debris_gym.scenario import Scenario
 
@@ -103,17 +103,17 @@ def field_spec(cfg: EnvConfig) -> FieldSpec:
     """Generator settings of the random fields an env with ``cfg`` draws.
 
     Raises:
-        ValueError: for a random-field env whose fields can never be placed
-            (:func:`~debris_gym.generators.unplaceable`), naming the options that decide it,
-            before any draw.
+        ValueError: for a random-field env whose fields cannot be placed reliably
+            (:func:`~debris_gym.generators.placement_problem`), naming the options that decide
+            it, before any draw.
     """
     spec = _field_spec(cfg)
-    why = unplaceable(spec) if cfg.scenario == "random" else None
+    why = placement_problem(spec, cfg.capture_radius) if cfg.scenario == "random" else None
     if why is not None:
         settings = ", ".join(f"{key}={getattr(cfg, key)!r}" for key in FIELD_KEYS)
         raise ValueError(
-            f"these options leave no room for a random field: {why} (a target's dock distance "
-            f"is max(0.15 · field_size, 5 · capture_radius), an obstacle's max(0.05 · "
+            f"these options ask for random fields the generator cannot place: {why} (a target's "
+            "dock distance is max(0.15 · field_size, 5 · capture_radius), an obstacle's max(0.05 · "
             f"field_size, 5 · capture_radius)); options: {settings}. Raise field_size or "
             "lower capture_radius, min_gap or the smallest radii"
         )

@@ -290,7 +290,8 @@ class MissionShell:
             pinned = options.get("scenario")
             fields = None
             if pinned is not None:
-                pinned = self._checked_pinned(as_scenario(pinned))
+                steps = self.max_episode_steps or self.horizon  # its motion is checked so long
+                pinned = self._checked_pinned(as_scenario(pinned, horizon_steps=steps))
             else:
                 fields = self.supply.take(rows)
                 if fields is None:
