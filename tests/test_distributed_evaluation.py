@@ -56,8 +56,6 @@ def test_backend_options_are_checked_before_anything_runs(cli, capsys, tmp_path)
     out = tmp_path / "eval"
     err = _usage_error(cli, capsys, [*QUICK, "--address", "auto", "--out", str(out)])
     assert "argument --address: needs --backend ray" in err
-    err = _usage_error(cli, capsys, [*QUICK, "--workers", "2", "--out", str(out)])
-    assert "argument --workers: needs --backend ray" in err
     err = _usage_error(cli, capsys, [*QUICK, "--backend", "ray", "--workers", "0"])
     assert "argument --workers: must be >= 1, got 0" in err
     err = _usage_error(cli, capsys, [*QUICK, "--backend", "dask"])

@@ -30,7 +30,10 @@ from tests.helpers import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "evaluate.py"
-QUICK = ["--env-kwargs", '{"n_obstacles": 5}', "--max-steps", "30", "--no-progress"]
+QUICK = [
+    "--env-kwargs", '{"n_obstacles": 5}', "--max-steps", "30", "--no-progress", "--workers", "1",
+]  # fmt: skip
+"""A small run in this process (the tests that count or stop episodes patch this process)."""
 
 
 @pytest.fixture(scope="module")
@@ -116,8 +119,9 @@ def test_a_second_run_on_a_directory_is_refused_naming_the_first(
     out = tmp_path / "eval"
     with RunDirectoryLock(out):  # the first run, still going
         err = _usage_error(cli, capsys, ["--agents", "zero", *QUICK, "--out", str(out)])
+        assert sorted(p.name for p in out.iterdir()) == [".lock"]  # the first run's only
     assert "argument --out" in err and f"process {os.getpid()}" in err
-    assert sorted(p.name for p in out.iterdir()) == [".lock"]
+    assert list(out.iterdir()) == []  # the first run's lock file goes when it ends
 
 
 # --- the outputs land as one set ------------------------------------------------------------
@@ -170,7 +174,7 @@ def test_ctrl_c_while_the_outputs_are_written_leaves_the_previous_set_whole(
 
     monkeypatch.setattr(report, "plot_episode", plot)
     calls = _count_episodes(monkeypatch)
-    assert cli.main(["--resume", str(out), "--no-progress"]) == 0
+    assert cli.main(["--resume", str(out), "--no-progress", "--workers", "1"]) == 0
     assert calls[0] == 0  # every episode had finished: only the outputs are written
     assert {r["seed"] for r in _rows(out)} == {"3", "4"}
     assert len(list(out.glob("trajectories_ep*.png"))) == 2
@@ -182,7 +186,8 @@ def test_paper_tables_are_part_of_the_set(cli, monkeypatch, tmp_path):
     for name in ("apf", "apf-mpc", "astar"):  # stand-ins: the set is what is tested
         monkeypatch.setitem(agents.BASELINES, name, "agents.policies.simple:ZeroAgent")
     out = tmp_path / "paper"
-    assert cli.main(["--paper", "--max-steps", "20", "--no-progress", "--out", str(out)]) == 0
+    argv = ["--paper", "--max-steps", "20", "--no-progress", "--workers", "1"]
+    assert cli.main([*argv, "--out", str(out)]) == 0
     manifest = json.loads((out / MANIFEST).read_text())
     assert {"paper_table.md", "paper_table.json"} <= set(manifest["files"])
     assert cli.main(["--agents", "zero", "--episodes", "1", *QUICK, "--out", str(out)]) == 0
@@ -211,7 +216,7 @@ def test_an_interrupted_run_resumes_to_the_uninterrupted_result(cli, capsys, mon
     assert not (out / "episodes.csv").exists()
 
     calls = _count_episodes(monkeypatch)
-    assert cli.main(["--resume", str(out), "--no-progress"]) == 0
+    assert cli.main(["--resume", str(out), "--no-progress", "--workers", "1"]) == 0
     # zero is skipped; random re-flies episode 0 (its generator carries over), then 1 and 2
     assert calls[0] == 3 + 3
     assert _rows(out) == _rows(whole)
