@@ -21,6 +21,7 @@ def code_location(exc: BaseException) -> str:
     ``""`` without a traceback or when that frame is the evaluation's own call (a builtin that
     raised has no frame of its own)."""
     frames = traceback.extract_tb(exc.__traceback__) if exc.__traceback__ else []
+    frames = [f for f in frames if not f.filename.startswith("<frozen")]  # importlib's own
     if not frames or os.path.dirname(os.path.abspath(frames[-1].filename)) == _HERE:
         return ""
     frame = frames[-1]

@@ -235,7 +235,10 @@ class _Pool:
             unit = queue.next_for(k)
             if unit is None:
                 return
-            self.conns[k].send((unit.label, unit.episode))
+            try:
+                self.conns[k].send((unit.label, unit.episode))
+            except OSError:  # the worker stopped (its failure or death is waiting in its pipe)
+                return
             self.in_flight[k].append(unit)
 
     def _receive(self, workers: set[int]) -> list[tuple[int, tuple[Any, ...]]]:
