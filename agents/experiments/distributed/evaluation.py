@@ -21,6 +21,7 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from agents.experiments.distributed import require_ray
+from agents.experiments.evaluation.failures import AgentFailure
 from agents.experiments.evaluation.records import EpisodeRecord
 from agents.experiments.evaluation.runner import EvaluationJob, check_replay
 from agents.experiments.evaluation.workers import (
@@ -145,7 +146,13 @@ def _dispatch(
         ready, _ = ray.wait(list(pending), num_returns=1)
         k, unit = pending.pop(ready[0])
         load[k] -= 1
-        record = ray.get(ready[0])
+        try:
+            record = ray.get(ready[0])
+        except Exception as exc:  # Ray wraps what the actor raised; an agent's failure is
+            cause = getattr(exc, "cause", None)  # reported as in the local run
+            if isinstance(cause, AgentFailure):
+                raise cause from None
+            raise
         if unit.replay:
             check_replay(done[(unit.label, unit.episode)], record)
         else:

@@ -29,7 +29,7 @@ AGENT_COLOURS = (
     "#bcbd22",
     "#000000",
     "#2ca02c",
-    "#393b79",
+    "#008080",
 )
 """One colour per agent, none of them a grey or an orange: targets keep the renderer's orange,
 debris and the bodies' paths its greys. Agents beyond these reuse them with dashed lines."""
