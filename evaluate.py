@@ -176,7 +176,8 @@ def build_parser() -> argparse.ArgumentParser:
         + "; ALGO=PATH for a learned policy ("
         + ", ".join(LEARNED_ALGOS)
         + "); 'pretrained'; "
-        "LABEL=MODULE:ATTR for your own policy object or factory (see above). Default: every "
+        "LABEL=MODULE:ATTR for your own policy object, factory or function (see above). Default: "
+        "every "
         "baseline, plus 'pretrained' when a pretrained policy is available",
     )
     parser.add_argument(
@@ -215,9 +216,10 @@ def build_parser() -> argparse.ArgumentParser:
         type=_run_dir,
         default=None,
         metavar="DIR",
-        help="finish the evaluation that Ctrl-C stopped in DIR: its options are read from "
-        "DIR/unfinished/, its finished episodes kept, the rest run, and the outputs written "
-        "as usual. No other option but --no-progress",
+        help="finish the evaluation that Ctrl-C (or a failing agent, or a full disk) stopped in "
+        "DIR: its options are read from DIR/unfinished/, its finished episodes kept, the rest "
+        "run, and the outputs written as usual. No other option but --no-progress, --workers, "
+        "--backend and --address",
     )
     parser.add_argument(
         "--plots",

@@ -1,8 +1,17 @@
 """Learned policies (SB3 models saved by ``train.py``) behind the shared ``predict()`` interface.
 
 ``load_agent("ppo:runs/ppo/model.zip", env)`` (also ``ppo=…``, and ``sac``, ``td3``, ``dqn``)
-returns a :class:`LearnedAgent`; ``load_agent("pretrained", env)`` the policy shipped in
-``agents/pretrained/`` for that env. The agent
+returns a :class:`LearnedAgent`; ``load_agent("ppo:runs/ppo", env)`` takes the run directory's
+``model.zip``, else its newest checkpoint (a warning names it); ``load_agent("pretrained", env)``
+the policy shipped in ``agents/pretrained/`` for that env. Loading
+
+* checks the run's ``config.yaml`` first (its ``normalize`` and ``env_kwargs`` mappings, and warns
+  when its ``env_id`` is not the env's: a policy flown on a task it was not trained for);
+* reads the VecNormalize statistics with an unpickler that only builds their own types, so a
+  statistics file cannot run code (the model zip itself is read by Stable-Baselines3, which
+  unpickles parts of it: a model is trusted like code).
+
+The agent
 
 * restores the VecNormalize observation statistics saved next to the model (the
   :func:`agents.policies.model_files.sidecar_path` name: ``vecnormalize.pkl`` beside ``model.zip``,
