@@ -586,3 +586,10 @@ def test_shielded_frames_show_the_shield_and_its_interventions():
     env.step(np.zeros(2))  # not replaced this time
     assert tuple(env.render()[2, 2]) == ON
     env.close()
+
+
+def test_video_records_in_this_process_only(cli, capsys, tmp_path):
+    err = _usage_error(
+        cli, capsys, ["--agents", "zero", "--video", "1", "--workers", "2", "--out", str(tmp_path)]
+    )
+    assert "argument --workers: --video records in this process: use --workers 1" in err

@@ -6,6 +6,7 @@ The library behind ``evaluate.py``, one job per module:
 specs         what to evaluate: baseline names, ``ppo=PATH``, ``pretrained``, your own
               ``LABEL=MODULE:ATTR`` or a policy object; building each for an env
 runner        flying every agent on the same seeded episodes (:func:`evaluate_agents`)
+episode       one episode flown and recorded (:func:`run_episode`)
 workers       episodes apart from where they run: the worker, the plan that shares them out
 pool          the local process pool (``evaluate.py --workers N``; :class:`ProcessBackend`)
 failures      an agent failing mid-run, an output that cannot be written
@@ -44,7 +45,8 @@ A frozen suite (:mod:`debris_gym.suites`) from Python: its first N missions, eac
 
 A policy is anything with SB3's ``predict(obs, state=None, episode_start=None,
 deterministic=True) -> (action, state)``, a factory ``f(env) -> policy`` or a plain function
-``f(obs) -> action``. On every core (worker processes; the same records)::
+``f(obs) -> action``. On every core (worker processes; the same records; keep the script's main
+code under ``if __name__ == "__main__":``, the workers import it again)::
 
     results = evaluate_agents(..., backend=ProcessBackend(workers=4))
 """

@@ -20,6 +20,15 @@ reaches only this process, which stops the workers (SIGKILL: the episodes in fli
 the finished ones are journaled) and reports the interruption. SIGINT is blocked while a worker
 starts, so it never lands in a worker before the worker ignores it. Workers use one torch thread
 each.
+
+From Python, a script that flies on a :class:`ProcessBackend` must keep its main code under
+``if __name__ == "__main__":``, as with any ``spawn``-started multiprocessing: each worker
+imports the main module again (``evaluate.py`` does so).
+
+Under CPU contention the operating system shares the CPU between sessions (Linux's autogroups),
+not between processes: a pool on a machine busy with other sessions gets no more CPU than one
+process, and pays its workers' start-up on top (a few seconds: imports, the numba cache, every
+agent built once per worker).
 """
 
 from __future__ import annotations

@@ -54,7 +54,8 @@ DEFAULT_EPISODES = 20
 """Episodes per agent of a plain ``python evaluate.py``."""
 
 DEFAULT_OUT = Path("runs/eval")
-"""Output directory of a plain ``python evaluate.py`` (if it is free; :func:`default_out`)."""
+"""Output directory of a plain ``python evaluate.py`` (if it is free; :func:`~agents.experiments.
+evaluation.command.default_out`)."""
 
 AGENT_ERRORS = (ImportError, FileNotFoundError, NotImplementedError, TypeError, ValueError)
 """What building an agent raises when the agent, not the code, is at fault."""

@@ -6,7 +6,7 @@ out, used by every backend that flies an evaluation in other processes (the loca
 A worker (:class:`EpisodeWorker`) lives for the whole run and holds one env and one agent per
 agent label, built on first use: the numba compile (or its on-disk cache load) and a learned
 model's load are paid once per worker, never per episode. An episode is flown by the runner's own
-:func:`~agents.experiments.evaluation.runner.run_episode`, so a record equals the one the
+:func:`~agents.experiments.evaluation.episode.run_episode`, so a record equals the one the
 in-process loop writes apart from the timing columns
 (:data:`~agents.experiments.evaluation.records.TIMING_COLUMNS`).
 
@@ -27,8 +27,9 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from agents.experiments.evaluation.episode import run_episode
 from agents.experiments.evaluation.records import EpisodeRecord
-from agents.experiments.evaluation.runner import EvaluationJob, build_agent_env, run_episode
+from agents.experiments.evaluation.runner import EvaluationJob, build_agent_env
 
 __all__ = ["IN_FLIGHT", "EpisodeWorker", "Unit", "UnitQueue", "check_workers", "plan_units"]
 
