@@ -593,3 +593,16 @@ def test_video_records_in_this_process_only(cli, capsys, tmp_path):
         cli, capsys, ["--agents", "zero", "--video", "1", "--workers", "2", "--out", str(tmp_path)]
     )
     assert "argument --workers: --video records in this process: use --workers 1" in err
+
+
+def test_a_run_without_out_beside_an_unfinished_one_says_how_to_finish_it(
+    cli, capsys, monkeypatch, tmp_path
+):
+    monkeypatch.chdir(tmp_path)
+    EvaluationJournal(tmp_path / "runs/eval").start({"stopped": "by Ctrl-C"})
+    assert cli.main(["--agents", "zero", "--episodes", "1", "--plots", "0", *QUICK]) == 0
+    err = capsys.readouterr().err
+    assert "python evaluate.py --resume runs/eval finishes it; this one writes to runs/eval-2" in (
+        err
+    )
+    assert EvaluationJournal(tmp_path / "runs/eval").exists()  # left for --resume

@@ -199,8 +199,10 @@ def _lock_default(plan: EvaluationPlan) -> tuple[EvaluationPlan, RunDirectoryLoc
             lock.release()
             continue
         if out != DEFAULT_OUT:
+            unfinished = EvaluationJournal(DEFAULT_OUT).exists()
+            hint = f"; python evaluate.py --resume {DEFAULT_OUT} finishes it" if unfinished else ""
             note(
-                f"{DEFAULT_OUT} holds an earlier evaluation, kept; this one writes to {out} "
+                f"{DEFAULT_OUT} holds an earlier evaluation, kept{hint}; this one writes to {out} "
                 "(--out DIR to choose)"
             )
         return dataclasses.replace(plan, out=out), lock
