@@ -127,7 +127,7 @@ def check_label(label: str) -> str:
     """
     if not isinstance(label, str) or not label.strip():
         raise ValueError(f"agent labels must be non-empty strings, got {label!r}")
-    bad = sorted({c for c in label if unicodedata.category(c) in ("Cc", "Cf", "Zl", "Zp")})
+    bad = sorted({c for c in label if unicodedata.category(c) in ("Cc", "Zl", "Zp")})
     if bad:
         raise ValueError(
             f"agent label {label!r} holds the control character(s) "

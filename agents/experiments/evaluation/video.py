@@ -66,7 +66,7 @@ class ShieldFrames(gym.Wrapper):
 def mark_frame(frame: np.ndarray, intervened: bool) -> np.ndarray:
     """``frame`` (H, W, 3 uint8) with the shield's banner on top, and a red border if
     ``intervened``."""
-    from PIL import Image, ImageDraw
+    from PIL import Image, ImageDraw, ImageFont
 
     image = Image.fromarray(np.ascontiguousarray(frame[..., :3]))
     draw = ImageDraw.Draw(image)
@@ -74,7 +74,11 @@ def mark_frame(frame: np.ndarray, intervened: bool) -> np.ndarray:
     colour = INTERVENED if intervened else ON
     draw.rectangle((0, 0, width, BANNER_PX), fill=colour)
     text = "safety shield on: it replaced this command" if intervened else "safety shield on"
-    draw.text((6, 5), text, fill=(255, 255, 255))
+    try:
+        font = ImageFont.load_default(size=14)
+    except TypeError:  # Pillow < 10.1: one bitmap size
+        font = ImageFont.load_default()
+    draw.text((8, 3), text, fill=(255, 255, 255), font=font)
     if intervened:
         draw.rectangle((0, 0, width - 1, height - 1), outline=INTERVENED, width=4)
     return np.asarray(image)
