@@ -507,7 +507,9 @@ def _warn_if_other_env(path: Path, config: dict[str, Any] | None, env: Any) -> N
     the full task, say), which is allowed but must not pass unnoticed."""
     trained_on = None if config is None else config.get("env_id")
     flown_on = _env_id(env)
-    if trained_on is None or flown_on is None or trained_on == flown_on:
+    if trained_on is None or flown_on is None:
+        return
+    if trained_on.rpartition(":")[2] == flown_on.rpartition(":")[2]:  # "debris_gym:ID" is ID
         return
     warnings.warn(
         f"{path} was trained on {trained_on} but is flown on {flown_on}: its results measure "
