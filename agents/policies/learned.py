@@ -560,7 +560,6 @@ def load_agent(spec: str, env: Any, device: str = "cpu") -> LearnedAgent:
             "truncated or something else); copy it again from the training run"
         )
     config = _checked_run_config(path)  # a damaged run config is named before the model loads
-    _warn_if_other_env(path, config, env)
     cls = algo_class(algo)
     # schedules are only needed to train; constants avoid unpickling closures at inference
     custom = {"learning_rate": 0.0, "lr_schedule": lambda _: 0.0, "clip_range": lambda _: 0.0}
@@ -572,5 +571,6 @@ def load_agent(spec: str, env: Any, device: str = "cpu") -> LearnedAgent:
             "trained with another algorithm?"
         ) from exc
     table = _check_spaces(model, env, path)
+    _warn_if_other_env(path, config, env)  # only for a model that can fly the env at all
     normalizer = _load_normalizer(path, model.observation_space)
     return LearnedAgent(model, algo, path, normalizer, model.observation_space, table)
