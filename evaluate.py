@@ -31,24 +31,38 @@ table summarise them, and the title says the run was shielded.
 The files land together or not at all: they are written aside and moved into place at the end,
 and files of an earlier evaluation that this one does not write (trajectory plots of episodes no
 longer plotted, say) are removed. One run at a time may use a directory (a second is refused).
+Without --out a run writes to runs/eval, or to runs/eval-2, -3, ... when runs/eval holds another
+run (the path is printed): it never replaces another run's results.
 While it runs, DIR/unfinished/ holds the run's options and every finished episode; Ctrl-C keeps
-them and prints the command that finishes the run, `python evaluate.py --resume DIR`.
+them and prints the command that finishes the run, `python evaluate.py --resume DIR`. An agent
+that fails mid-run (its predict raises or returns no valid action) or a file that cannot be
+written (a full disk) stops the run the same way, naming the agent, episode and step (or the
+file); exit status 1.
 
-With --backend ray the episodes are flown by Ray workers (a local Ray, or the cluster given by
---address), each holding one env and agent per agent; the results are the local run's (apart
-from decision times), the journal and --resume work the same (a resumed run may change
---backend, --address and --workers). See docs/distributed.md.
+The episodes are flown by worker processes, one per core (--workers N to choose; 1 = in this
+process), each building its envs and agents once; the results are those of one process, row for
+row (apart from decision times). With --backend ray they are flown by Ray workers instead (a
+local Ray, or the cluster given by --address). The journal and --resume work the same (a
+resumed run may change --backend, --address and --workers). See docs/distributed.md.
+
+Code that runs: --agents LABEL=MODULE:ATTR imports MODULE (from the working directory if it is
+there, else from PYTHONPATH / installed packages; no other file of the working directory is
+imported), and a learned model's files are read by Stable-Baselines3, whose model zip holds
+pickled objects: evaluate only models and modules you trust (docs/validation.md).
 
 Agents (--agents, comma-separated):
   apf, astar, ...           a baseline by name
   ALGO=PATH or ALGO:PATH    a policy trained by train.py, ALGO one of ppo, sac, td3, dqn,
                             recurrent_ppo
                             (models restore their VecNormalize statistics)
+  ALGO=RUN_DIR              a train.py run directory: its model.zip, else (a run stopped
+                            early) its newest checkpoint, with a note saying which
   pretrained                the policy shipped for the env (see docs/training.md)
   LABEL=MODULE:ATTR         your own policy, labelled LABEL: ATTR in module MODULE (a dotted
-                            name importable from the current directory or PYTHONPATH, not
-                            a file path) is a policy object with SB3's predict(obs, state,
-                            episode_start, deterministic), or a factory ATTR(env) -> policy
+                            name found in the current directory or on PYTHONPATH, not a
+                            file path) is a policy object with SB3's predict(obs, state,
+                            episode_start, deterministic), a factory ATTR(env) -> policy, or
+                            a plain function ATTR(obs) -> action
   MODULE:ATTR               the same, labelled ATTR
 The colon of ALGO:PATH and MODULE:ATTR is told apart by the word before it: ppo, sac, td3, dqn
 and recurrent_ppo name an algorithm, anything else a module. From Python, evaluate_agents() also
@@ -59,7 +73,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -78,6 +91,7 @@ examples:
   python evaluate.py --agents apf,apf-mpc --shield     # every agent behind the safety shield
   python evaluate.py --agents apf-mpc,pretrained --video 2   # mp4s of the first 2 episodes
   python evaluate.py --resume runs/cmp                 # finish a run stopped by Ctrl-C
+  python evaluate.py --workers 1                       # everything in this one process
   python evaluate.py --backend ray --workers 2 --episodes 200    # episodes on a local Ray
   python evaluate.py --backend ray --address auto ...  # on the Ray cluster this node is part of
 """
@@ -141,7 +155,8 @@ def build_parser() -> argparse.ArgumentParser:
         + "; ALGO=PATH for a learned policy ("
         + ", ".join(LEARNED_ALGOS)
         + "); 'pretrained'; "
-        "LABEL=MODULE:ATTR for your own policy object or factory (see above). Default: every "
+        "LABEL=MODULE:ATTR for your own policy object, factory or function (see above). Default: "
+        "every "
         "baseline, plus 'pretrained' when a pretrained policy is available",
     )
     parser.add_argument(
@@ -172,16 +187,18 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="DIR",
         help=f"output directory, created if needed; checked before anything runs (default: "
-        f"{DEFAULT_OUT})",
+        f"{DEFAULT_OUT}, or {DEFAULT_OUT}-2, -3, … when it holds another run: a run without "
+        "--out never replaces one)",
     )
     parser.add_argument(
         "--resume",
         type=_run_dir,
         default=None,
         metavar="DIR",
-        help="finish the evaluation that Ctrl-C stopped in DIR: its options are read from "
-        "DIR/unfinished/, its finished episodes kept, the rest run, and the outputs written "
-        "as usual. No other option but --no-progress",
+        help="finish the evaluation that Ctrl-C (or a failing agent, or a full disk) stopped in "
+        "DIR: its options are read from DIR/unfinished/, its finished episodes kept, the rest "
+        "run, and the outputs written as usual. No other option but --no-progress, --workers, "
+        "--backend and --address",
     )
     parser.add_argument(
         "--plots",
@@ -233,9 +250,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--backend",
         choices=("local", "ray"),
         default="local",
-        help="where the episodes run: local (this process, default) or ray (fanned out to Ray "
-        "workers, one env and agent each; the same results; needs pip install "
-        "'debris-gym[distributed]'; docs/distributed.md)",
+        help="where the episodes run: local (worker processes on this machine, see --workers; "
+        "default) or ray (fanned out to Ray workers, one env and agent each; the same results; "
+        "needs pip install 'debris-gym[distributed]'; docs/distributed.md)",
     )
     parser.add_argument(
         "--address",
@@ -249,7 +266,10 @@ def build_parser() -> argparse.ArgumentParser:
         type=cli.integer(1, cli.MAX_WORKERS),
         default=None,
         metavar="N",
-        help="with --backend ray: Ray workers, >= 1 (default: one per CPU of the cluster)",
+        help="processes flying the episodes, >= 1: local worker processes (default: one per "
+        "core; 1 = this process alone; --video records in this process) or, with --backend "
+        "ray, Ray workers (default: one per CPU of the cluster). The results are the same "
+        "whatever the count",
     )
     parser.add_argument(
         "--no-progress",
@@ -273,25 +293,28 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    if os.getcwd() not in sys.path:  # MODULE:ATTR agents import from where the user stands
-        sys.path.insert(0, os.getcwd())
     cli.interrupt_on_signals()  # also when started in the background, where SIGINT is ignored
 
+    from agents.experiments.distributed.evaluation import RayRemote
     from agents.experiments.evaluation.command import (
         EvaluateOptions,
         EvaluationInterrupted,
+        EvaluationStopped,
         UsageError,
         run_evaluation,
     )
 
     options = EvaluateOptions(**vars(args))  # the parser's destinations are the option names
     try:
-        text = run_evaluation(options)
+        text = run_evaluation(options, remote={"ray": RayRemote()})
     except UsageError as exc:
         parser.error(f"argument {exc.flag}: {exc}")
     except EvaluationInterrupted as exc:
         print(f"\n{exc.message()}", file=sys.stderr)
         return 130
+    except EvaluationStopped as exc:
+        print(f"\n{exc.message()}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:  # while the arguments were checked: nothing ran
         kept = f"{args.resume}/unfinished/ is unchanged" if args.resume else "nothing saved"
         print(f"\ninterrupted before any episode ran; {kept}", file=sys.stderr)

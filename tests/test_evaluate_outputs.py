@@ -5,6 +5,7 @@ episodes, and --resume DIR finishing the run as if it had never stopped."""
 from __future__ import annotations
 
 import csv
+import errno
 import json
 import os
 import signal
@@ -25,12 +26,15 @@ from agents.experiments.evaluation.journal import (
     record_to_json,
 )
 from agents.experiments.evaluation.records import TIMING_COLUMNS, scenario_fingerprint
-from agents.experiments.run_directory import MANIFEST, RunDirectoryLock
+from agents.experiments.run_directory import MANIFEST, RunDirectoryBusy, RunDirectoryLock
 from tests.helpers import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "evaluate.py"
-QUICK = ["--env-kwargs", '{"n_obstacles": 5}', "--max-steps", "30", "--no-progress"]
+QUICK = [
+    "--env-kwargs", '{"n_obstacles": 5}', "--max-steps", "30", "--no-progress", "--workers", "1",
+]  # fmt: skip
+"""A small run in this process (the tests that count or stop episodes patch this process)."""
 
 
 @pytest.fixture(scope="module")
@@ -116,8 +120,9 @@ def test_a_second_run_on_a_directory_is_refused_naming_the_first(
     out = tmp_path / "eval"
     with RunDirectoryLock(out):  # the first run, still going
         err = _usage_error(cli, capsys, ["--agents", "zero", *QUICK, "--out", str(out)])
+        assert sorted(p.name for p in out.iterdir()) == [".lock"]  # the first run's only
     assert "argument --out" in err and f"process {os.getpid()}" in err
-    assert sorted(p.name for p in out.iterdir()) == [".lock"]
+    assert list(out.iterdir()) == []  # the first run's lock file goes when it ends
 
 
 # --- the outputs land as one set ------------------------------------------------------------
@@ -170,7 +175,7 @@ def test_ctrl_c_while_the_outputs_are_written_leaves_the_previous_set_whole(
 
     monkeypatch.setattr(report, "plot_episode", plot)
     calls = _count_episodes(monkeypatch)
-    assert cli.main(["--resume", str(out), "--no-progress"]) == 0
+    assert cli.main(["--resume", str(out), "--no-progress", "--workers", "1"]) == 0
     assert calls[0] == 0  # every episode had finished: only the outputs are written
     assert {r["seed"] for r in _rows(out)} == {"3", "4"}
     assert len(list(out.glob("trajectories_ep*.png"))) == 2
@@ -182,7 +187,8 @@ def test_paper_tables_are_part_of_the_set(cli, monkeypatch, tmp_path):
     for name in ("apf", "apf-mpc", "astar"):  # stand-ins: the set is what is tested
         monkeypatch.setitem(agents.BASELINES, name, "agents.policies.simple:ZeroAgent")
     out = tmp_path / "paper"
-    assert cli.main(["--paper", "--max-steps", "20", "--no-progress", "--out", str(out)]) == 0
+    argv = ["--paper", "--max-steps", "20", "--no-progress", "--workers", "1"]
+    assert cli.main([*argv, "--out", str(out)]) == 0
     manifest = json.loads((out / MANIFEST).read_text())
     assert {"paper_table.md", "paper_table.json"} <= set(manifest["files"])
     assert cli.main(["--agents", "zero", "--episodes", "1", *QUICK, "--out", str(out)]) == 0
@@ -211,7 +217,7 @@ def test_an_interrupted_run_resumes_to_the_uninterrupted_result(cli, capsys, mon
     assert not (out / "episodes.csv").exists()
 
     calls = _count_episodes(monkeypatch)
-    assert cli.main(["--resume", str(out), "--no-progress"]) == 0
+    assert cli.main(["--resume", str(out), "--no-progress", "--workers", "1"]) == 0
     # zero is skipped; random re-flies episode 0 (its generator carries over), then 1 and 2
     assert calls[0] == 3 + 3
     assert _rows(out) == _rows(whole)
@@ -374,3 +380,229 @@ def test_video_records_each_agents_first_episodes(cli, tmp_path):
 def test_a_bad_video_count_is_a_usage_error(cli, capsys):
     err = _usage_error(cli, capsys, ["--agents", "zero", "--video", "-1"])
     assert "argument --video" in err and "must be an integer >= 0" in err
+
+
+# --- a file that cannot be written stops the run with the resume line -----------------------
+
+
+def test_a_full_disk_while_journaling_stops_the_run_with_the_resume_line(
+    cli, capsys, monkeypatch, tmp_path
+):
+    """Regression: a full disk (or a directory made read-only) mid-run gave a traceback and no
+    resume line."""
+    base = ["--agents", "zero,random", "--episodes", "3", "--plots", "0", *QUICK]
+    whole = tmp_path / "whole"
+    assert cli.main([*base, "--out", str(whole)]) == 0
+
+    append = EvaluationJournal.append
+    calls = [0]
+
+    def full_at_fourth(self, record):
+        calls[0] += 1
+        if calls[0] == 4:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        append(self, record)
+
+    out = tmp_path / "eval"
+    monkeypatch.setattr(EvaluationJournal, "append", full_at_fourth)
+    assert cli.main([*base, "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert f"cannot write {out / 'unfinished' / 'episodes.jsonl'} (No space left on device)" in err
+    assert "3 of 6 episodes finished" in err
+    assert f"make room or restore write access in {out}, then resume with: python evaluate.py " \
+        f"--resume {out}" in err  # fmt: skip
+    monkeypatch.setattr(EvaluationJournal, "append", append)
+    assert cli.main(["--resume", str(out), "--no-progress", "--workers", "1"]) == 0
+    assert _rows(out) == _rows(whole)
+
+
+def test_a_full_disk_while_the_outputs_are_written_keeps_every_episode(
+    cli, capsys, monkeypatch, tmp_path
+):
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), "summary.json")
+
+    monkeypatch.setattr(command, "write_outputs", full)
+    out = tmp_path / "eval"
+    argv = ["--agents", "zero", "--episodes", "2", "--plots", "0", *QUICK, "--out", str(out)]
+    assert cli.main(argv) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "No space left on device" in err
+    assert "all 2 episodes finished but the outputs were not written" in err
+    assert f"resume with: python evaluate.py --resume {out}" in err
+    assert len(EvaluationJournal(out).read_records()) == 2
+
+
+# --- without --out, a run never replaces another run's results ------------------------------
+
+
+def test_runs_without_out_never_replace_each_other(cli, capsys, monkeypatch, tmp_path):
+    """Regression: a plain `python evaluate.py` silently replaced runs/eval/ of the run before."""
+    monkeypatch.chdir(tmp_path)
+    base = ["--agents", "zero", "--episodes", "1", "--plots", "0", *QUICK]
+    assert cli.main([*base, "--seed", "1"]) == 0
+    first = {p.name: p.read_bytes() for p in (tmp_path / "runs/eval").iterdir()}
+    assert "runs/eval/episodes.csv" in capsys.readouterr().out
+    assert cli.main([*base, "--seed", "2"]) == 0
+    captured = capsys.readouterr()
+    assert "runs/eval-2/episodes.csv" in captured.out
+    assert "runs/eval holds an earlier evaluation, kept; this one writes to runs/eval-2" in (
+        captured.err
+    )
+    assert {p.name: p.read_bytes() for p in (tmp_path / "runs/eval").iterdir()} == first
+    assert [r["seed"] for r in _rows(tmp_path / "runs/eval-2")] == ["2"]
+    assert [p.name for p in sorted((tmp_path / "runs").iterdir())] == ["eval", "eval-2"]
+
+
+def test_an_explicit_out_holding_results_is_replaced_with_a_note(cli, capsys, tmp_path):
+    out = tmp_path / "eval"
+    base = ["--agents", "zero", "--episodes", "1", "--plots", "0", *QUICK, "--out", str(out)]
+    assert cli.main(base) == 0
+    assert "replaced" not in capsys.readouterr().err
+    assert cli.main([*base, "--seed", "4"]) == 0
+    assert f"{out} holds an earlier evaluation's results; they are replaced" in (
+        capsys.readouterr().err
+    )
+
+
+def test_a_finished_run_leaves_no_lock_file(cli, tmp_path):
+    """Regression: every finished run left DIR/.lock behind."""
+    out = tmp_path / "eval"
+    assert cli.main(["--agents", "zero", "--episodes", "1", *QUICK, "--out", str(out)]) == 0
+    assert not (out / ".lock").exists()
+    lock = RunDirectoryLock(out)
+    lock.acquire()
+    assert (out / ".lock").is_file()
+    with pytest.raises(RunDirectoryBusy):
+        RunDirectoryLock(out).acquire()
+    lock.release()
+    assert not (out / ".lock").exists()
+    with RunDirectoryLock(out):  # the directory can be locked again
+        pass
+
+
+# --- Ctrl-C at the terminal with worker processes -------------------------------------------
+
+
+def test_ctrl_c_at_the_terminal_stops_the_workers_and_the_run_resumes(tmp_path):
+    """A Ctrl-C at a terminal reaches the whole process group: the workers ignore it, the main
+    process journals what finished, stops them and prints the resume command."""
+    (tmp_path / "slowpolicy.py").write_text(
+        textwrap.dedent(
+            """
+            import time
+            import numpy as np
+
+            class Slow:
+                episode_independent = True
+
+                def __init__(self, env):
+                    self.dim = env.unwrapped.dim
+
+                def predict(self, obs, state=None, episode_start=None, deterministic=True):
+                    time.sleep(0.02)
+                    return np.zeros(self.dim, dtype=np.float32), state
+            """
+        )
+    )
+    out = tmp_path / "eval"
+    argv = [
+        sys.executable, str(SCRIPT), "--agents", "zero,slow=slowpolicy:Slow", "--episodes", "8",
+        "--env-kwargs", '{"n_obstacles": 3}', "--max-steps", "25", "--plots", "0",
+        "--no-progress", "--workers", "2", "--out", str(out),
+    ]  # fmt: skip
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    proc = subprocess.Popen(
+        argv, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True, start_new_session=True,  # its own process group, as a terminal job has
+    )  # fmt: skip
+    journal = EvaluationJournal(out)
+    deadline = time.monotonic() + 180
+    while time.monotonic() < deadline and proc.poll() is None:
+        if journal.episodes_path.is_file() and journal.episodes_path.read_text().count("\n") > 9:
+            break  # zero is done and slow is on its way
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGINT)  # what the terminal does on Ctrl-C
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err
+    finished = len(journal.read_records())
+    assert 10 <= finished < 16
+    assert f"{finished} of 16 episodes finished" in err
+    with pytest.raises(ProcessLookupError):  # no worker outlives the run
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline:
+            os.killpg(proc.pid, 0)
+            time.sleep(0.1)
+
+    resumed = subprocess.run(
+        [sys.executable, str(SCRIPT), "--resume", str(out), "--no-progress"],
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert resumed.returncode == 0, resumed.stderr
+    pairs = [(r["agent"], int(r["episode"])) for r in _rows(out)]
+    assert pairs == [(a, i) for a in ("zero", "slow") for i in range(8)]
+
+
+# --- videos ---------------------------------------------------------------------------------
+
+
+def test_videos_are_listed_with_the_files_and_in_the_manifest(cli, capsys, tmp_path):
+    """Regression: the videos were missing from the printed file list and manifest.json."""
+    pytest.importorskip("moviepy", reason="--video needs moviepy: pip install -e '.[video]'")
+    out = tmp_path / "eval"
+    argv = ["--agents", "zero", "--episodes", "1", "--max-steps", "4", "--video", "1"]
+    assert cli.main([*argv, "--out", str(out), "--plots", "0", "--no-progress"]) == 0
+    printed = capsys.readouterr().out
+    video = out / "videos" / "zero" / "zero-episode-0.mp4"
+    assert video.is_file() and f"  {video}\n" in printed
+    manifest = json.loads((out / MANIFEST).read_text())
+    assert manifest["videos"] == ["videos/zero/zero-episode-0.mp4"]
+
+
+def test_shielded_frames_show_the_shield_and_its_interventions():
+    """Regression: nothing in a video's frames said the shield was on, or when it acted."""
+    import gymnasium as gym
+
+    from agents.experiments.evaluation.video import INTERVENED, ON, ShieldFrames
+
+    class Stats:
+        interventions = 0
+
+    class Agent:
+        stats = Stats()
+
+    env = ShieldFrames(gym.make("DebrisGym/Rendezvous2D-Easy-v1", render_mode="rgb_array"))
+    env.agent = Agent()
+    env.reset(seed=0)
+    plain = env.env.render()
+    frame = env.render()
+    assert frame.shape == plain.shape and tuple(frame[2, 2]) == ON
+    Agent.stats.interventions = 1  # the shield replaced the command of the next step
+    env.step(np.zeros(2))
+    frame = env.render()
+    assert tuple(frame[2, 2]) == INTERVENED and tuple(frame[-2, frame.shape[1] // 2]) == INTERVENED
+    env.step(np.zeros(2))  # not replaced this time
+    assert tuple(env.render()[2, 2]) == ON
+    env.close()
+
+
+def test_video_records_in_this_process_only(cli, capsys, tmp_path):
+    err = _usage_error(
+        cli, capsys, ["--agents", "zero", "--video", "1", "--workers", "2", "--out", str(tmp_path)]
+    )
+    assert "argument --workers: --video records in this process: use --workers 1" in err
+
+
+def test_a_run_without_out_beside_an_unfinished_one_says_how_to_finish_it(
+    cli, capsys, monkeypatch, tmp_path
+):
+    monkeypatch.chdir(tmp_path)
+    EvaluationJournal(tmp_path / "runs/eval").start({"stopped": "by Ctrl-C"})
+    assert cli.main(["--agents", "zero", "--episodes", "1", "--plots", "0", *QUICK]) == 0
+    err = capsys.readouterr().err
+    assert "python evaluate.py --resume runs/eval finishes it; this one writes to runs/eval-2" in (
+        err
+    )
+    assert EvaluationJournal(tmp_path / "runs/eval").exists()  # left for --resume

@@ -16,7 +16,7 @@ from debris_gym.suites import load_suite
 from tests.helpers import load_script
 
 SUITE = "standard-2d-v1"
-QUICK = ["--max-steps", "4", "--plots", "0", "--no-progress"]
+QUICK = ["--max-steps", "4", "--plots", "0", "--no-progress", "--workers", "1"]
 
 
 @pytest.fixture(scope="module")
@@ -126,7 +126,7 @@ def test_an_interrupted_suite_run_resumes_and_refuses_a_changed_suite(
     assert "argument --resume:" in err and "has changed since the run started" in err
     journal.options_path.write_text(json.dumps(options))
 
-    assert cli.main(["--resume", str(out), "--no-progress"]) == 0
+    assert cli.main(["--resume", str(out), "--no-progress", "--workers", "1"]) == 0
     timing = {"decision_ms_p50", "decision_ms_p95", "decision_ms_max"}
 
     def untimed(rows):

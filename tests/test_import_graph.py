@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests.import_graph import MODULES, is_package, cycle_path, cycles, import_graph
+from tests.import_graph import MODULES, cycle_path, cycles, import_graph, is_package
 
 
 def _area(module: str) -> str:

@@ -236,3 +236,134 @@ def test_loading_and_running_a_policy_never_imports_training_code(saved_run):
         """
     )
     assert out.split("\n")[:3] == ["[]", "True", "[]"]
+
+
+# --- what a model directory may run, and what it must say ---------------------------------
+
+
+class _RunsCode:
+    """Unpickling this calls os.mkdir: what a hostile statistics file could do."""
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+
+    def __reduce__(self):
+        return (os.mkdir, (self.path,))
+
+
+def test_statistics_that_would_run_code_are_refused_before_it_runs(saved_run, tmp_path):
+    """Regression: vecnormalize.pkl was unpickled before its type was checked, so a pickle that
+    calls a function ran it."""
+    model = _copy_model(saved_run, tmp_path / "hostile", "normalize:\n  enabled: true\n")
+    marker = tmp_path / "it_ran"
+    model.with_name("vecnormalize.pkl").write_bytes(pickle.dumps(_RunsCode(str(marker))))
+    env = gym.make(ENV_ID)
+    with pytest.raises(ValueError, match=r"references (posix|os)\.mkdir") as err:
+        agents.load_agent(f"ppo:{model}", env)
+    assert str(model.with_name("vecnormalize.pkl")) in str(err.value)
+    assert not marker.exists()
+    env.close()
+
+
+@pytest.mark.parametrize("key", ["env_kwargs", "normalize"])
+def test_a_damaged_config_entry_is_refused_although_the_statistics_exist(saved_run, tmp_path, key):
+    """Regression: with the statistics beside the model, a damaged env_kwargs or normalize in
+    config.yaml was swallowed."""
+    config = {"env_kwargs": "env_kwargs: 5\nnormalize: {enabled: true}\n",
+              "normalize": "normalize: [1, 2]\n"}[key]  # fmt: skip
+    model = _copy_model(saved_run, tmp_path / key, config)
+    shutil.copy(saved_run / "vecnormalize.pkl", model.with_name("vecnormalize.pkl"))
+    env = gym.make(ENV_ID)
+    with pytest.raises(ValueError, match=f"'{key}' must be a mapping") as err:
+        agents.load_agent(f"ppo:{model}", env)
+    assert str(model.with_name("config.yaml")) in str(err.value)
+    with pytest.raises(ValueError, match=f"'{key}' must be a mapping"):
+        agents.observation_options(f"ppo:{model}", ENV_ID)
+    env.close()
+
+
+def test_a_model_flown_on_another_env_is_named_in_a_warning_the_summary_keeps(
+    saved_run, tmp_path, capsys
+):
+    """Regression: an Easy-rung model flown on another env gave its (poor) numbers without a
+    word, although its config.yaml records the env it was trained on."""
+    config = "env_id: DebrisGym/Rendezvous2D-Easy-v1\nnormalize: {enabled: true}\n"
+    model = _copy_model(saved_run, tmp_path / "easy", config)
+    shutil.copy(saved_run / "vecnormalize.pkl", model.with_name("vecnormalize.pkl"))
+    env = gym.make(ENV_ID)
+    with pytest.warns(UserWarning, match="trained on DebrisGym/Rendezvous2D-Easy-v1 but is flown"):
+        agents.load_agent(f"ppo:{model}", env)
+    env.close()
+    out = tmp_path / "eval"
+    argv = [
+        "--agents", f"ppo={model}", "--episodes", "1", "--max-steps", "3", "--plots", "0",
+        "--no-progress", "--workers", "1", "--out", str(out), "--env", ENV_ID,
+    ]  # fmt: skip
+    assert load_script("evaluate.py").main(argv) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert f"is flown on {ENV_ID}" in summary["warnings"]["ppo"]
+    assert "--env DebrisGym/Rendezvous2D-Easy-v1" in (out / "summary.md").read_text()
+
+
+def _checkpoint(saved_run: Path, path: Path, timesteps: int) -> None:
+    """A copy of the saved model as ``path``, claiming ``timesteps``, with its statistics."""
+    from stable_baselines3 import PPO
+
+    from agents.policies.model_files import sidecar_path
+
+    model = PPO.load(saved_run / "model.zip")
+    model.num_timesteps = timesteps
+    path.parent.mkdir(parents=True, exist_ok=True)
+    model.save(path)
+    shutil.copy(saved_run / "vecnormalize.pkl", sidecar_path(path, "vecnormalize"))
+
+
+def test_a_run_directory_flies_its_model_else_its_newest_checkpoint(saved_run, tmp_path):
+    """Regression: after Ctrl-C there is no model.zip, and `ppo=runs/ppo` said "model file
+    'runs/ppo' not found" although the directory held checkpoints."""
+    run = tmp_path / "run"
+    _checkpoint(saved_run, run / "checkpoints" / "interrupted.zip", 6000)
+    _checkpoint(saved_run, run / "checkpoints" / "rl_model_4096_steps.zip", 4096)
+    (run / "config.yaml").write_text("normalize: {enabled: true}\n")
+    env = gym.make(ENV_ID)
+    with pytest.warns(UserWarning) as record:
+        agent = agents.load_agent(f"ppo:{run}", env)
+    assert agent.path == run / "checkpoints" / "interrupted.zip"
+    assert any(
+        "has no model.zip" in str(w.message) and "checkpoints/interrupted.zip (6000 timesteps)"
+        in str(w.message) for w in record
+    )  # fmt: skip
+    assert agent.obs_normalizer is not None  # the checkpoint's own statistics
+
+    with pytest.raises(FileNotFoundError) as err:
+        agents.load_agent(f"ppo:{run / 'model.zip'}", env)
+    message = str(err.value)
+    assert "checkpoints/interrupted.zip (6000 timesteps)" in message
+    assert "checkpoints/rl_model_4096_steps.zip (4096 timesteps)" in message
+
+    shutil.copy(saved_run / "model.zip", run / "model.zip")
+    shutil.copy(saved_run / "vecnormalize.pkl", run / "vecnormalize.pkl")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        assert agents.load_agent(f"ppo:{run}", env).path == run / "model.zip"
+
+    empty = tmp_path / "empty"
+    (empty / "tb").mkdir(parents=True)
+    (empty / "config.yaml").write_text("normalize: {enabled: true}\n")
+    with pytest.raises(FileNotFoundError, match=r"holds no model .*it has: config.yaml, tb/"):
+        agents.load_agent(f"ppo:{empty}", env)
+    env.close()
+
+
+def test_evaluate_py_takes_a_run_directory(saved_run, tmp_path):
+    run = tmp_path / "run"
+    _checkpoint(saved_run, run / "checkpoints" / "interrupted.zip", 6000)
+    (run / "config.yaml").write_text("normalize: {enabled: true}\n")
+    out = tmp_path / "eval"
+    argv = [
+        "--agents", f"ppo={run}", "--episodes", "1", "--max-steps", "3", "--plots", "0",
+        "--no-progress", "--workers", "1", "--out", str(out), "--env", ENV_ID,
+    ]  # fmt: skip
+    assert load_script("evaluate.py").main(argv) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert "checkpoints/interrupted.zip" in summary["warnings"]["ppo"]

@@ -5,8 +5,8 @@ and filled with a whole set of files or none.
   that exists or can be created and written, before any episode runs or any step trains.
 * :class:`RunDirectoryLock` gives a run exclusive use of its directory for as long as it runs (an
   advisory ``flock`` on ``DIR/.lock``, released by the operating system when the process ends, so
-  a killed run never leaves a stale lock). A second run on the same directory is refused with
-  :class:`RunDirectoryBusy`, naming the process that holds it.
+  a killed run never leaves a stale lock; a run that ends removes the file). A second run on the
+  same directory is refused with :class:`RunDirectoryBusy`, naming the process that holds it.
 * :class:`OutputSet` stages a set of files in a scratch directory inside ``DIR`` and moves them
   into place together, with Ctrl-C deferred for those few renames; files an earlier set wrote and
   this one does not (a trajectory plot of an episode no longer plotted, say) are removed, so the
@@ -136,7 +136,10 @@ class RunDirectoryLock:
     """Exclusive use of a run directory for the life of a run (``with RunDirectoryLock(out):``).
 
     The directory is created if needed. Locks are per open file description, so a second lock of
-    the same directory in the same process is refused too.
+    the same directory in the same process is refused too. :meth:`release` deletes the lock file
+    (while still holding it), so a finished run leaves no ``.lock`` behind; :meth:`acquire`
+    checks that the file it locked is still the one in the directory (not one a releasing run
+    just deleted) and tries again otherwise.
     """
 
     def __init__(self, out: str | os.PathLike[str], flag: str = "--out") -> None:
@@ -152,30 +155,39 @@ class RunDirectoryLock:
             OutputDirError: the directory or its lock file cannot be created (a place
                 :func:`check_output_dir` cannot foresee, e.g. a read-only or virtual file system).
         """
-        try:
-            make_dirs(self.out)
-            fd = os.open(self.out / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o644)
-        except OSError as exc:
-            raise OutputDirError(
-                self.flag, f"cannot create {self.out / LOCK_FILE} ({exc.strerror})"
-            ) from None
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "unknown"
-            os.close(fd)
-            raise RunDirectoryBusy(
-                self.flag,
-                f"{self.out} is in use by another run (process {holder}); wait for it to end "
-                "or choose another directory",
-            ) from None
+        path = self.out / LOCK_FILE
+        while True:
+            try:
+                make_dirs(self.out)
+                fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+            except OSError as exc:
+                raise OutputDirError(self.flag, f"cannot create {path} ({exc.strerror})") from None
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "unknown"
+                os.close(fd)
+                raise RunDirectoryBusy(
+                    self.flag,
+                    f"{self.out} is in use by another run (process {holder}); wait for it to "
+                    "end or choose another directory",
+                ) from None
+            try:
+                current = os.stat(path).st_ino
+            except FileNotFoundError:
+                current = None
+            if current == os.fstat(fd).st_ino:
+                break
+            os.close(fd)  # a run that ended deleted the file we locked: lock the new one
         os.ftruncate(fd, 0)
         os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
         self._fd = fd
 
     def release(self) -> None:
-        """Give the lock back (the lock file stays; it is reused by the next run)."""
+        """Give the lock back and delete the lock file."""
         if self._fd is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(self.out / LOCK_FILE)
             fcntl.flock(self._fd, fcntl.LOCK_UN)
             os.close(self._fd)
             self._fd = None

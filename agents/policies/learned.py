@@ -1,8 +1,17 @@
 """Learned policies (SB3 models saved by ``train.py``) behind the shared ``predict()`` interface.
 
 ``load_agent("ppo:runs/ppo/model.zip", env)`` (also ``ppo=…``, and ``sac``, ``td3``, ``dqn``)
-returns a :class:`LearnedAgent`; ``load_agent("pretrained", env)`` the policy shipped in
-``agents/pretrained/`` for that env. The agent
+returns a :class:`LearnedAgent`; ``load_agent("ppo:runs/ppo", env)`` takes the run directory's
+``model.zip``, else its newest checkpoint (a warning names it); ``load_agent("pretrained", env)``
+the policy shipped in ``agents/pretrained/`` for that env. Loading
+
+* checks the run's ``config.yaml`` first (its ``normalize`` and ``env_kwargs`` mappings, and warns
+  when its ``env_id`` is not the env's: a policy flown on a task it was not trained for);
+* reads the VecNormalize statistics with an unpickler that only builds their own types, so a
+  statistics file cannot run code (the model zip itself is read by Stable-Baselines3, which
+  unpickles parts of it: a model is trusted like code).
+
+The agent
 
 * restores the VecNormalize observation statistics saved next to the model (the
   :func:`agents.policies.model_files.sidecar_path` name: ``vecnormalize.pkl`` beside ``model.zip``,
@@ -18,7 +27,6 @@ returns a :class:`LearnedAgent`; ``load_agent("pretrained", env)`` the policy sh
 
 from __future__ import annotations
 
-import pickle
 import warnings
 import zipfile
 from pathlib import Path
@@ -28,9 +36,10 @@ import numpy as np
 from gymnasium import spaces
 
 from agents.policies.model_files import (
-    FINAL_MODEL,
     LEARNED_ALGOS,
     algo_class,
+    find_model_file,
+    load_vecnormalize_pickle,
     read_config_mapping,
     sidecar_path,
 )
@@ -260,21 +269,50 @@ def _run_config(path: Path) -> dict[str, Any] | None:
     return data
 
 
-def _trained_with_normalization(path: Path) -> bool | None:
-    """Whether the run that wrote ``path`` used VecNormalize observations (None: unknown).
+RUN_CONFIG_MAPPINGS = {
+    "normalize": "enabled, norm_obs, …",
+    "env_kwargs": "the env options the run was trained with",
+}
+"""Entries of a run's ``config.yaml`` the loader reads, each a mapping (or absent / null)."""
+
+
+def _checked_run_config(path: Path) -> dict[str, Any] | None:
+    """The config of the run that wrote model ``path`` (None: none found), with the entries the
+    loader reads (:data:`RUN_CONFIG_MAPPINGS`) checked — whether or not the statistics file is
+    there, so a damaged entry is never skipped.
 
     Raises:
-        ValueError: a damaged run config, or a ``normalize`` entry that is not a mapping.
+        ValueError: a damaged run config, or one of those entries not a mapping (the message
+            names the file and the key).
     """
     data = _run_config(path)
     if data is None:
         return None
-    norm = data.get("normalize") or {}
-    if not isinstance(norm, dict):
+    for key, what in RUN_CONFIG_MAPPINGS.items():
+        value = data.get(key)
+        if value is not None and not isinstance(value, dict):
+            raise ValueError(
+                f"{run_config_path(path)}: {key!r} must be a mapping ({what}), got {value!r}; "
+                "restore the file from the training run"
+            )
+    env_id = data.get("env_id")
+    if env_id is not None and not isinstance(env_id, str):
         raise ValueError(
-            f"{run_config_path(path)}: 'normalize' must be a mapping (enabled, norm_obs, …), "
-            f"got {norm!r}"
+            f"{run_config_path(path)}: 'env_id' must be an env ID string, got {env_id!r}"
         )
+    return data
+
+
+def _trained_with_normalization(path: Path) -> bool | None:
+    """Whether the run that wrote ``path`` used VecNormalize observations (None: unknown).
+
+    Raises:
+        ValueError: a damaged run config (:func:`_checked_run_config`).
+    """
+    data = _checked_run_config(path)
+    if data is None:
+        return None
+    norm = data.get("normalize") or {}
     return bool(norm.get("enabled")) and bool(norm.get("norm_obs", True))
 
 
@@ -320,7 +358,10 @@ def _load_normalizer(path: Path, observation_space: spaces.Space) -> Any:
 
 
 def read_vecnormalize(stats: Path) -> Any:
-    """Unpickle the VecNormalize statistics file ``stats`` (no venv attached).
+    """Unpickle the VecNormalize statistics file ``stats`` (no venv attached), allowing only the
+    types such statistics are made of (:func:`~agents.policies.model_files.
+    load_vecnormalize_pickle`): a file that names any other function or class is refused before
+    anything in it runs.
 
     Raises:
         ValueError: the file is empty, truncated, not a pickle, or holds something other than
@@ -333,8 +374,7 @@ def read_vecnormalize(stats: Path) -> Any:
         "delete it if the run did not normalise observations"
     )
     try:
-        with open(stats, "rb") as fh:
-            normalizer = pickle.load(fh)
+        normalizer = load_vecnormalize_pickle(stats)
     except Exception as exc:  # a damaged pickle fails in many ways (EOFError, UnpicklingError, …)
         raise ValueError(
             f"{stats}: not readable VecNormalize statistics ({type(exc).__name__}: {exc}); {fix}"
@@ -419,7 +459,7 @@ def observation_options(spec: str, env_id: str) -> dict[str, Any]:
         algo, path = pretrained_path(env_id)
     assert path is not None
     if path.is_dir():
-        path = path / FINAL_MODEL
+        path, _ = find_model_file(path)
     return _run_observation_options(path)
 
 
@@ -429,14 +469,10 @@ def _run_observation_options(path: Path) -> dict[str, Any]:
     Raises:
         ValueError: a damaged run config (the message names it).
     """
-    data = _run_config(path)
+    data = _checked_run_config(path)
     if data is None:
         return {}
     env_kwargs = data.get("env_kwargs") or {}
-    if not isinstance(env_kwargs, dict):
-        raise ValueError(
-            f"{run_config_path(path)}: 'env_kwargs' must be a mapping, got {env_kwargs!r}"
-        )
     return {k: env_kwargs[k] for k in OBSERVATION_KEYS if k in env_kwargs}
 
 
@@ -466,36 +502,65 @@ def pretrained_path(env: Any) -> tuple[str, Path]:
     return algo, path
 
 
+def _warn_if_other_env(path: Path, config: dict[str, Any] | None, env: Any) -> None:
+    """A ``UserWarning`` when the run config says model ``path`` was trained on another env ID
+    than ``env``'s: the policy is flown on a task it was not trained for (an Easy-rung model on
+    the full task, say), which is allowed but must not pass unnoticed."""
+    trained_on = None if config is None else config.get("env_id")
+    flown_on = _env_id(env)
+    if trained_on is None or flown_on is None:
+        return
+    if trained_on.rpartition(":")[2] == flown_on.rpartition(":")[2]:  # "debris_gym:ID" is ID
+        return
+    warnings.warn(
+        f"{path} was trained on {trained_on} but is flown on {flown_on}: its results measure "
+        f"how it transfers, not the task it learned (evaluate it with --env {trained_on})",
+        UserWarning,
+        stacklevel=3,
+    )
+
+
 def load_agent(spec: str, env: Any, device: str = "cpu") -> LearnedAgent:
     """Load a learned policy for ``env``.
 
     Args:
         spec: ``"ALGO:PATH"`` or ``"ALGO=PATH"`` (ALGO in :data:`LEARNED_ALGOS`; PATH an SB3 zip
-            written by ``train.py``, e.g. ``runs/ppo/model.zip``), or ``"pretrained"``.
+            written by ``train.py``, e.g. ``runs/ppo/model.zip``, or a run directory: its
+            ``model.zip``, else its newest checkpoint, with a ``UserWarning`` saying which), or
+            ``"pretrained"``.
         env: the env it will fly (gymnasium env, SB3 VecEnv or gymnasium VectorEnv); only its
             spaces (and, for ``pretrained``, its ID) are used.
         device: torch device for the model.
 
+    Warns:
+        UserWarning: the model was picked from a run directory without ``model.zip``; its run
+            config names another env ID than ``env``'s; neither statistics nor a run config
+            tell whether it reads normalised observations.
+
     Raises:
         ValueError: a bad spec, an unknown algorithm, a model of another algorithm, spaces that
-            do not match the env's, or no pretrained policy for this env.
-        FileNotFoundError: the model (or statistics it needs) is missing.
+            do not match the env's, a damaged statistics file or run config, or no pretrained
+            policy for this env.
+        FileNotFoundError: the model (or statistics it needs) is missing; the message lists what
+            the run directory holds.
     """
 
     algo, path = _parse(spec)
     if algo == PRETRAINED:
         algo, path = pretrained_path(env)
     assert path is not None
-    if path.is_dir() and (path / FINAL_MODEL).is_file():
-        path = path / FINAL_MODEL
-    if not path.is_file():
-        raise FileNotFoundError(f"{algo} model {str(path)!r} not found")
+    try:
+        path, chosen = find_model_file(path)
+    except FileNotFoundError as exc:
+        raise FileNotFoundError(f"{algo} {exc}") from None
+    if chosen is not None:
+        warnings.warn(chosen, UserWarning, stacklevel=2)
     if not zipfile.is_zipfile(path):
         raise ValueError(
             f"{path}: not a model file (an SB3 model is a zip archive; this one is empty, "
             "truncated or something else); copy it again from the training run"
         )
-    _run_config(path)  # a damaged run config is named before the model loads
+    config = _checked_run_config(path)  # a damaged run config is named before the model loads
     cls = algo_class(algo)
     # schedules are only needed to train; constants avoid unpickling closures at inference
     custom = {"learning_rate": 0.0, "lr_schedule": lambda _: 0.0, "clip_range": lambda _: 0.0}
@@ -507,5 +572,6 @@ def load_agent(spec: str, env: Any, device: str = "cpu") -> LearnedAgent:
             "trained with another algorithm?"
         ) from exc
     table = _check_spaces(model, env, path)
+    _warn_if_other_env(path, config, env)  # only for a model that can fly the env at all
     normalizer = _load_normalizer(path, model.observation_space)
     return LearnedAgent(model, algo, path, normalizer, model.observation_space, table)

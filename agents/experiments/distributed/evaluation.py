@@ -5,136 +5,65 @@ runner (:func:`~agents.experiments.evaluation.runner.evaluate_agents`) hands it 
 still to fly and gets every record back in this process as it arrives, so the progress bar, the
 journal (``DIR/unfinished/``, hence ``--resume``) and the outputs are the local run's.
 
-Each worker is a long-lived Ray actor holding one env and one agent per agent label, built
-once: the numba compile (or the on-disk cache load) and a learned model's load are paid once per
-worker, not per episode. An episode is flown by the runner's own
-:func:`~agents.experiments.evaluation.runner.run_episode`, so a record equals the local one
-apart from the timing columns (:data:`~agents.experiments.evaluation.records.TIMING_COLUMNS`).
-
-Episodes of an agent whose ``episode_independent`` attribute is true (every classical baseline
-but ``random``, learned policies) are flown one by one by whichever worker is free. Any other
-agent (``random``, whose generator runs on across episodes, and your own policies unless they
-declare the attribute) may carry state from one episode to the next: its episodes are flown in
-order by one worker, which first re-flies, unrecorded, the finished episodes before its last
-unfinished one — exactly what the local run does on ``--resume`` — so the records are the
-local run's there too.
+Each worker is a long-lived Ray actor around an
+:class:`~agents.experiments.evaluation.workers.EpisodeWorker` (one env and one agent per agent
+label, built once), and the work is shared out as the local process pool shares it
+(:func:`~agents.experiments.evaluation.workers.plan_units`, :class:`~agents.experiments.
+evaluation.workers.UnitQueue`): independent agents' episodes to whichever worker is free, a
+stateful agent's episodes in order on one worker, so the records are the local run's (apart from
+decision times).
 """
 
 from __future__ import annotations
 
+import importlib.util
 import os
-import sys
-import warnings
-from collections import deque
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
 from typing import Any
 
-from agents.experiments.distributed import require_ray
+from agents.experiments.distributed import INSTALL_HINT, require_ray
+from agents.experiments.evaluation.command import UsageError
+from agents.experiments.evaluation.failures import AgentFailure
 from agents.experiments.evaluation.records import EpisodeRecord
-from agents.experiments.evaluation.runner import (
-    EvaluationJob,
-    build_agent_env,
-    check_replay,
-    run_episode,
+from agents.experiments.evaluation.runner import EvaluationJob, check_replay
+from agents.experiments.evaluation.workers import (
+    IN_FLIGHT,
+    EpisodeWorker,
+    Unit,
+    UnitQueue,
+    check_workers,
+    plan_units,
 )
 
-__all__ = ["IN_FLIGHT", "EpisodeWorker", "RayBackend", "check_workers", "plan_units"]
-
-IN_FLIGHT = 2
-"""Episodes queued on each worker at a time: the next one is already there when one ends."""
-
-
-def check_workers(workers: int | None) -> int | None:
-    """``workers`` checked: None (as many as the Ray cluster has CPUs) or an integer >= 1.
-
-    Raises:
-        ValueError: anything else (the message names ``workers``).
-    """
-    if workers is None:
-        return None
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
-    return workers
+__all__ = [
+    "IN_FLIGHT",
+    "EpisodeWorker",
+    "RayBackend",
+    "RayRemote",
+    "Unit",
+    "check_workers",
+    "plan_units",
+]
 
 
-class EpisodeWorker:
-    """The body of one Ray actor: an env and an agent per agent label of ``job``, built on first
-    use and kept, flying the episodes it is sent.
+class RayRemote:
+    """``evaluate.py --backend ray``: the option checks and the :class:`RayBackend`, handed to
+    :func:`~agents.experiments.evaluation.command.run_evaluation` by the script."""
 
-    Args:
-        job: the evaluation.
-        paths: entries put in front of ``sys.path`` (the driver's working directory, where
-            ``MODULE:ATTR`` policies are imported from); those that do not exist on this
-            machine are left out.
-    """
+    def check(self, address: str | None) -> None:
+        """Refuse a missing Ray and an empty ``--address`` before anything runs.
 
-    def __init__(self, job: EvaluationJob, paths: tuple[str, ...] = ()) -> None:
-        for path in reversed(paths):
-            if path not in sys.path and os.path.isdir(path):
-                sys.path.insert(0, path)
-        self.job = job
-        self.built: dict[str, tuple[Any, Any]] = {}
-        self.specs = {spec.label: spec for spec in job.specs}
+        Raises:
+            UsageError: naming ``--backend`` or ``--address``.
+        """
+        if importlib.util.find_spec("ray") is None:
+            raise UsageError("--backend", f"ray needs Ray, which is not installed: {INSTALL_HINT}")
+        if address is not None and not address.strip():
+            raise UsageError("--address", "must name a Ray cluster (e.g. auto, HOST:6379), got ''")
 
-    def independence(self) -> dict[str, bool]:
-        """{agent label: whether its episodes are independent} — every agent is built here."""
-        return {
-            label: bool(getattr(self._agent(label)[1], "episode_independent", False))
-            for label in self.specs
-        }
-
-    def fly(self, label: str, episode: int) -> EpisodeRecord:
-        """Fly episode ``episode`` of agent ``label``; its record."""
-        env, agent = self._agent(label)
-        return run_episode(env, agent, label, episode, *self.job.resets[episode])
-
-    def close(self) -> None:
-        """Close the envs."""
-        for env, _ in self.built.values():
-            env.close()
-        self.built.clear()
-
-    def _agent(self, label: str) -> tuple[Any, Any]:
-        if label not in self.built:
-            with warnings.catch_warnings():  # already reported by the driver's checks
-                warnings.simplefilter("ignore", UserWarning)
-                self.built[label] = build_agent_env(self.job, self.specs[label])
-        return self.built[label]
-
-
-@dataclass(frozen=True)
-class Unit:
-    """One call to a worker: fly episode ``episode`` of agent ``label``; ``replay``: it is
-    finished already and re-flown only to bring a stateful agent to the state it had."""
-
-    label: str
-    episode: int
-    replay: bool = False
-
-
-def plan_units(
-    job: EvaluationJob,
-    done: Mapping[tuple[str, int], EpisodeRecord],
-    independent: Mapping[str, bool],
-) -> tuple[list[Unit], list[list[Unit]]]:
-    """The work of ``job`` given the finished episodes ``done``: the units any worker may fly
-    (independent agents' unfinished episodes), and one ordered stream per stateful agent with
-    unfinished episodes (its episodes up to the last unfinished one, the finished ones as
-    replays), to be flown in order by one worker."""
-    shared: list[Unit] = []
-    streams: list[list[Unit]] = []
-    for spec in job.specs:
-        todo = [i for i in range(job.episodes) if (spec.label, i) not in done]
-        if not todo:
-            continue
-        if independent[spec.label]:
-            shared.extend(Unit(spec.label, i) for i in todo)
-        else:
-            streams.append(
-                [Unit(spec.label, i, (spec.label, i) in done) for i in range(todo[-1] + 1)]
-            )
-    return shared, streams
+    def make(self, address: str | None, workers: int | None) -> RayBackend:
+        """The backend of ``--address`` and ``--workers``."""
+        return RayBackend(address, workers)
 
 
 class RayBackend:
@@ -146,9 +75,10 @@ class RayBackend:
             after. Either way, if this process is already connected to Ray, that Ray is used.
         workers: actors (each takes one CPU); None: as many as the cluster has CPUs. Never
             more than there are episodes to fly.
-        paths: ``sys.path`` entries for the workers (default: the current directory, where
-            ``evaluate.py`` imports ``MODULE:ATTR`` policies from). On a cluster, the package
-            (and your policy modules) must be installed on every node.
+        module_dir: where the workers look for a ``MODULE:ATTR`` policy's module first
+            (default: this process's working directory, where ``evaluate.py`` finds them; a
+            worker on a machine without that directory looks on its ``sys.path`` only). On a
+            cluster, the package (and your policy modules) must be installed on every node.
 
     Raises:
         ValueError: ``workers`` is not None or an integer >= 1.
@@ -158,25 +88,29 @@ class RayBackend:
         self,
         address: str | None = None,
         workers: int | None = None,
-        paths: tuple[str, ...] | None = None,
+        module_dir: str | None = None,
     ) -> None:
         self.address = address
         self.workers = check_workers(workers)
-        self.paths = (os.getcwd(),) if paths is None else tuple(paths)
+        self.module_dir = os.getcwd() if module_dir is None else module_dir
 
     def fly(
         self,
         job: EvaluationJob,
         done: Mapping[tuple[str, int], EpisodeRecord],
         on_record: Callable[[EpisodeRecord], None],
+        on_start: Callable[[], None] | None = None,
     ) -> None:
         """Fly every unfinished episode of ``job``; ``on_record`` gets each record in this
-        process as it arrives (see :class:`~agents.experiments.evaluation.runner.
-        EpisodeBackend`). Interrupted (Ctrl-C) or failing, it stops its workers and, if it
-        started it, the local Ray."""
+        process as it arrives, ``on_start`` is called once Ray and the actors are up (see
+        :class:`~agents.experiments.evaluation.runner.EpisodeBackend`: what Ray prints when it
+        starts lands above the progress bar). Interrupted (Ctrl-C) or failing, it stops its
+        workers and, if it started it, the local Ray."""
         ray = require_ray("evaluate.py --backend ray")
         todo = len(job.specs) * job.episodes - len(done)
         if todo == 0:
+            if on_start is not None:
+                on_start()
             return
         started = not ray.is_initialized()
         if started:
@@ -186,8 +120,10 @@ class RayBackend:
             cpus = int(ray.cluster_resources().get("CPU", 1))
             count = max(1, min(self.workers or cpus, todo))
             remote = ray.remote(num_cpus=1, max_restarts=0)(EpisodeWorker)
-            actors = [remote.remote(job, self.paths) for _ in range(count)]
+            actors = [remote.remote(job, self.module_dir) for _ in range(count)]
             flags = ray.get([actor.independence.remote() for actor in actors])
+            if on_start is not None:
+                on_start()
             shared, streams = plan_units(job, done, flags[0])
             _dispatch(ray, actors, shared, streams, done, on_record)
         finally:
@@ -220,19 +156,17 @@ def _dispatch(
     done: Mapping[tuple[str, int], EpisodeRecord],
     on_record: Callable[[EpisodeRecord], None],
 ) -> None:
-    """Keep every worker busy until all units are flown: stateful streams go to the workers
-    round-robin, longest first, and are flown in order by their worker (Ray runs one caller's
-    calls on an actor in submission order); the shared units go to whichever worker is free."""
-    own: list[deque[Unit]] = [deque() for _ in actors]
-    for k, stream in enumerate(sorted(streams, key=len, reverse=True)):
-        own[k % len(actors)].extend(stream)
-    queue = deque(shared)
+    """Keep every worker busy until all units are flown (:class:`UnitQueue`; Ray runs one
+    caller's calls on an actor in submission order, so a stream is flown in order)."""
+    queue = UnitQueue(len(actors), shared, streams)
     pending: dict[Any, tuple[int, Unit]] = {}
     load = [0] * len(actors)
 
     def refill(k: int) -> None:
-        while load[k] < IN_FLIGHT and (own[k] or queue):
-            unit = own[k].popleft() if own[k] else queue.popleft()
+        while load[k] < IN_FLIGHT:
+            unit = queue.next_for(k)
+            if unit is None:
+                return
             pending[actors[k].fly.remote(unit.label, unit.episode)] = (k, unit)
             load[k] += 1
 
@@ -242,7 +176,13 @@ def _dispatch(
         ready, _ = ray.wait(list(pending), num_returns=1)
         k, unit = pending.pop(ready[0])
         load[k] -= 1
-        record = ray.get(ready[0])
+        try:
+            record = ray.get(ready[0])
+        except Exception as exc:  # Ray wraps what the actor raised; an agent's failure is
+            cause = getattr(exc, "cause", None)  # reported as in the local run
+            if isinstance(cause, AgentFailure):
+                raise cause from None
+            raise
         if unit.replay:
             check_replay(done[(unit.label, unit.episode)], record)
         else:

@@ -6,6 +6,10 @@ The library behind ``evaluate.py``, one job per module:
 specs         what to evaluate: baseline names, ``ppo=PATH``, ``pretrained``, your own
               ``LABEL=MODULE:ATTR`` or a policy object; building each for an env
 runner        flying every agent on the same seeded episodes (:func:`evaluate_agents`)
+episode       one episode flown and recorded (:func:`run_episode`)
+workers       episodes apart from where they run: the worker, the plan that shares them out
+pool          the local process pool (``evaluate.py --workers N``; :class:`ProcessBackend`)
+failures      an agent failing mid-run, an output that cannot be written
 records       what a run produced (episode records, trajectories, the whole run)
 metrics       [APF-MPC] Table I metrics of a trajectory
 statistics    intervals inside each metric's range (Wilson, seeded bootstrap), per-agent
@@ -13,9 +17,11 @@ statistics    intervals inside each metric's range (Wilson, seeded bootstrap), p
 report        the Markdown table, strict JSON, episodes.csv, writing the files as one set
 journal       an unfinished run's options and finished episodes (Ctrl-C, ``--resume``)
 plots         trajectory plots
+video         mp4s of episodes (``--video``), the shield shown on the frames
 paper         [APF-MPC] Table I side by side with ours, not a reproduction (``--paper``)
 plan          ``evaluate.py``'s options as given and as resolved into a run
-command       ``evaluate.py`` once its arguments are parsed
+resolve       those options checked and resolved into a plan (env, suite, agents)
+command       ``evaluate.py`` once its arguments are parsed: lock, journal, run, outputs
 ============  ======================================================================
 
 Your own policy, from Python::
@@ -38,9 +44,15 @@ A frozen suite (:mod:`debris_gym.suites`) from Python: its first N missions, eac
     results = evaluate_agents(suite.env_id, "apf-mpc,astar", episodes=10, seed=0, suite=suite)
 
 A policy is anything with SB3's ``predict(obs, state=None, episode_start=None,
-deterministic=True) -> (action, state)``.
+deterministic=True) -> (action, state)``, a factory ``f(env) -> policy`` or a plain function
+``f(obs) -> action``. On every core (worker processes; the same records; keep the script's main
+code under ``if __name__ == "__main__":``, the workers import it again)::
+
+    results = evaluate_agents(..., backend=ProcessBackend(workers=4))
 """
 
+from agents.experiments.evaluation.failures import AgentFailure, OutputWriteError
+from agents.experiments.evaluation.pool import ProcessBackend
 from agents.experiments.evaluation.records import (
     CSV_COLUMNS,
     TIMING_COLUMNS,
@@ -84,9 +96,12 @@ __all__ = [
     "LEARNED_ALGOS",
     "PRETRAINED",
     "TIMING_COLUMNS",
+    "AgentFailure",
     "AgentSpec",
     "EpisodeRecord",
     "EvaluationResults",
+    "OutputWriteError",
+    "ProcessBackend",
     "Trajectory",
     "agent_env_options",
     "bootstrap_interval",

@@ -29,6 +29,7 @@ __all__ = [
     "OWNED_OUTPUTS",
     "episodes_csv",
     "format_number",
+    "markdown_cell",
     "summary_markdown",
     "to_json",
     "write_outputs",
@@ -42,6 +43,12 @@ def format_number(value: Any, digits: int = 3) -> str:
     if isinstance(value, float):
         return f"{value:.{digits}g}" if abs(value) < 10**digits else f"{value:.0f}"
     return str(value)
+
+
+def markdown_cell(text: str) -> str:
+    """``text`` safe inside a Markdown table cell: ``|`` escaped (it would end the cell) and
+    line breaks made spaces (they would end the row)."""
+    return " ".join(str(text).replace("\\", "\\\\").replace("|", "\\|").splitlines())
 
 
 _COLUMN_TITLES = {
@@ -111,7 +118,7 @@ def _paired_tables(summary: dict[str, Any], n: int) -> list[str]:
     lines: list[str] = []
     success = summary.get("paired_success") or {}
     if success.get("agents"):
-        ref = success["reference"]
+        ref = markdown_cell(success["reference"])
         lines += [
             "",
             f"Success paired with {ref} by seed ({success['test']} test, two-sided): b = "
@@ -122,12 +129,13 @@ def _paired_tables(summary: dict[str, Any], n: int) -> list[str]:
         ]
         for label, e in success["agents"].items():
             lines.append(
-                f"| {label} | {e['pairs']} | {e['both_succeeded']} | {e['b']} | {e['c']} "
+                f"| {markdown_cell(label)} | {e['pairs']} | {e['both_succeeded']} | {e['b']} "
+                f"| {e['c']} "
                 f"| {format_number(e['p_value'])} |"
             )
     paired = summary.get("paired_delta_v") or {}
     if paired.get("agents"):
-        ref = paired["reference"]
+        ref = markdown_cell(paired["reference"])
         lines += [
             "",
             f"Δv and time of flight on the missions both complete, paired with {ref} by seed "
@@ -139,7 +147,8 @@ def _paired_tables(summary: dict[str, Any], n: int) -> list[str]:
         ]
         for label, e in paired["agents"].items():
             lines.append(
-                f"| {label} | {e['both_succeeded']} / {n} | {format_number(e['delta_v_mean'])} "
+                f"| {markdown_cell(label)} | {e['both_succeeded']} / {n} "
+                f"| {format_number(e['delta_v_mean'])} "
                 f"| {format_number(e['reference_delta_v_mean'])} "
                 f"| {_with_ci(e, 'difference_mean')} | {format_number(e.get('time_mean'))} "
                 f"| {format_number(e.get('reference_time_mean'))} "
@@ -163,7 +172,7 @@ def _shield_table(summary: dict[str, Any]) -> list[str]:
     ]
     for label, e in summary["agents"].items():
         lines.append(
-            f"| {label} | {_with_ci(e, 'shield_interventions_mean')} "
+            f"| {markdown_cell(label)} | {_with_ci(e, 'shield_interventions_mean')} "
             f"| {format_number(e['shield_intervention_share'])} "
             f"| {format_number(e['shield_size_mean'])} | {format_number(e['shield_size_max'])} |"
         )
@@ -186,7 +195,7 @@ def summary_markdown(summary: dict[str, Any]) -> str:
         if e.get("n_targets") is not None:
             captured += f" / {e['n_targets']}"
         lines.append(
-            f"| {label} | {_with_ci(e, 'success_rate', 2)} | {captured} "
+            f"| {markdown_cell(label)} | {_with_ci(e, 'success_rate', 2)} | {captured} "
             f"| {_with_ci(e, 'task_score_mean')} | {_with_ci(e, 'delta_v_mean')} "
             f"| {_with_ci(e, 'time_mean')} "
             f"| {_with_ci(e, 'path_length_mean')} | {_with_ci(e, 'collision_rate', 2)} "

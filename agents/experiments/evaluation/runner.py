@@ -6,10 +6,10 @@ every run through a fingerprint of each scenario). A frozen suite
 (:mod:`debris_gym.suites`) instead pins episode ``i``'s field: ``env.reset(seed=missions[i].seed,
 options={"scenario": missions[i].scenario})``.
 
-Decision time is measured with :func:`time.perf_counter` around each ``predict`` call (ms). A
-classical agent plans inside its first ``predict`` of an episode, so that call includes planning.
-The accelerations recorded are the env's own ``info["applied_accel"]`` (after its thrust limit and
-Δv-budget cut), so the metrics see exactly what was flown.
+An episode is flown by :func:`~agents.experiments.evaluation.episode.run_episode` (decision
+times, what the records hold, how a failing agent is named). The episodes run in this process, or
+on a backend (:class:`EpisodeBackend`: worker processes on this machine, Ray actors) that hands
+the records back as they arrive.
 
 With ``shield`` every agent flies behind the safety shield
 (:class:`agents.policies.shielded.ShieldedAgent`): its decision time includes the shield's, and
@@ -18,8 +18,6 @@ each record counts the commands the shield replaced.
 
 from __future__ import annotations
 
-import math
-import re
 import sys
 import time
 import warnings
@@ -32,14 +30,13 @@ import gymnasium as gym
 import numpy as np
 
 import debris_gym  # noqa: F401  (registers the DebrisGym IDs)
-from agents.experiments.evaluation.metrics import trajectory_metrics
+from agents.experiments.evaluation.episode import run_episode
+from agents.experiments.evaluation.failures import AgentFailure, describe
 from agents.experiments.evaluation.records import (
     RECORD_FIELDS,
     TIMING_COLUMNS,
     EpisodeRecord,
     EvaluationResults,
-    Trajectory,
-    scenario_fingerprint,
 )
 from agents.experiments.evaluation.specs import (
     AgentSpec,
@@ -47,6 +44,7 @@ from agents.experiments.evaluation.specs import (
     build_agent,
     parse_agent_specs,
 )
+from agents.experiments.evaluation.video import attach_shield, recording_env
 from agents.policies.shield import ShieldParams
 from agents.policies.shielded import ShieldedAgent
 from debris_gym.scenario import Scenario
@@ -92,28 +90,42 @@ class EvaluationJob:
 
 
 class EpisodeBackend(Protocol):
-    """Flies an evaluation's unfinished episodes somewhere else (the Ray backend:
-    :class:`agents.experiments.distributed.evaluation.RayBackend`)."""
+    """Flies an evaluation's unfinished episodes somewhere else: worker processes on this
+    machine (:class:`agents.experiments.evaluation.pool.ProcessBackend`) or Ray actors
+    (:class:`agents.experiments.distributed.evaluation.RayBackend`)."""
 
     def fly(
         self,
         job: EvaluationJob,
         done: Mapping[tuple[str, int], EpisodeRecord],
         on_record: Callable[[EpisodeRecord], None],
+        on_start: Callable[[], None] | None = None,
     ) -> None:
         """Fly every (agent, episode) of ``job`` not in ``done``, calling ``on_record`` in this
-        process with each record as it arrives. The records must equal those of the local loop
-        apart from :data:`TIMING_COLUMNS` (so an agent whose episodes depend on earlier ones
-        must fly them in order, replaying finished ones as the local loop does)."""
+        process with each record as it arrives, and ``on_start`` once its workers are up (the
+        progress bar is drawn then, below whatever starting them printed). The records must
+        equal those of the local loop apart from :data:`TIMING_COLUMNS` (so an agent whose
+        episodes depend on earlier ones must fly them in order, replaying finished ones as the
+        local loop does).
+
+        Raises:
+            AgentFailure: an agent failed (named with its episode and step).
+        """
         ...
 
 
-def build_agent_env(job: EvaluationJob, spec: AgentSpec) -> tuple[gym.Env, Any]:
+def build_agent_env(
+    job: EvaluationJob, spec: AgentSpec, module_dir: str | None = None
+) -> tuple[gym.Env, Any]:
     """The env ``spec`` flies in (with the observation options it was trained with) and the
-    agent built for it, behind the shield if ``job`` asks for one."""
+    agent built for it, behind the shield if ``job`` asks for one.
+
+    Raises:
+        AgentFailure: the agent could not be built (its module, factory or model failed).
+    """
     env = _agent_env(job, spec)
     try:
-        return env, _job_agent(job, spec, env)
+        return env, _job_agent(job, spec, env, module_dir)
     except BaseException:
         env.close()
         raise
@@ -123,116 +135,31 @@ def _agent_env(
     job: EvaluationJob, spec: AgentSpec, video: tuple[Path, int] | None = None
 ) -> gym.Env:
     """The env ``spec`` flies in: the job's options and the agent's observation options; with
-    ``video``, rendering and recording (:func:`_recording_env`)."""
+    ``video``, rendering and recording (:func:`~agents.experiments.evaluation.video.
+    recording_env`)."""
     kwargs = {**job.env_kwargs, **agent_env_options(spec, job.env_id)}
     if video is None:
         return make_env(job.env_id, kwargs, job.max_episode_steps)
-    return _recording_env(job.env_id, kwargs, job.max_episode_steps, spec.label, *video)
+    env = make_env(job.env_id, kwargs, job.max_episode_steps, render_mode="rgb_array")
+    return recording_env(env, spec.label, *video, shielded=job.shield is not None)
 
 
-def _job_agent(job: EvaluationJob, spec: AgentSpec, env: gym.Env) -> Any:
-    """The agent of ``spec`` for ``env``, behind the shield if ``job`` asks for one."""
-    agent = build_agent(spec, env)
-    return agent if job.shield is None else ShieldedAgent(agent, env, job.shield)
+def _job_agent(
+    job: EvaluationJob, spec: AgentSpec, env: gym.Env, module_dir: str | None = None
+) -> Any:
+    """The agent of ``spec`` for ``env``, behind the shield if ``job`` asks for one.
 
-
-def _outcome(info: dict[str, Any], truncated: bool) -> str:
-    if info["is_success"]:
-        return "success"
-    if info["collision"]:
-        return "collision"
-    if info["out_of_bounds"]:
-        return "out_of_bounds"
-    if truncated:
-        return "time_limit"
-    return "delta_v_budget"
-
-
-def run_episode(
-    env: gym.Env,
-    agent: Any,
-    label: str,
-    episode: int,
-    seed: int,
-    scenario: Scenario | None = None,
-) -> EpisodeRecord:
-    """Fly one episode of ``agent`` from ``env.reset(seed=seed)``, with ``scenario`` pinned if
-    given (a suite's mission); return its record."""
-    base = env.unwrapped
-    options = None if scenario is None else {"scenario": scenario}
-    obs, info = env.reset(seed=seed, options=options)
-    scenario = base.scenario
-    d = base.dim
-    states = [np.asarray(info["chaser_state"], dtype=float)]
-    accels: list[np.ndarray] = []
-    decision_ms: list[float] = []
-    total_reward = 0.0
-    state = None
-    done = truncated = False
-    first = True
-    clock = time.perf_counter
-    while not done:
-        start = clock()
-        action, state = agent.predict(
-            obs, state=state, episode_start=np.array([first]), deterministic=True
-        )
-        decision_ms.append((clock() - start) * 1e3)
-        first = False
-        obs, reward, terminated, truncated, info = env.step(action)
-        total_reward += float(reward)
-        accels.append(np.asarray(info["applied_accel"], dtype=float))
-        states.append(np.asarray(info["chaser_state"], dtype=float))
-        done = terminated or truncated
-    state_arr = np.array(states)
-    trajectory = Trajectory(
-        positions=state_arr[:, :d],
-        velocities=state_arr[:, d:],
-        accelerations=np.array(accels).reshape(-1, d),
-        decision_ms=np.array(decision_ms),
-        dt=float(scenario.dt),
-        collision_point=state_arr[-1, :d].copy() if info["collision"] else None,
-        thrust_model=base.config.thrust_model,
-    )
-    metrics = trajectory_metrics(
-        trajectory.positions,
-        trajectory.velocities,
-        trajectory.accelerations,
-        trajectory.dt,
-        trajectory.thrust_model,
-    )
-    ms = trajectory.decision_ms
-    stats = agent.stats if isinstance(agent, ShieldedAgent) else None
-    return EpisodeRecord(
-        agent=label,
-        episode=episode,
-        seed=seed,
-        success=bool(info["is_success"]),
-        outcome=_outcome(info, bool(truncated)),
-        targets_captured=int(info["targets_captured"]),
-        n_targets=int(info["n_targets"]),
-        collision=bool(info["collision"]),
-        out_of_bounds=bool(info["out_of_bounds"]),
-        delta_v=float(info["delta_v"]),
-        time=float(info["time"]),
-        steps=len(ms),
-        path_length=metrics.path_length,
-        min_clearance=float(info["min_clearance"]),
-        decision_ms_p50=float(np.percentile(ms, 50)),
-        decision_ms_p95=float(np.percentile(ms, 95)),
-        decision_ms_max=float(ms.max()),
-        episode_return=total_reward,
-        task_score=float(info.get("task_score", math.nan)),
-        smoothness=metrics.smoothness,
-        max_acceleration=metrics.max_acceleration,
-        max_deceleration=metrics.max_deceleration,
-        total_curvature=metrics.total_curvature,
-        scenario_id=scenario_fingerprint(scenario),
-        shield_interventions=0 if stats is None else stats.interventions,
-        shield_size_mean=0.0 if stats is None else stats.size_mean,
-        shield_size_max=0.0 if stats is None else stats.size_max,
-        trajectory=trajectory,
-        scenario=scenario,
-    )
+    Raises:
+        AgentFailure: building it failed (it was built once before the run started, so this is
+            an agent that fails only sometimes, or a file changed since).
+    """
+    try:
+        agent = build_agent(spec, env, module_dir)
+        agent = agent if job.shield is None else ShieldedAgent(agent, env, job.shield)
+    except (Exception, SystemExit) as exc:
+        raise AgentFailure(spec.label, None, None, None, describe(exc)) from exc
+    attach_shield(env, agent)
+    return agent
 
 
 def make_env(
@@ -308,8 +235,6 @@ def evaluate_agents(
             than the suite's).
         RuntimeError: two agents met different scenarios in the same episode (a bug).
     """
-    from tqdm import tqdm
-
     if isinstance(episodes, bool) or int(episodes) != episodes or episodes < 1:
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
     specs = parse_agent_specs(agent_specs)
@@ -328,7 +253,7 @@ def evaluate_agents(
         shield=shield,
     )
     start = time.perf_counter()
-    bar = tqdm(
+    bar = _Progress(
         total=len(specs) * episodes,
         initial=len(done),
         desc="evaluate",
@@ -339,6 +264,7 @@ def evaluate_agents(
     )
     try:
         if backend is None:
+            bar.start()
             records, time_limit = _fly_local(job, done, on_episode, bar, video)
         else:
             records, time_limit = _fly_backend(job, done, on_episode, bar, backend)
@@ -363,11 +289,38 @@ def evaluate_agents(
     )
 
 
+class _Progress:
+    """A tqdm bar over agent × episode, drawn at :meth:`start` (a backend starts its workers
+    first, so what starting them prints lands above the bar, not inside it)."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        self.kwargs = kwargs
+        self.bar: Any = None
+
+    def start(self) -> None:
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(**self.kwargs)
+
+    def note(self, text: str) -> None:
+        self.start()
+        self.bar.set_postfix_str(text, refresh=False)
+
+    def update(self) -> None:
+        self.start()
+        self.bar.update()
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
 def _fly_local(
     job: EvaluationJob,
     done: Mapping[tuple[str, int], EpisodeRecord],
     on_episode: Callable[[EpisodeRecord], None] | None,
-    bar: Any,
+    bar: _Progress,
     video: tuple[Path, int] | None,
 ) -> tuple[list[EpisodeRecord], int | None]:
     """Fly ``job`` in this process, agent after agent; return every record (agent-major, in
@@ -385,12 +338,12 @@ def _fly_local(
                 saved = done.get((spec.label, i))
                 if saved is not None:
                     if todo and i < todo[-1]:  # bring the agent to the state it had
-                        bar.set_postfix_str(f"{spec.label} ep {i} (replay)", refresh=False)
+                        bar.note(f"{spec.label} ep {i} (replay)")
                         replay = run_episode(env, agent, spec.label, i, *job.resets[i])
                         check_replay(saved, replay)
                     records.append(saved)
                     continue
-                bar.set_postfix_str(f"{spec.label} ep {i}", refresh=False)
+                bar.note(f"{spec.label} ep {i}")
                 record = run_episode(env, agent, spec.label, i, *job.resets[i])
                 records.append(record)
                 if on_episode is not None:
@@ -405,7 +358,7 @@ def _fly_backend(
     job: EvaluationJob,
     done: Mapping[tuple[str, int], EpisodeRecord],
     on_episode: Callable[[EpisodeRecord], None] | None,
-    bar: Any,
+    bar: _Progress,
     backend: EpisodeBackend,
 ) -> tuple[list[EpisodeRecord], int | None]:
     """Fly ``job`` with ``backend``; return every record in the local loop's order (agent-major,
@@ -419,10 +372,10 @@ def _fly_backend(
         flown[key] = record
         if on_episode is not None:
             on_episode(record)
-        bar.set_postfix_str(f"{record.agent} ep {record.episode}", refresh=False)
+        bar.note(f"{record.agent} ep {record.episode}")
         bar.update()
 
-    backend.fly(job, done, arrived)
+    backend.fly(job, done, arrived, on_start=bar.start)
     records = []
     for spec in job.specs:
         for i in range(job.episodes):
@@ -437,28 +390,6 @@ def _fly_backend(
     finally:
         env.close()
     return records, time_limit
-
-
-def _recording_env(
-    env_id: str,
-    kwargs: dict[str, Any],
-    max_episode_steps: int | None,
-    label: str,
-    folder: Path,
-    n: int,
-) -> gym.Env:
-    """The agent's env, rendering, its first ``n`` episodes recorded in ``folder/<label>/``."""
-    from gymnasium.wrappers import RecordVideo
-
-    env = make_env(env_id, kwargs, max_episode_steps, render_mode="rgb_array")
-    safe = re.sub(r"[^A-Za-z0-9_.#=-]+", "_", label)
-    return RecordVideo(
-        env,
-        video_folder=str(folder / safe),
-        episode_trigger=lambda episode: episode < n,
-        name_prefix=safe,
-        disable_logger=True,
-    )
 
 
 def episode_resets(
