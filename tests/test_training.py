@@ -665,3 +665,20 @@ def test_training_you_can_watch_captures_and_success_in_tensorboard(train_cli, t
     last = events.Scalars("rollout/targets_captured")[-1]
     seen = [int(r["targets_captured"]) for r in rows if int(r["timesteps"]) <= last.step]
     assert last.value == pytest.approx(np.mean(seen[-100:]))
+
+
+def test_a_resumed_runs_progress_bar_counts_the_runs_steps_as_its_log_does():
+    """Regression: on --resume the bar counted the segment from 0 while the log counted the
+    run's steps; it now starts at the checkpoint's count and ends at the run's target."""
+    from types import SimpleNamespace
+
+    from agents.experiments.training.callbacks import RunProgressBar
+
+    bar = RunProgressBar()
+    bar.model = SimpleNamespace(num_timesteps=4096)
+    bar.locals = {"total_timesteps": 6144}  # SB3's total on a resume: done + to add
+    bar._on_training_start()
+    try:
+        assert (bar.pbar.n, bar.pbar.total) == (4096, 6144)
+    finally:
+        bar.pbar.close()

@@ -40,6 +40,7 @@ __all__ = [
     "EpisodeLogCallback",
     "HeldOutEvalCallback",
     "PruningCheckpointCallback",
+    "RunProgressBar",
     "SaveBestCallback",
     "close_progress_bar",
     "make_callbacks",
@@ -406,6 +407,18 @@ def make_callbacks(
         )
         callbacks.append(checkpoint)
     return callbacks, evaluation, checkpoint, episodes
+
+
+class RunProgressBar(ProgressBarCallback):
+    """SB3's progress bar, counting the run's steps as its log does: a resumed run's bar starts
+    at its checkpoint's step count and ends at the run's target, not at 0 and the segment's
+    length."""
+
+    def _on_training_start(self) -> None:
+        from tqdm.rich import tqdm  # as SB3's bar (sb3 imports it the same way)
+
+        done = int(self.model.num_timesteps)
+        self.pbar = tqdm(total=int(self.locals["total_timesteps"]), initial=done)
 
 
 def close_progress_bar(callbacks: Sequence[Any]) -> None:

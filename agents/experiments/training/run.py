@@ -21,13 +21,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from stable_baselines3.common.callbacks import ProgressBarCallback
-
 from agents.experiments.config_files import load_config_file
 from agents.experiments.provenance import library_versions, utc_now
 from agents.experiments.run_directory import LOCK_FILE, RunDirectoryLock, check_output_dir
 from agents.experiments.training import finetune
-from agents.experiments.training.callbacks import close_progress_bar, make_callbacks
+from agents.experiments.training.callbacks import (
+    RunProgressBar,
+    close_progress_bar,
+    make_callbacks,
+)
 from agents.experiments.training.checkpoints import (
     INTERRUPTED,
     describe_damaged,
@@ -470,7 +472,7 @@ def _learn_segment(segment: _Segment, options: TrainOptions) -> TrainResult:
         after_checkpoint=checkpointed,
     )
     if options.progress:
-        callbacks.append(ProgressBarCallback())
+        callbacks.append(RunProgressBar())
 
     what = f"resuming {out} at {start_steps:,} steps" if checkpoint else f"training into {out}"
     print(
