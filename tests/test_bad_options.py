@@ -1,6 +1,5 @@
-"""Bad env options, reset options and actions (issue 18, items 1, 3 and 7): each gets a
-``ValueError`` naming the key before anything runs or changes (docs/validation.md, "Env options,
-actions and reset")."""
+"""Bad env options, reset options and actions: each gets a ``ValueError`` naming the key before
+anything runs or changes (docs/validation.md, "Env options, actions and reset")."""
 
 from __future__ import annotations
 
@@ -35,7 +34,7 @@ WEIGHTS = [k for k in OPTIONS if k.startswith("reward_")]
 WEIGHTS += ["shaping_speed", "shaping_clearance", "shaping_closing"]
 
 
-# --- whole numbers, order of checks, upper bounds (item 1) -----------------------------------
+# --- whole numbers, order of checks, upper bounds --------------------------------------------
 
 
 def test_a_whole_float_for_an_integer_key_is_stored_as_the_integer():
@@ -151,7 +150,7 @@ def test_rewards_stay_finite_at_the_largest_weights():
     assert np.isfinite(rewards).all()
 
 
-# --- the crowded field: same grid, bounded cost (item 1) -------------------------------------
+# --- the crowded field: same grid, bounded cost ----------------------------------------------
 
 
 def all_cells_against_all_bodies(scenario, inflate, cell):
@@ -192,7 +191,6 @@ def test_the_route_proof_in_chunks_answers_each_field_as_alone(monkeypatch):
 @flies_v0
 @pytest.mark.slow
 def test_a_crowded_field_without_gaps_resets():
-    # 105 s and 1.9 GB per reset in issue 18 (here: up to 78 s a field); seconds now
     env = gym.make(ID, n_obstacles=2000, field_size=2e4, min_gap=0.0)
     obs, _ = env.reset(seed=0)
     assert env.observation_space.contains(obs)
@@ -211,7 +209,7 @@ def test_an_integer_key_as_a_json_float_runs_through_evaluate(tmp_path):
     assert "Traceback" not in proc.stderr
 
 
-# --- transactional reset (item 3 of the issue) -----------------------------------------------
+# --- transactional reset ---------------------------------------------------------------------
 
 
 def stepped_single(seed: int = 0) -> DebrisFieldEnv:
@@ -364,7 +362,7 @@ def test_bad_vector_env_arguments_are_value_errors_naming_them(kwargs, key):
         DebrisFieldVectorEnv(**{"num_envs": 2, **kwargs})
 
 
-# --- bounded trail, action types (item 7 of the issue) ---------------------------------------
+# --- bounded trail, action types -------------------------------------------------------------
 
 
 def test_the_trail_keeps_the_last_positions_without_a_time_limit():

@@ -444,7 +444,7 @@ def test_both_entry_points_take_the_options(entry, tmp_path, monkeypatch):
     assert "unknown section" in done.stderr and "--quick" in done.stderr
 
 
-# --- issue 18: --out and --only are checked before any section runs ---------------------------
+# --- --out and --only are checked before any section runs ------------------------------------
 
 
 @pytest.fixture
