@@ -170,37 +170,41 @@ def chord_error_bound(max_accel_total: float, dt: float, substeps: int) -> float
     return max_accel_total * h * h / 8.0
 
 
-def closed_form_coast(state0: np.ndarray, n: float, t: float) -> np.ndarray:
-    """Textbook closed-form CW solution for unforced motion ([Curtis14] eq. 7.53, [Vallado13] §6.8).
+def cw_transition(n: float, t: float, dim: int) -> np.ndarray:
+    """Closed-form state-transition matrix Φ(t) of unforced CW motion: x(t) = Φ(t) x(0).
 
-    Independent of :func:`discretize`; kept for tests and documentation. Loses relative precision
-    to cancellation when ``n * t`` is tiny; for ``n = 0`` it returns straight-line motion.
+    The textbook solution ([Curtis14] eq. 7.53, [Vallado13] §6.8) as a matrix, for any time
+    ``t`` without a matrix exponential (the planners ask it at many times between steps). It
+    loses relative precision to cancellation when ``n * t`` is tiny, where :func:`discretize`
+    does not; ``n = 0`` gives straight-line motion.
 
     Args:
-        state0: (4,) in-plane or (6,) full state [m, m/s].
-        n: mean motion (rad/s).
-        t: elapsed time (s).
+        n: mean motion (rad/s), >= 0.
+        t: elapsed time (s); negative runs the motion backwards.
+        dim: 2 (in-plane x, y) or 3 (x, y, z).
+
+    Returns:
+        (2·dim, 2·dim) matrix acting on states [position (m), velocity (m/s)].
     """
-    state0 = np.asarray(state0, dtype=float)
-    if state0.shape not in ((4,), (6,)):
-        raise ValueError(f"state0 must have shape (4,) or (6,) (dim 2 or 3), got {state0.shape}")
-    dim = state0.shape[0] // 2
+    _check_dim(dim)
+    if not (math.isfinite(n) and n >= 0):
+        raise ValueError(f"mean motion n must be finite and >= 0 rad/s, got {n!r}")
+    if not math.isfinite(t):
+        raise ValueError(f"t must be finite (s), got {t!r}")
+    phi = np.eye(2 * dim)
     if n == 0.0:
-        pos = state0[:dim] + state0[dim:] * t
-        return np.concatenate([pos, state0[dim:]])
-    x0, y0 = state0[0], state0[1]
-    vx0, vy0 = state0[dim], state0[dim + 1]
+        phi[:dim, dim:] = t * np.eye(dim)
+        return phi
     s, c = math.sin(n * t), math.cos(n * t)
-    x = (4 - 3 * c) * x0 + s / n * vx0 + 2 / n * (1 - c) * vy0
-    y = 6 * (s - n * t) * x0 + y0 + 2 / n * (c - 1) * vx0 + (4 * s - 3 * n * t) / n * vy0
-    vx = 3 * n * s * x0 + c * vx0 + 2 * s * vy0
-    vy = 6 * n * (c - 1) * x0 - 2 * s * vx0 + (4 * c - 3) * vy0
-    if dim == 2:
-        return np.array([x, y, vx, vy])
-    z0, vz0 = state0[2], state0[5]
-    z = c * z0 + s / n * vz0
-    vz = -n * s * z0 + c * vz0
-    return np.array([x, y, z, vx, vy, vz])
+    x, y, vx, vy = 0, 1, dim, dim + 1
+    phi[x, [x, y, vx, vy]] = (4 - 3 * c), 0.0, s / n, 2 / n * (1 - c)
+    phi[y, [x, y, vx, vy]] = 6 * (s - n * t), 1.0, 2 / n * (c - 1), (4 * s - 3 * n * t) / n
+    phi[vx, [x, y, vx, vy]] = 3 * n * s, 0.0, c, 2 * s
+    phi[vy, [x, y, vx, vy]] = 6 * n * (c - 1), 0.0, -2 * s, (4 * c - 3)
+    if dim == 3:
+        phi[2, [2, 5]] = c, s / n
+        phi[5, [2, 5]] = -n * s, c
+    return phi
 
 
 def cwh_acceleration(state: np.ndarray, n: float) -> np.ndarray:

@@ -24,12 +24,13 @@ from debris_gym.dynamics import (
     DEFAULT_ORBIT_RADIUS,
     MU_EARTH,
     chord_error_bound,
-    closed_form_coast,
+    cw_transition,
     discretize,
     mean_motion,
     propagate,
     substep_position_matrix,
 )
+from tests.helpers import cw_closed_form
 
 MU = 3.986004418e14  # typed independently of MU_EARTH
 R_ORBIT = 6_778_137.0
@@ -81,7 +82,8 @@ def integrate_cwh(n: float, dim: int, state0, accel, t: float) -> np.ndarray:
 
 def vallado_coast(state0: np.ndarray, n: float, t: float) -> np.ndarray:
     """Unforced CW solution in the arrangement of [Vallado13] eq. 6-66, written independently of
-    :func:`closed_form_coast`. Works for 2D (4,) and 3D (6,) states."""
+    :func:`cw_transition` and of ``tests.helpers.cw_closed_form`` ([Curtis14]'s arrangement).
+    Works for 2D (4,) and 3D (6,) states."""
     dim = len(state0) // 2
     x0, y0 = state0[0], state0[1]
     xd0, yd0 = state0[dim], state0[dim + 1]
@@ -155,12 +157,46 @@ def test_mean_motion_and_period_leo():
 # ----------------------------------------------------------------------------- 1. closed form
 
 
-def test_closed_form_matches_vallado_formulas():
+def test_the_two_textbook_arrangements_agree():
+    """The tests' two oracles, typed independently, check each other."""
     rng = np.random.default_rng(0)
     for dim in (2, 3):
-        for t in [*DTS, 3000.0, PERIOD_LEO]:
+        for t in [*DTS, 3000.0, PERIOD_LEO, -700.0]:
             s0 = random_state(rng, dim)
-            assert_state_close(closed_form_coast(s0, N_LEO, t), vallado_coast(s0, N_LEO, t), 1e-9)
+            assert_state_close(cw_closed_form(s0, t, N_LEO), vallado_coast(s0, N_LEO, t), 1e-9)
+
+
+def test_cw_transition_matches_the_textbook_solution():
+    rng = np.random.default_rng(1)
+    for dim in (2, 3):
+        for t in [*DTS, 3000.0, PERIOD_LEO, 12345.6, -700.0]:
+            s0 = random_state(rng, dim)
+            got = cw_transition(N_LEO, t, dim) @ s0
+            assert_state_close(got, vallado_coast(s0, N_LEO, t), 1e-9)
+            assert_state_close(got, cw_closed_form(s0, t, N_LEO), 1e-9)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_cw_transition_off_the_step_grid_matches_solve_ivp(dim):
+    rng = np.random.default_rng(20 + dim)
+    for t in (3.7, 370.0, 5000.0):
+        s0 = random_state(rng, dim)
+        truth = integrate_cwh(N_LEO, dim, s0, np.zeros(dim), t)
+        assert_state_close(cw_transition(N_LEO, t, dim) @ s0, truth, 1e-6)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("dt", [1.0, 60.0, 600.0])
+def test_cw_transition_is_the_discrete_models_state_matrix(dim, dt):
+    want = discretize(N_LEO, dt, dim).ad
+    assert np.linalg.norm(cw_transition(N_LEO, dt, dim) - want) <= 1e-9 * np.linalg.norm(want)
+    # two spans in a row are one span
+    np.testing.assert_allclose(
+        cw_transition(N_LEO, 250.0, dim) @ cw_transition(N_LEO, 130.0, dim),
+        cw_transition(N_LEO, 380.0, dim),
+        rtol=1e-9,
+        atol=1e-12,
+    )
 
 
 @pytest.mark.parametrize("dim", [2, 3])
@@ -171,7 +207,7 @@ def test_discretize_coast_matches_closed_form(dim, dt):
     for _ in range(5):
         s0 = random_state(rng, dim)
         got = model.step(s0, np.zeros(dim))
-        assert_state_close(got, closed_form_coast(s0, N_LEO, dt), 1e-6)
+        assert_state_close(got, cw_closed_form(s0, dt, N_LEO), 1e-6)
         assert_state_close(got, vallado_coast(s0, N_LEO, dt), 1e-6)
     # Tiny components: a purely cross-track state must not leak into the plane and vice versa.
     if dim == 3:
@@ -241,8 +277,9 @@ def test_zero_mean_motion_is_double_integrator(dim, dt):
     expected_bd = np.vstack([0.5 * dt * dt * np.eye(dim), dt * np.eye(dim)])
     np.testing.assert_allclose(model.ad, expected_ad, rtol=1e-12, atol=0)
     np.testing.assert_allclose(model.bd, expected_bd, rtol=1e-12, atol=0)
-    # closed_form_coast's n = 0 branch is the straight line
-    assert_state_close(closed_form_coast(s0, 0.0, dt), model.step(s0, np.zeros(dim)), 1e-12)
+    # cw_transition's n = 0 branch is the straight line
+    coast = cw_transition(0.0, dt, dim) @ s0
+    assert_state_close(coast, model.step(s0, np.zeros(dim)), 1e-12)
 
 
 # ----------------------------------------------------------------------------- 3. mpmath expm
@@ -510,10 +547,12 @@ def test_other_validation():
         dynamics.cwh_matrices(N_LEO, 1)
     with pytest.raises(ValueError, match=r"\bn\b"):
         dynamics.cwh_matrices(-N_LEO, 2)
-    # a state of another length, or a batch, has no CW solution: refused, not misread
-    for bad in (np.zeros(5), np.zeros(2), np.zeros((3, 4))):
-        with pytest.raises(ValueError, match=r"\bstate0\b"):
-            closed_form_coast(bad, N_LEO, 1.0)
+    with pytest.raises(ValueError, match=r"\bdim\b"):
+        cw_transition(N_LEO, 1.0, 4)
+    with pytest.raises(ValueError, match=r"\bn\b"):
+        cw_transition(-N_LEO, 1.0, 2)
+    with pytest.raises(ValueError, match=r"\bt\b"):
+        cw_transition(N_LEO, math.inf, 2)
 
 
 # ----------------------------------------------------------------------------- 9. semigroup

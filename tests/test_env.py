@@ -17,10 +17,11 @@ from debris_gym.envs import DebrisFieldEnv
 from debris_gym.envs.vector import DebrisFieldVectorEnv
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.scenario import Body
-from tests.helpers import simple_scenario
+from tests.helpers import flies_v0, simple_scenario
 
-# many tests fly the free-space simple_scenario in envs with the default LEO orbit on purpose
-pytestmark = pytest.mark.filterwarnings("ignore:the pinned scenario's physics differ")
+# many tests fly the free-space simple_scenario in envs with the default LEO orbit on purpose;
+# every registered ID is checked, the v0 ones included
+pytestmark = [pytest.mark.filterwarnings("ignore:the pinned scenario's physics differ"), flies_v0]
 
 ALL_IDS = list(debris_gym.ENV_SPECS)
 INFO_KEYS = {
@@ -76,6 +77,24 @@ def test_make_with_module_prefix_needs_no_import():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.split()[0] == "1000"
+
+
+OUT_OF_DATE = [i for i in ALL_IDS if i.endswith("-v0") and i[:-1] + "1" in ALL_IDS]
+
+
+@pytest.mark.parametrize("env_id", OUT_OF_DATE)
+def test_a_v0_id_with_a_v1_warns_that_it_is_out_of_date(env_id):
+    """Gymnasium's notice: the frozen-world v0 IDs stay for reproducing earlier numbers, and
+    whoever makes one is told a v1 exists (tests that fly v0 on purpose filter the notice
+    with ``tests.helpers.flies_v0``)."""
+    assert OUT_OF_DATE == ["DebrisGym/Rendezvous2D-v0", "DebrisGym/Rendezvous3D-v0"]
+    for make in (gym.make, lambda i: gym.make_vec(i, 2, vectorization_mode="vector_entry_point")):
+        with pytest.warns(DeprecationWarning, match=rf"{env_id} is out of date.*`v1`"):
+            make(env_id)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # neither the v1 nor the paper's world warns
+        gym.make(env_id[:-1] + "1")
+        gym.make("DebrisGym/PaperField2D-v0")
 
 
 def rollout(env_id, seed, steps=150, **kwargs):

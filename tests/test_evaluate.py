@@ -17,7 +17,10 @@ from scipy import stats
 
 import agents
 from agents.experiments import evaluation as ev
-from tests.helpers import load_script
+from tests.helpers import flies_v0, load_script
+
+# evaluations on the frozen-world default field (v0) too
+pytestmark = flies_v0
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "evaluate.py"

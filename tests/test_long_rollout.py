@@ -11,6 +11,9 @@ import numpy as np
 import pytest
 
 import debris_gym  # noqa: F401
+from tests.helpers import flies_v0
+
+pytestmark = flies_v0  # the frozen-world IDs (v0) among the rollouts
 
 
 def rss_bytes() -> int:

@@ -23,11 +23,12 @@ from debris_gym.mission_batch import MissionBatch, Physics
 from debris_gym.mission_step import sort_by_gap
 from debris_gym.observation import observation_names
 from debris_gym.scenario import Body
-from tests.helpers import simple_scenario
+from tests.helpers import flies_v0, simple_scenario
 from tests.reference_env import ReferenceDebrisFieldEnv, reference_observation_names
 
-# some tests fly the free-space simple_scenario in envs with the default LEO orbit on purpose
-pytestmark = pytest.mark.filterwarnings("ignore:the pinned scenario's physics differ")
+# some tests fly the free-space simple_scenario in envs with the default LEO orbit on purpose;
+# the reference is flown against the frozen-world IDs (v0) too
+pytestmark = [pytest.mark.filterwarnings("ignore:the pinned scenario's physics differ"), flies_v0]
 
 INFO_KEYS = ["chaser_state", "time", "delta_v", "targets_captured", "min_clearance", "collision"]
 INFO_KEYS += ["out_of_bounds", "is_success", "captured", "n_targets"]
@@ -158,8 +159,26 @@ def test_env_equals_the_reference_on_missions_that_capture(env_id, kwargs):
     assert ended["captures"] >= 5 and ended["success"] >= 1 and ended["collision"] >= 1, ended
 
 
+def fly_by_hand(env, ref, options: dict, burns: list) -> dict:
+    """Fly ``burns`` from the pinned ``options`` in both, comparing every step; returns the
+    env's last info (the flight stops at termination)."""
+    same(env.reset(options=options)[0], ref.reset(options=options)[0], "reset")
+    start = options["chaser_state"]
+    for k, burn in enumerate(burns):
+        action = np.array(burn, dtype=np.float32)
+        out, out_r = env.step(action), ref.step(action)
+        for name, a, b in zip(("obs", "reward", "terminated"), out, out_r):
+            same(a, b, f"{name} {start} step {k}")
+        for key in INFO_KEYS:
+            same(out[4][key], out_r[4][key], f"{key} {start} step {k}")
+        if out[2]:
+            break
+    return out[4]
+
+
 def test_env_equals_the_reference_on_captures_and_success():
-    """Hand-made flights through captures, a gentle touch, a fast touch and the return home."""
+    """Hand-made flights through captures, a fast touch, two crashes and a completed mission;
+    each flight ends as its comment says (else the comparison would not cover that case)."""
     targets = (
         Body(position=(0.0, 100.0), radius=5.0, velocity=(0.0, 0.0)),
         Body(position=(60.0, 0.0), radius=4.0, velocity=(0.0, 0.0)),
@@ -170,27 +189,33 @@ def test_env_equals_the_reference_on_captures_and_success():
         Body(position=(0.0, -70.0), radius=6.0),
     )
     scen = simple_scenario(targets=targets, obstacles=obstacles)
+    coast = (0.0, 0.0)
     for kwargs in ({}, {"target_order": "queued"}, {"delta_v_budget": None}):
         env = DebrisFieldEnv(n_targets=2, n_obstacles=2, **kwargs)
         ref = ReferenceDebrisFieldEnv(n_targets=2, n_obstacles=2, **kwargs)
-        for start, burns in (
-            ([0.0, 80.0, 0.0, 0.3], [(0.0, 0.0)] * 12),  # drift into target 0's capture zone
-            ([0.0, 80.0, 0.0, 2.0], [(0.0, 0.0)] * 6),  # too fast: a collision
-            ([40.0, 0.0, 0.4, 0.0], [(0.0, 0.0)] * 8 + [(-0.3, 0.0)] * 4),
-            ([-60.0, 0.0, -1.0, 0.0], [(0.0, 0.0)] * 5),  # into the polygon
-            ([0.0, -50.0, 0.0, -2.0], [(0.0, 0.0)] * 5),  # into the circle
-        ):
-            options = {"scenario": scen, "chaser_state": start}
-            same(env.reset(options=options)[0], ref.reset(options=options)[0], "reset")
-            for k, burn in enumerate(burns):
-                action = np.array(burn, dtype=np.float32)
-                out, out_r = env.step(action), ref.step(action)
-                for name, a, b in zip(("obs", "reward", "terminated"), out, out_r):
-                    same(a, b, f"{name} {start} step {k}")
-                for key in INFO_KEYS:
-                    same(out[4][key], out_r[4][key], f"{key} {start} step {k}")
-                if out[2]:
-                    break
+        queued = kwargs.get("target_order") == "queued"
+
+        def fly(start, burns, env=env, ref=ref):
+            return fly_by_hand(env, ref, {"scenario": scen, "chaser_state": start}, burns)
+
+        info = fly([0.0, 80.0, 0.0, 0.3], [coast] * 12)  # drift into target 0's capture zone
+        assert info["captured"].tolist() == [True, False] and not info["collision"], info
+        info = fly([0.0, 80.0, 0.0, 2.0], [coast] * 6)  # too fast: a collision
+        assert info["collision"] and info["targets_captured"] == 0, info
+        # brake beside target 1: captured, unless the queue asks for target 0 first
+        info = fly([40.0, 0.0, 0.4, 0.0], [coast] * 8 + [(-0.3, 0.0)] * 4)
+        assert info["captured"].tolist() == [False, not queued] and not info["collision"], info
+        info = fly([-60.0, 0.0, -1.0, 0.0], [coast] * 5)  # into the polygon
+        assert info["collision"], info
+        info = fly([0.0, -50.0, 0.0, -2.0], [coast] * 5)  # into the circle
+        assert info["collision"], info
+    # one target, no return: drifting into its capture zone completes the mission
+    env = DebrisFieldEnv(n_targets=1, n_obstacles=2, return_to_dock=False)
+    ref = ReferenceDebrisFieldEnv(n_targets=1, n_obstacles=2, return_to_dock=False)
+    alone = simple_scenario(targets=targets[:1], obstacles=obstacles)
+    options = {"scenario": alone, "chaser_state": [0.0, 80.0, 0.0, 0.3]}
+    info = fly_by_hand(env, ref, options, [coast] * 20)
+    assert info["is_success"] and info["targets_captured"] == 1 and not info["collision"], info
 
 
 @settings(max_examples=200, deadline=None)

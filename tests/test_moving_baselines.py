@@ -318,11 +318,11 @@ def test_keepout_never_asks_for_more_clearance_than_the_chaser_has():
     body = 2  # the first obstacle, a circle of radius 12
     radius = field.bodies[body].radius
     full = agent.tracker.keepout_margin
+    goal = {0: 0.25 * env.config.capture_radius}  # the goal target's own margin, as the agent's
     for clearance in (0.0, 0.4, 1.3, 0.99 * full):
         pos = centres[body] + np.array([0.6, 0.8]) * (radius + env.config.chaser_radius + clearance)
-        margins = agent._reachable_margins(pos, t)
+        margins = agent.tracker.reachable_margins(pos, t, goal)
         assert margins[body] == pytest.approx(clearance, abs=1e-6)
-        others = {i: m for i, m in margins.items() if i != body}
-        assert others == {i: m for i, m in agent._margins.items() if i != body}
+        assert {i: m for i, m in margins.items() if i != body} == goal  # the others keep theirs
     far = centres[body] + np.array([0.0, radius + env.config.chaser_radius + 2.0 * full])
-    assert body not in agent._reachable_margins(far, t)
+    assert agent.tracker.reachable_margins(far, t, goal) == goal

@@ -1,6 +1,7 @@
 """debris_gym.relative_orbits against the CWH equations typed here from the textbook
 (ẍ = 3n²x + 2nẏ, ÿ = −2nẋ, z̈ = −n²z; [Curtis14] §7.4), integrated numerically, and against the
-library's own closed form (itself tested against [Vallado13] in test_dynamics.py)."""
+textbook closed form typed into ``tests.helpers.cw_closed_form`` (itself checked against
+[Vallado13]'s arrangement in test_dynamics.py)."""
 
 from __future__ import annotations
 
@@ -12,8 +13,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
-from debris_gym.dynamics import closed_form_coast
 from debris_gym.relative_orbits import RelativeOrbit
+from tests.helpers import cw_closed_form
 
 N = math.sqrt(3.986004418e14 / 6_778_137.0**3)  # LEO mean motion, rad/s
 PERIOD = 2.0 * math.pi / N
@@ -69,7 +70,7 @@ def test_elements_and_the_closed_form_agree(orbit, t):
     for dim in (2, 3):
         start = orbit.state(0.0, dim)
         np.testing.assert_allclose(
-            orbit.state(t, dim), closed_form_coast(start, N, t), rtol=0, atol=1e-6
+            orbit.state(t, dim), cw_closed_form(start, t, N), rtol=0, atol=1e-6
         )
 
 
@@ -83,7 +84,7 @@ def test_from_state_reproduces_the_trajectory_through_any_state(state, velocity,
     start = np.concatenate([state, velocity])
     orbit = RelativeOrbit.from_state(start, N)
     np.testing.assert_allclose(orbit.state(0.0), start, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(orbit.state(t), closed_form_coast(start, N, t), rtol=0, atol=1e-6)
+    np.testing.assert_allclose(orbit.state(t), cw_closed_form(start, t, N), rtol=0, atol=1e-6)
     in_plane = RelativeOrbit.from_state(start[[0, 1, 3, 4]], N)
     np.testing.assert_allclose(in_plane.state(t, dim=2), orbit.state(t)[[0, 1, 3, 4]], atol=1e-9)
 
@@ -93,7 +94,7 @@ def test_the_drift_free_condition_closes_the_orbit():
     start = np.array([x0, 40.0, 0.0, 0.05, -2.0 * N * x0, 0.0])  # ẏ₀ = −2n x₀
     orbit = RelativeOrbit.from_state(start, N)
     assert orbit.x_center == pytest.approx(0.0, abs=1e-12)
-    np.testing.assert_allclose(closed_form_coast(start, N, PERIOD), start, atol=1e-6)
+    np.testing.assert_allclose(cw_closed_form(start, PERIOD, N), start, atol=1e-6)
     # the along-track half-width is twice the radial one (the 2:1 ellipse)
     track = orbit.state(np.linspace(0.0, PERIOD, 2001))
     x_span = track[:, 0].max() - track[:, 0].min()

@@ -12,6 +12,10 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 from debris_gym.integrations.sb3 import NativeVecEnv
+from tests.helpers import flies_v0
+
+# the SB3 adapter on the frozen-world default field (v0)
+pytestmark = flies_v0
 
 
 def test_adapter_matches_sb3_dummy_vec_env():

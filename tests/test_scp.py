@@ -16,7 +16,8 @@ from hypothesis import strategies as st
 
 import debris_gym  # noqa: F401  (registers the IDs)
 from agents import make_agent
-from agents.planners.scp import SCPParams, inscribed_polytope, scp_trajectory
+from agents.planners.scp import SCPParams, scp_trajectory
+from tests.helpers import flies_v0
 
 N_MEAN = 1.1313666536110223e-3  # default LEO mean motion (rad/s)
 A_MAX = 0.05
@@ -178,17 +179,6 @@ def test_hard_spheres_fail_and_soft_spheres_report_the_violation():
     assert soft.success and soft.info["violation"] > 1.0
 
 
-@pytest.mark.parametrize("dim", [2, 3])
-def test_inscribed_polytope_lies_inside_the_unit_ball(dim):
-    normals, h = inscribed_polytope(dim, 16 if dim == 2 else 48)
-    rng = np.random.default_rng(0)
-    points = rng.uniform(-1.2, 1.2, size=(20000, dim))
-    inside = np.all(points @ normals.T <= h, axis=1)
-    assert np.all(np.linalg.norm(points[inside], axis=1) <= 1.0 + 1e-9)
-    ball = points[np.linalg.norm(points, axis=1) <= h]  # and it holds the ball of radius h
-    assert np.all(ball @ normals.T <= h + 1e-12)
-
-
 @pytest.mark.parametrize(
     ("name", "value"),
     [
@@ -220,6 +210,7 @@ def test_bad_inputs_are_refused_by_name():
         _solve(steps=0)
 
 
+@flies_v0
 def test_se_scp_agent_completes_a_frozen_mission_without_collision():
     env = gym.make("DebrisGym/Rendezvous2D-v0")
     agent = make_agent("se-scp", env)

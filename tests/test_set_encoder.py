@@ -63,15 +63,15 @@ def test_layout_errors():
 def _extractor(seed: int = 0, **kwargs):
     _, space, (context, slots) = _layout(**kwargs)
     torch.manual_seed(seed)
-    return SlotSetExtractor(space, context, slots, embed_dim=8, hidden_dim=16), slots
+    return SlotSetExtractor(space, context, slots, embed_dim=8, hidden_dim=16), slots, space
 
 
 @settings(max_examples=25, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1))
 def test_features_do_not_depend_on_the_order_of_the_slots(seed):
-    extractor, slots = _extractor()
+    extractor, slots, space = _extractor()
     rng = np.random.default_rng(seed)
-    obs = rng.uniform(-1, 1, size=(3, extractor._observation_space.shape[0])).astype(np.float32)
+    obs = rng.uniform(-1, 1, size=(3, space.shape[0])).astype(np.float32)
     shuffled = obs.copy()
     for rows in slots.values():  # move whole slots, velocity block included
         order = rng.permutation(len(rows))
@@ -89,7 +89,7 @@ def test_features_do_not_depend_on_the_order_of_the_slots(seed):
 
 
 def test_extractor_size_and_bad_layouts():
-    extractor, slots = _extractor()
+    extractor, slots, _ = _extractor()
     assert extractor.features_dim == 8 + 2 * 8 * len(slots)
     _, space, (context, slots) = _layout()
     with pytest.raises(ValueError, match="exactly once"):

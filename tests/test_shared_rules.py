@@ -12,8 +12,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from debris_gym.dynamics import closed_form_coast, cwh_acceleration
+from debris_gym.dynamics import cwh_acceleration
 from debris_gym.thrust import action_for_accel, commanded_accel
+from tests.helpers import cw_closed_form
 
 N_LEO = 1.1313666536110223e-3  # rad/s
 
@@ -44,7 +45,7 @@ def test_cwh_acceleration_is_the_rate_of_the_closed_form_velocity(dim):
     # central difference of the closed-form coast solution's velocity at t = 0
     state = np.array([120.0, -340.0, 55.0][:dim] + [0.4, -0.7, 0.2][:dim])
     h = 1.0e-2
-    rate = (closed_form_coast(state, N_LEO, h) - closed_form_coast(state, N_LEO, -h)) / (2 * h)
+    rate = (cw_closed_form(state, h, N_LEO) - cw_closed_form(state, -h, N_LEO)) / (2 * h)
     np.testing.assert_allclose(cwh_acceleration(state, N_LEO), rate[dim:], rtol=1e-6)
 
 

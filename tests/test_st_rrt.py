@@ -325,19 +325,3 @@ def test_the_agent_flies_a_v1_mission_to_success_without_contact_and_repeats_it(
         assert agent.stats["plans"] >= 4  # one per leg: three targets and the dock
     assert outcomes[0][0] and not outcomes[0][1]
     assert np.array_equal(outcomes[0][2], outcomes[1][2])
-
-
-@pytest.mark.parametrize("dim", [2, 3])
-def test_the_inscribed_polytope_lies_inside_the_unit_ball_and_holds_the_inner_ball(dim):
-    from scipy.optimize import linprog
-
-    from agents.planners.tube import inscribed_polytope
-
-    normals, offsets = inscribed_polytope(dim, 16)
-    rng = np.random.default_rng(0)
-    for u in rng.normal(size=(40, dim)):
-        u /= np.linalg.norm(u)
-        # the polytope's reach along u, by an independent LP: max u·x s.t. C x <= e
-        res = linprog(-u, A_ub=normals, b_ub=offsets, bounds=[(None, None)] * dim)
-        assert res.status == 0 and -res.fun <= 1.0 + 1e-9
-        assert -res.fun >= offsets.min() - 1e-9  # it contains the ball of the smallest offset

@@ -347,6 +347,29 @@ class MPCTracker:
             margins[index] = math.inf if math.isinf(margin) else self.chaser_radius + margin
         return margins
 
+    def reachable_margins(
+        self, pos: np.ndarray, now: float, overrides: Mapping[int, float] | None = None
+    ) -> dict[int, float]:
+        """Keep-out margins (m beyond the chaser radius) the chaser at ``pos`` (m) already
+        satisfies at time ``now`` (s): ``overrides`` (see :meth:`body_margins`), and for every
+        body nearer than its margin the chaser's present surface clearance instead.
+
+        A body the chaser is closer to than its keep-out (the target just captured, whose
+        margin was a quarter of the capture depth while it was the goal, is a plain obstacle
+        from the next decision on) would make the first steps infeasible if the full margin were
+        asked at once, and the QP's slack (one per step, a finite penalty) would then also pay
+        for violating the other half-spaces of those steps; the present clearance rises back to
+        the full margin as the chaser moves off.
+        """
+        margins = dict(overrides or {})
+        default = self.keepout_margin
+        geometry = self.motion.geometry(now) if self.motion is not None else self.geometry
+        gaps = geometry.signed_distance(pos) - self.chaser_radius
+        for index in np.flatnonzero(gaps < default):
+            own = margins.get(int(index), default)
+            margins[int(index)] = min(own, max(float(gaps[index]), 0.0))
+        return margins
+
     def solve(
         self,
         state: np.ndarray,

@@ -6,12 +6,12 @@ apart so the tracker module reads as the QP and its solve.
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import HalfspaceIntersection
+
+from agents.planners.polytopes import inscribed_polytope
 
 __all__ = ["MPCParams", "MPCSolution", "thrust_polytope"]
 
@@ -119,20 +119,14 @@ def thrust_polytope(dim: int, model: str, facets: int = 16) -> tuple[np.ndarray,
     """Half-spaces C ũ ≤ h (ũ = u / max_accel) of the thrust set used by the QP.
 
     Returns:
-        ``(C (F, dim), h (F,))``: the box |ũ_i| ≤ 1, or a polytope inscribed in the unit ball
-        (16-gon in 2D by default; the 26 cube face/edge/corner normals in 3D).
+        ``(C (F, dim), h (F,))``: the box |ũ_i| ≤ 1, or the ``"lattice"`` polytope inscribed
+        in the unit ball (:func:`agents.planners.polytopes.inscribed_polytope`: the
+        ``facets``-gon in 2D; the 26 cube face/edge/corner normals in 3D).
     """
     if model == "box":
         eye = np.eye(dim)
         return np.vstack([eye, -eye]), np.ones(2 * dim)
     if model != "ball":
         raise ValueError(f"thrust_model must be 'ball' or 'box', got {model!r}")
-    if dim == 2:
-        ang = 2.0 * np.pi * np.arange(facets) / facets
-        normals = np.stack([np.cos(ang), np.sin(ang)], axis=1)
-        return normals, np.full(facets, math.cos(math.pi / facets))
-    dirs = [np.array(s, dtype=float) for s in itertools.product((-1, 0, 1), repeat=3) if any(s)]
-    normals = np.array([v / np.linalg.norm(v) for v in dirs])
-    halfspaces = np.hstack([normals, -np.ones((len(normals), 1))])
-    radius = np.linalg.norm(HalfspaceIntersection(halfspaces, np.zeros(3)).intersections, axis=1)
-    return normals, np.full(len(normals), 1.0 / float(radius.max()))
+    polytope = inscribed_polytope(dim, facets, "lattice")
+    return polytope.normals, polytope.offsets

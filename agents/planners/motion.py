@@ -8,8 +8,8 @@ docs/references.md). :class:`FieldMotion` answers, for any time t (s since the e
 * body states (position m, velocity m/s), by the state-transition matrix of the env's own exact
   model (:func:`debris_gym.dynamics.discretize`); at whole steps t = k·dt by powers of the
   one-step matrix, cached, so a planner asking for a whole horizon pays no matrix exponential;
-  between steps by the closed-form CW transition matrix (:func:`cw_transition`; [Curtis14] eq.
-  7.53), which a tour search asks at many times;
+  between steps by the closed-form CW transition matrix (:func:`debris_gym.dynamics.cw_transition`;
+  [Curtis14] eq. 7.53), which a tour search asks at many times;
 * a *snapshot*: the field frozen as it is at t (bodies at their positions, polygons turned), a
   ``motion="frozen"`` :class:`Scenario` the static planners (APF, RRT, A*) run on unchanged;
 * a :class:`FieldGeometry` of that snapshot (cached per step), for time-indexed keep-out.
@@ -29,35 +29,15 @@ from collections import OrderedDict
 
 import numpy as np
 
-from debris_gym.dynamics import discretize
+from debris_gym.dynamics import cw_transition, discretize
 from debris_gym.geometry import FieldGeometry
 from debris_gym.scenario import Body, Scenario
 
-__all__ = ["FieldMotion", "cw_transition"]
+__all__ = ["FieldMotion"]
 
 _CACHE = 64
 """Snapshots / geometries kept per :class:`FieldMotion` (a horizon of 20 steps and a few
 plans)."""
-
-
-def cw_transition(n: float, t: float, dim: int) -> np.ndarray:
-    """Closed-form state-transition matrix Φ(t) (2·dim, 2·dim) of unforced CW motion
-    ([Curtis14] eq. 7.53; [Vallado13] §6.8): x(t) = Φ(t) x(0), states [position m, velocity m/s].
-    ``n = 0`` gives straight-line motion."""
-    phi = np.eye(2 * dim)
-    if n == 0.0:
-        phi[:dim, dim:] = t * np.eye(dim)
-        return phi
-    s, c = math.sin(n * t), math.cos(n * t)
-    x, y, vx, vy = 0, 1, dim, dim + 1
-    phi[x, [x, y, vx, vy]] = (4 - 3 * c), 0.0, s / n, 2 / n * (1 - c)
-    phi[y, [x, y, vx, vy]] = 6 * (s - n * t), 1.0, 2 / n * (c - 1), (4 * s - 3 * n * t) / n
-    phi[vx, [x, y, vx, vy]] = 3 * n * s, 0.0, c, 2 * s
-    phi[vy, [x, y, vx, vy]] = 6 * n * (c - 1), 0.0, -2 * s, (4 * c - 3)
-    if dim == 3:
-        phi[2, [2, 5]] = c, s / n
-        phi[5, [2, 5]] = -n * s, c
-    return phi
 
 
 class FieldMotion:

@@ -22,8 +22,9 @@ What is kept and what differs from the paper:
   projections of u on F evenly spread directions (s ≥ n_i·u), which is ‖u‖ to within a factor
   cos(π/F) in 2D. A small quadratic term (``regularisation``) makes the optimum unique;
 * spheres: OSQP [Stellato20] has no second-order cones, so every sphere ‖p − c‖ ≤ r is replaced
-  by a polytope inscribed in it (:func:`inscribed_polytope`; its vertices lie on the sphere, so
-  inside the polytope ⇒ inside the sphere: conservative). The thrust ball likewise;
+  by a polytope inscribed in it (the ``"fibonacci"`` kind of
+  :func:`agents.planners.polytopes.inscribed_polytope`; its vertices lie on the sphere, so inside
+  the polytope ⇒ inside the sphere: conservative). The thrust ball likewise;
 * sphere assignment: the paper puts p[2ℓ] in the intersection of spheres ℓ and ℓ+1 and p[2ℓ+1]
   in sphere ℓ+1, so T is fixed by the chain length. Here T comes from a time allocation (the
   chain's length at a cruise speed plus the time to reach that speed and stop) and the points are
@@ -44,53 +45,29 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from functools import lru_cache
 
 import numpy as np
 import osqp
 import scipy.sparse as sp
 from scipy.optimize import linprog
-from scipy.spatial import HalfspaceIntersection
 
+from agents.planners.polytopes import inscribed_polytope
 from debris_gym.dynamics import DiscreteModel, discretize
 
-__all__ = ["SCPParams", "SCPResult", "assign_points", "inscribed_polytope", "scp_trajectory"]
+__all__ = ["SCPParams", "SCPResult", "assign_points", "scp_trajectory"]
 
 _OK = {osqp.SolverStatus.OSQP_SOLVED, osqp.SolverStatus.OSQP_SOLVED_INACCURATE}
+
+
+def _polytope(dim: int, facets: int) -> tuple[np.ndarray, float]:
+    """(normals (F, dim), h) of the SCP's polytope inscribed in the unit ball."""
+    polytope = inscribed_polytope(dim, facets, "fibonacci")
+    return polytope.normals, polytope.offset
+
 
 _TOLERANCE = 1.0e-3
 """Distance (m) every sphere polytope is pulled in by, so the solver's tolerance and the
 re-propagation of the states from the thrusts cannot carry a point past its sphere."""
-
-
-@lru_cache(maxsize=16)
-def inscribed_polytope(dim: int, facets: int) -> tuple[np.ndarray, float]:
-    """Half-spaces ``N x ≤ h`` of a polytope inscribed in the unit ball (every vertex on it).
-
-    2D: the regular ``facets``-gon, h = cos(π/facets). 3D: ``facets`` normals spread on a
-    Fibonacci sphere, h chosen so the farthest vertex of the intersection lies on the sphere.
-
-    Returns:
-        ``(normals (F, dim), h)``; the ball of radius h is inside the polytope (κ = h is its
-        inner-radius factor).
-    """
-    if dim not in (2, 3):
-        raise ValueError(f"dim must be 2 or 3, got {dim!r}")
-    least = 3 if dim == 2 else 6
-    if not (isinstance(facets, int) and facets >= least):
-        raise ValueError(f"facets must be an integer >= {least} in {dim}D, got {facets!r}")
-    if dim == 2:
-        ang = 2.0 * np.pi * (np.arange(facets) + 0.5) / facets
-        normals = np.stack([np.cos(ang), np.sin(ang)], axis=1)
-        return normals, math.cos(math.pi / facets)
-    k = np.arange(facets) + 0.5
-    z = 1.0 - 2.0 * k / facets
-    phi = np.pi * (1.0 + 5**0.5) * k
-    r = np.sqrt(1.0 - z * z)
-    normals = np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
-    halfspaces = np.hstack([normals, -np.ones((facets, 1))])
-    vertices = HalfspaceIntersection(halfspaces, np.zeros(3)).intersections
-    return normals, 1.0 / float(np.linalg.norm(vertices, axis=1).max())
 
 
 @dataclass(frozen=True)
@@ -411,7 +388,7 @@ def _reassign(
 ) -> np.ndarray | None:
     """Each point to the furthest sphere of the chain (no more than one past its predecessor's)
     whose polytope holds it and its predecessor; otherwise its old sphere."""
-    normals, h = inscribed_polytope(positions.shape[1], facets)
+    normals, h = _polytope(positions.shape[1], facets)
     spheres = len(radii)
 
     def inside(point: np.ndarray, j: int) -> bool:
@@ -509,7 +486,7 @@ def _solve(
             add(sp.hstack([sign * thrust, -sp.identity(n_s)]), np.full(n_u, -np.inf),
                 np.zeros(n_u))  # fmt: skip
     else:
-        normals, h = inscribed_polytope(d, thrust_facets)
+        normals, h = _polytope(d, thrust_facets)
         per = sp.kron(sp.identity(T), sp.csr_matrix(normals), format="csr")
         rows = per.shape[0]
         add(sp.hstack([per, sp.csr_matrix((rows, n_s))]), np.full(rows, -np.inf),
@@ -517,7 +494,7 @@ def _solve(
         ones = sp.kron(sp.identity(T), sp.csr_matrix(np.ones((thrust_facets, 1))), format="csr")
         add(sp.hstack([per, -ones]), np.full(rows, -np.inf), np.zeros(rows))
     # spheres: N (p[k] − c_j) ≤ r_j h − tolerance for each sphere point k must lie in
-    normals, h = inscribed_polytope(d, sphere_facets)
+    normals, h = _polytope(d, sphere_facets)
     coef, bound, owner = [], [], []
     for k in range(1, T):
         holders = {int(sigma[k])}
@@ -558,7 +535,7 @@ def _solve(
     if box:
         ctrl = np.clip(ctrl, -params.thrust_fraction * a, params.thrust_fraction * a)
     else:  # pull any solver-tolerance excess back inside the thrust polytope
-        tn, th = inscribed_polytope(d, thrust_facets)
+        tn, th = _polytope(d, thrust_facets)
         excess = (ctrl / a) @ tn.T / (params.thrust_fraction * th)
         ctrl = ctrl / np.maximum(excess.max(axis=1), 1.0)[:, None]
     # states from the exact model and the thrusts actually returned

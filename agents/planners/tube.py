@@ -19,15 +19,15 @@ at its ball's centre, so the problem below is always feasible without the accele
             |Δ²p_k| ≤ a_lim h²  per axis                       (optional, dropped if infeasible)
 
 with Δ the forward difference over samples, c_k / r_k the ball's centre / radius and C, e the
-facets of a polytope inscribed in the unit ball (:func:`inscribed_polytope`: a regular polygon in
-2D, 26 facets in 3D), so the linear constraints are conservative. Positions
+facets of a polytope inscribed in the unit ball (the ``"lattice"`` kind of
+:func:`agents.planners.polytopes.inscribed_polytope`: a regular polygon in 2D, 26 facets in 3D),
+so the linear constraints are conservative. Positions
 are scaled by ℓ = max_accel·h² for the solver. Each solved sample is then pulled radially into its
 ball (a solver-tolerance correction), so the result lies in the tube exactly.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -35,8 +35,8 @@ from typing import Any
 import numpy as np
 import osqp
 import scipy.sparse as sp
-from scipy.spatial import HalfspaceIntersection
 
+from agents.planners.polytopes import inscribed_polytope
 from agents.planners.spacetime import SpaceTimeField
 
 __all__ = [
@@ -44,7 +44,6 @@ __all__ = [
     "Trajectory",
     "Tube",
     "build_tube",
-    "inscribed_polytope",
     "smooth_in_tube",
 ]
 
@@ -148,26 +147,6 @@ def build_tube(
     return Tube(grid, centres, radii, h)
 
 
-def inscribed_polytope(dim: int, facets: int = 16) -> tuple[np.ndarray, np.ndarray]:
-    """Half-spaces C x ≤ e of a polytope whose vertices lie on the unit sphere (so it is inside
-    the unit ball): the regular ``facets``-gon in 2D (e = cos(π/facets)); in 3D the 26 facets
-    normal to the cube's faces, edges and corners, all at the offset that puts the farthest
-    vertex on the sphere.
-
-    Returns:
-        ``(C (F, dim) unit normals, e (F,))``.
-    """
-    if dim == 2:
-        ang = 2.0 * np.pi * np.arange(facets) / facets
-        normals = np.stack([np.cos(ang), np.sin(ang)], axis=1)
-        return normals, np.full(facets, math.cos(math.pi / facets))
-    dirs = [np.array(s, float) for s in itertools.product((-1, 0, 1), repeat=3) if any(s)]
-    normals = np.array([v / np.linalg.norm(v) for v in dirs])
-    halfspaces = np.hstack([normals, -np.ones((len(normals), 1))])
-    vertices = HalfspaceIntersection(halfspaces, np.zeros(3)).intersections
-    return normals, np.full(len(normals), 1.0 / float(np.linalg.norm(vertices, axis=1).max()))
-
-
 def _difference(count: int, order: int) -> sp.csr_matrix:
     """(count − order, count) forward-difference operator of the given order."""
     op = sp.identity(count, format="csr")
@@ -222,7 +201,8 @@ def smooth_in_tube(
     P = sp.triu(2.0 * cost, format="csc")
     q = 2.0 * q
 
-    normals, offsets = inscribed_polytope(d, p.facets)
+    polytope = inscribed_polytope(d, p.facets, "lattice")
+    normals, offsets = polytope.normals, polytope.offsets
     facet = sp.kron(sp.identity(count), sp.csr_matrix(normals))  # rows (k, f)
     facet_u = (np.einsum("fd,kd->kf", normals, cs) + (r / ell)[:, None] * offsets).reshape(-1)
     pin_rows = [0, count - 3, count - 2, count - 1]

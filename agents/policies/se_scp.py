@@ -38,8 +38,9 @@ import numpy as np
 from agents.control.mpc import MPCParams
 from agents.control.reference import ReferenceParams
 from agents.planners.mission import Goal
+from agents.planners.polytopes import inscribed_polytope
 from agents.planners.result import PlanResult
-from agents.planners.scp import SCPParams, inscribed_polytope, scp_trajectory
+from agents.planners.scp import SCPParams, scp_trajectory
 from agents.planners.spherical_expansion import (
     ExpansionParams,
     chain_waypoints,
@@ -179,7 +180,7 @@ class SESCPAgent(MPCPathAgent):
             raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
         self.scp_params = scp or SCPParams(sphere_penalty=100.0)
         sphere_facets, _ = self.scp_params.facets(self.env.dim)
-        _, kappa = inscribed_polytope(self.env.dim, sphere_facets)
+        kappa = inscribed_polytope(self.env.dim, sphere_facets, "fibonacci").offset
         self.expansion_params = expansion or ExpansionParams(polytope_factor=kappa)
         if not (isinstance(check_steps, int) and check_steps >= 1):
             raise ValueError(f"check_steps must be an integer >= 1, got {check_steps!r}")

@@ -166,7 +166,11 @@ class STRRTAgent(ClassicalAgent):
         else:
             ref_pos, ref_vel = self._reference(now)
             accel = self.tracker.command(
-                state, ref_pos, ref_vel, margins=self._reachable_margins(state[:d], now), now=now
+                state,
+                ref_pos,
+                ref_vel,
+                margins=self.tracker.reachable_margins(state[:d], now, self._margins),
+                now=now,
             )
         action = self.accel_to_action(accel)
         self.decision_times.append(time.perf_counter() - t0)
@@ -274,16 +278,3 @@ class STRRTAgent(ClassicalAgent):
         vel = np.zeros_like(pos)
         vel[:-1] = (goal - start) / (steps * dt)
         return now + dt * np.arange(steps + 1), pos, vel
-
-    def _reachable_margins(self, pos: np.ndarray, now: float) -> dict[int, float]:
-        """Keep-out margins (m) the chaser already satisfies: a body nearer than its margin (the
-        target just captured) gets the present gap instead, so the tracker's first steps stay
-        feasible (the rule of :class:`~agents.policies.tracking.MPCPathAgent`)."""
-        margins = dict(self._margins)
-        default = self.tracker.keepout_margin
-        geom = self.motion.geometry(now) if self.motion.moving else self.geometry
-        gaps = geom.signed_distance(pos) - self.env.config.chaser_radius
-        for index in np.flatnonzero(gaps < default):
-            own = margins.get(int(index), default)
-            margins[int(index)] = min(own, max(float(gaps[index]), 0.0))
-        return margins

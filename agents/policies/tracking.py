@@ -206,29 +206,11 @@ class MPCPathAgent(ClassicalAgent):
             track = self.motion.body_track(frame, now, self.tracker.N)
             accel = self.tracker.command(
                 state, rel_pos + track[:, :d], rel_vel + track[:, d:],
-                margins=self._reachable_margins(pos, now), now=now,
+                margins=self.tracker.reachable_margins(pos, now, self._margins), now=now,
             )  # fmt: skip
         action = self.accel_to_action(accel)
         self.decision_times.append(time.perf_counter() - t0)
         return action
-
-    def _reachable_margins(self, pos: np.ndarray, now: float) -> dict[int, float]:
-        """Keep-out margins (m beyond the chaser radius) the chaser already satisfies.
-
-        A body the chaser is closer to than its keep-out (the target just captured, whose
-        margin was a quarter of the capture depth while it was the goal, is a plain obstacle
-        from the next decision on) gets the chaser's present surface clearance instead, which
-        rises back to the full margin as the chaser moves off. Demanding the full margin at once
-        would make the first steps infeasible, and the QP's slack (one per step, a finite
-        penalty) would then also pay for violating the other half-spaces of those steps.
-        """
-        margins = dict(self._margins)
-        default = self.tracker.keepout_margin
-        gaps = self.motion.geometry(now).signed_distance(pos) - self.env.config.chaser_radius
-        for index in np.flatnonzero(gaps < default):
-            own = margins.get(int(index), default)
-            margins[int(index)] = min(own, max(float(gaps[index]), 0.0))
-        return margins
 
     def _stalled(self) -> bool:
         """No progress along the path, short of its end, for ``stall_steps`` decisions."""
