@@ -25,7 +25,7 @@ import numpy as np
 from debris_gym.batch_geometry import FieldBatch, polygon_turns
 from debris_gym.config import EnvConfig
 from debris_gym.dynamics import discretize, substep_position_matrix
-from debris_gym.generators import MAX_POLYGON_VERTICES
+from debris_gym.field_spec import MAX_POLYGON_VERTICES, FieldArrays
 from debris_gym.jit import specialise
 from debris_gym.mission_data import (
     Field,
@@ -229,24 +229,16 @@ class MissionBatch:
         self.field.load_scenario(rows, scenario)
         self._set_turns(rows)
 
-    def load_arrays(
-        self,
-        rows: np.ndarray,
-        centers: np.ndarray,
-        radii: np.ndarray,
-        vertices: np.ndarray,
-        n_vertices: np.ndarray,
-        velocities: np.ndarray | None = None,
-        spins: np.ndarray | None = None,
-        *,
-        vertex_start: int | None = None,
-    ) -> None:
-        """Put K fields given as arrays into the fields ``rows`` (see
-        :meth:`FieldBatch.load_arrays <debris_gym.batch_geometry.FieldBatch.load_arrays>`)."""
+    def load_fields(self, rows: np.ndarray, fields: FieldArrays) -> None:
+        """Put drawn fields (K of them, :class:`~debris_gym.field_spec.FieldArrays`) into the
+        fields ``rows``: their vertices are the obstacles' (bodies from T on), their spins every
+        body's (see :meth:`FieldBatch.load_arrays
+        <debris_gym.batch_geometry.FieldBatch.load_arrays>`)."""
         rows = np.asarray(rows, dtype=np.int64)
+        spins = None if fields.spins is None else fields.spins[:, self.field.polygon_start :]
         self.field.load_arrays(
-            rows, centers, radii, vertices, n_vertices, velocities, spins,
-            vertex_start=vertex_start,
+            rows, fields.centers, fields.radii, fields.vertices, fields.n_vertices,
+            fields.velocities, spins, vertex_start=fields.n_targets,
         )  # fmt: skip
         self._set_turns(rows)
 

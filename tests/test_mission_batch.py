@@ -326,4 +326,3 @@ def test_the_env_reports_its_current_goal():
     env.step(np.zeros(2, dtype=np.float32))
     assert env.captured.all()
     assert env.current_goal == (DOCK_GOAL, pytest.approx(92.0), 0)
-

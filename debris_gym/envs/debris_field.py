@@ -19,7 +19,7 @@ from debris_gym.envs.common import (
     registered_horizon,
     single_spaces,
 )
-from debris_gym.envs.shell import MissionShell
+from debris_gym.envs.shell import MissionShell, ShellView
 from debris_gym.geometry import FieldGeometry
 from debris_gym.goal import DOCK_GOAL, Goal, current_goal
 from debris_gym.mission_batch import MissionBatch
@@ -35,7 +35,7 @@ ones, enough for a whole episode of every registered ID (at most 2000 steps); wi
 limit older positions are dropped, so the memory stays bounded."""
 
 
-class DebrisFieldEnv(gym.Env):
+class DebrisFieldEnv(ShellView, gym.Env):
     """Rendezvous with several pieces of debris in one trip through a debris field, and return.
 
     ## Description
@@ -157,29 +157,6 @@ class DebrisFieldEnv(gym.Env):
     # --- state accessors --------------------------------------------------------------------
 
     @property
-    def config(self) -> EnvConfig:
-        """The config in force (a ``{"mission": ...}`` reset option changes its mission keys)."""
-        return self._shell.config
-
-    @property
-    def made_config(self) -> EnvConfig:
-        """The config the env was made with: what ``reset(options={"mission": {...}})`` changes
-        keys of (``self.config`` is the one in force)."""
-        return self._shell.made_config
-
-    @property
-    def shell(self) -> MissionShell:
-        """The :class:`~debris_gym.envs.shell.MissionShell` this env is the one-row view of."""
-        return self._shell
-
-    @property
-    def batch(self) -> MissionBatch | None:
-        """This env's mission and field as a :class:`~debris_gym.mission_batch.MissionBatch`
-        of one row (None before the first reset). Read it; writing to it bypasses the env's
-        checks."""
-        return self._shell.batch
-
-    @property
     def scenario(self) -> Scenario | None:
         """The current field (None before the first reset). A random field is drawn as arrays
         and loaded as they are; its :class:`Scenario` is built when asked for here (the same
@@ -253,10 +230,6 @@ class DebrisFieldEnv(gym.Env):
             offset = m.state[0, : self.dim] - batch.dock[0]
             gap = math.sqrt(float(offset @ offset))
         return Goal(int(index), float(gap), int(after))
-
-    def observation_names(self) -> list[str]:
-        """Name of every observation element, in order."""
-        return list(self._obs_names)
 
     @property
     def _missions(self) -> MissionBatch:

@@ -42,14 +42,21 @@ from debris_gym.envs.common import (
     warn_if_physics_differ,
 )
 from debris_gym.envs.field_supply import FieldSupply
-from debris_gym.generators import MAX_POLYGON_VERTICES, FieldArrays, scenario_from_arrays
+from debris_gym.field_spec import MAX_POLYGON_VERTICES, FieldArrays, scenario_from_arrays
 from debris_gym.geometry import FieldGeometry
 from debris_gym.mission_batch import MissionBatch, Physics, check_threads
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.scenario import Scenario, as_scenario
 from debris_gym.scenario_checks import check_dock_clear
 
-__all__ = ["INFO_KEYS", "Autoreset", "FieldShape", "MissionShell", "StepResult"]
+__all__ = [
+    "INFO_KEYS",
+    "Autoreset",
+    "FieldShape",
+    "MissionShell",
+    "ShellView",
+    "StepResult",
+]
 
 
 class Autoreset(enum.Enum):
@@ -406,13 +413,7 @@ class MissionShell:
             self._install_scenario(rows, self.supply.paper_field())
             return
         batch = self.batch_in_use
-        t = fields.n_targets
-        start = batch.field.polygon_start
-        spins = None if fields.spins is None else fields.spins[:, start:]
-        batch.load_arrays(
-            rows, fields.centers, fields.radii, fields.vertices, fields.n_vertices,
-            fields.velocities, spins, vertex_start=t,
-        )  # fmt: skip
+        batch.load_fields(rows, fields)
         for i in rows.tolist():
             self.pinned[i] = self._built[i] = None
         stale = rows[~self._random_world[rows]]
@@ -494,3 +495,38 @@ def _describe(shape: FieldShape) -> str:
         f"mean_motion={n!r}, dt={dt!r}, max_accel={accel!r}, {shape.n_targets} targets of "
         f"{shape.n_bodies} bodies"
     )
+
+
+class ShellView:
+    """What every env that is a view of a :class:`MissionShell` reads the same way (the single
+    env's one row, the vector env's all rows). A view sets ``_shell`` and ``_obs_names``."""
+
+    _shell: MissionShell
+    _obs_names: list[str]
+
+    @property
+    def config(self) -> EnvConfig:
+        """The config in force (a ``{"mission": ...}`` reset option changes its mission keys)."""
+        return self._shell.config
+
+    @property
+    def made_config(self) -> EnvConfig:
+        """The config the env was made with: what ``reset(options={"mission": {...}})`` changes
+        keys of (``self.config`` is the one in force)."""
+        return self._shell.made_config
+
+    @property
+    def shell(self) -> MissionShell:
+        """The :class:`MissionShell` this env is a view of."""
+        return self._shell
+
+    @property
+    def batch(self) -> MissionBatch | None:
+        """The env's missions and fields as a :class:`~debris_gym.mission_batch.MissionBatch`
+        (one row per sub-env; None before the first reset). Read it; writing to it bypasses
+        the env's checks."""
+        return self._shell.batch
+
+    def observation_names(self) -> list[str]:
+        """Name of every observation element, in order."""
+        return list(self._obs_names)

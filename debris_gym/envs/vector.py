@@ -37,8 +37,7 @@ from debris_gym.envs.common import (
     registered_horizon,
     single_spaces,
 )
-from debris_gym.envs.shell import INFO_KEYS, Autoreset, MissionShell
-from debris_gym.mission_batch import MissionBatch
+from debris_gym.envs.shell import INFO_KEYS, Autoreset, MissionShell, ShellView
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.scenario import Scenario
 
@@ -48,7 +47,7 @@ _AUTORESET = {
 }
 
 
-class DebrisFieldVectorEnv(VectorEnv):
+class DebrisFieldVectorEnv(ShellView, VectorEnv):
     """N DebrisField envs stepped together.
 
     Args:
@@ -123,17 +122,6 @@ class DebrisFieldVectorEnv(VectorEnv):
     # --- state accessors ----------------------------------------------------------------------
 
     @property
-    def config(self) -> EnvConfig:
-        """The config in force (a ``{"mission": ...}`` reset option changes its mission keys)."""
-        return self._shell.config
-
-    @property
-    def made_config(self) -> EnvConfig:
-        """The config the env was made with: what ``reset(options={"mission": {...}})`` changes
-        keys of (``self.config`` is the one in force)."""
-        return self._shell.made_config
-
-    @property
     def scenarios(self) -> Sequence[Scenario | None]:
         """The current field of every sub-env (None before the first reset).
 
@@ -141,22 +129,6 @@ class DebrisFieldVectorEnv(VectorEnv):
         :class:`Scenario` when accessed (the same ``Scenario`` the single env builds).
         """
         return _ScenarioList(self._shell)
-
-    @property
-    def batch(self) -> MissionBatch | None:
-        """The :class:`~debris_gym.mission_batch.MissionBatch` holding every sub-env's mission
-        and field as arrays (None before the first reset). Read it; writing to it bypasses the
-        env's checks."""
-        return self._shell.batch
-
-    @property
-    def shell(self) -> MissionShell:
-        """The :class:`~debris_gym.envs.shell.MissionShell` this env is the all-rows view of."""
-        return self._shell
-
-    def observation_names(self) -> list[str]:
-        """Name of every observation element, in order (as the single env)."""
-        return list(self._obs_names)
 
     # --- gymnasium API ------------------------------------------------------------------------
 

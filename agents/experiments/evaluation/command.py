@@ -83,48 +83,8 @@ __all__ = [
 ]
 
 
-class EvaluationStopped(Exception):
-    """The run stopped before its end: an agent failed, or a file could not be written. What
-    finished is journaled in ``out``; the run resumes once the cause is fixed.
-
-    Attributes:
-        out: the output directory.
-        reason: what happened (one line: the agent, episode and step; or the file).
-        finished: episodes (agent × episode) finished, this run and earlier ones.
-        total: episodes the evaluation has in all.
-        fix: what to do before resuming.
-    """
-
-    def __init__(self, out: Path, reason: str, finished: int, total: int, fix: str) -> None:
-        self.out = out
-        self.reason = reason
-        self.finished = finished
-        self.total = total
-        self.fix = fix
-        super().__init__(self.message())
-
-    def message(self) -> str:
-        """What to tell the user (several lines)."""
-        if self.finished == self.total:
-            done = f"all {self.total} episodes finished but the outputs were not written"
-        else:
-            done = f"{self.finished} of {self.total} episodes finished"
-        return (
-            f"error: {self.reason}\n"
-            f"stopped: {done}; they are kept in {self.out / 'unfinished'}/\n"
-            f"{self.fix}, then resume with: "
-            f"python evaluate.py --resume {shlex.quote(str(self.out))}"
-        )
-
-
-class EvaluationInterrupted(Exception):
-    """Ctrl-C (or SIGTERM) stopped a run; what finished is journaled in ``out``.
-
-    Attributes:
-        out: the output directory.
-        finished: episodes (agent × episode) finished, this run and earlier ones.
-        total: episodes the evaluation has in all.
-    """
+class _RunStop(Exception):
+    """A run that stopped before its end, what finished journaled in ``out``."""
 
     def __init__(self, out: Path, finished: int, total: int) -> None:
         self.out = out
@@ -137,16 +97,57 @@ class EvaluationInterrupted(Exception):
         """The command line that finishes the run."""
         return f"python evaluate.py --resume {shlex.quote(str(self.out))}"
 
-    def message(self) -> str:
-        """What to tell the user (several lines)."""
+    def kept(self) -> str:
+        """How much finished, and where it is kept."""
         if self.finished == self.total:
             done = f"all {self.total} episodes finished but the outputs were not written"
         else:
             done = f"{self.finished} of {self.total} episodes finished"
+        return f"{done}; they are kept in {self.out / 'unfinished'}/"
+
+    def message(self) -> str:
+        """What to tell the user (several lines)."""
+        raise NotImplementedError
+
+
+class EvaluationStopped(_RunStop):
+    """The run stopped before its end: an agent failed, or a file could not be written. What
+    finished is journaled in ``out``; the run resumes once the cause is fixed.
+
+    Attributes:
+        out: the output directory.
+        reason: what happened (one line: the agent, episode and step; or the file).
+        finished: episodes (agent × episode) finished, this run and earlier ones.
+        total: episodes the evaluation has in all.
+        fix: what to do before resuming.
+    """
+
+    def __init__(self, out: Path, reason: str, finished: int, total: int, fix: str) -> None:
+        self.reason = reason
+        self.fix = fix
+        super().__init__(out, finished, total)
+
+    def message(self) -> str:
+        """What to tell the user (several lines)."""
         return (
-            f"interrupted: {done}; they are kept in {self.out / 'unfinished'}/\n"
-            f"resume with: {self.resume_command}"
+            f"error: {self.reason}\n"
+            f"stopped: {self.kept()}\n"
+            f"{self.fix}, then resume with: {self.resume_command}"
         )
+
+
+class EvaluationInterrupted(_RunStop):
+    """Ctrl-C (or SIGTERM) stopped a run; what finished is journaled in ``out``.
+
+    Attributes:
+        out: the output directory.
+        finished: episodes (agent × episode) finished, this run and earlier ones.
+        total: episodes the evaluation has in all.
+    """
+
+    def message(self) -> str:
+        """What to tell the user (several lines)."""
+        return f"interrupted: {self.kept()}\nresume with: {self.resume_command}"
 
 
 def _lock(plan: EvaluationPlan, flag: str) -> RunDirectoryLock:
