@@ -95,7 +95,8 @@ def body_reach(sub: np.ndarray, dim: int) -> tuple[float, float]:
 def check_threads(threads: int) -> int:
     """``threads`` validated: a whole number from 1 to numba's thread count (the cores, or
     ``NUMBA_NUM_THREADS``)."""
-    limit = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]  # set from the environment at run time: invisible to a checker
+    # numba sets its config from the environment at run time: the name is invisible to a checker
+    limit = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]
     if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)):
         raise ValueError(f"num_threads must be a whole number in [1, {limit}], got {threads!r}")
     if not 1 <= threads <= limit:

@@ -519,7 +519,8 @@ def _solve(
     if soft:
         add(sp.hstack([sp.csr_matrix((n_e, n_u + n_s)), sp.identity(n_e)]), np.zeros(n_e),
             np.full(n_e, np.inf))  # fmt: skip
-    A = sp.vstack(blocks, format="csc")  # type: ignore[call-overload]  # scipy-stubs: format= typed for sparse arrays only
+    # scipy-stubs type vstack's format= for sparse arrays only, not sparse matrices
+    A = sp.vstack(blocks, format="csc")  # type: ignore[call-overload]
     lo, hi = np.concatenate(lower), np.concatenate(upper)
     q = np.zeros(nz)
     q[n_u : n_u + n_s] = 1.0

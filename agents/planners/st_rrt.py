@@ -323,7 +323,8 @@ class _Search:
             return None
         near_d = tree.metric(q_new, t_new, self.v)
         order = [
-            int(j) for j in np.argsort(near_d)[: self.p.rewire_neighbours]
+            int(j)
+            for j in np.argsort(near_d)[: self.p.rewire_neighbours]
             if math.isfinite(near_d[j])
         ]
         if i not in order:

@@ -220,7 +220,8 @@ def smooth_in_tube(
             a_blocks.append(d2)
             lo.append(np.full(d2.shape[0], -a_lim))
             hi.append(np.full(d2.shape[0], a_lim))
-        constraints = sp.vstack(a_blocks, format="csc")  # type: ignore[call-overload]  # scipy-stubs: format= typed for sparse arrays only
+        # scipy-stubs type vstack's format= for sparse arrays only, not sparse matrices
+        constraints = sp.vstack(a_blocks, format="csc")  # type: ignore[call-overload]
         solver = osqp.OSQP()
         solver.setup(
             P, q, constraints, np.concatenate(lo), np.concatenate(hi),

@@ -50,7 +50,10 @@ def algo_class(algo: str) -> type[BaseAlgorithm]:
             ) from None
         return RecurrentPPO
     classes: dict[str, type[BaseAlgorithm]] = {
-        "ppo": sb3.PPO, "sac": sb3.SAC, "td3": sb3.TD3, "dqn": sb3.DQN
+        "ppo": sb3.PPO,
+        "sac": sb3.SAC,
+        "td3": sb3.TD3,
+        "dqn": sb3.DQN,
     }
     return classes[algo]
 

@@ -128,7 +128,8 @@ def _window_pyplot() -> tuple[Any, str]:
     except ImportError:  # matplotlib < 3.9
         from matplotlib import rcsetup
 
-        interactive = {b.lower() for b in rcsetup.interactive_bk}  # type: ignore[attr-defined]  # matplotlib < 3.9 only
+        # (gone from matplotlib 3.9 on, whose stubs are the ones checked)
+        interactive = {b.lower() for b in rcsetup.interactive_bk}  # type: ignore[attr-defined]
     if backend not in interactive and not backend.startswith("module://"):
         return None, f"the matplotlib backend {backend!r} is not interactive"
     return plt, ""
@@ -440,10 +441,15 @@ class Renderer:
             tx, ty = panel.xy(centres)
             style: dict[str, Any] = {"zorder": 1, "alpha": alpha, "animated": True}
             debris: dict[str, Any] = {
-                "facecolor": DEBRIS_FACE, "edgecolor": DEBRIS_EDGE, "linewidth": 0.7
+                "facecolor": DEBRIS_FACE,
+                "edgecolor": DEBRIS_EDGE,
+                "linewidth": 0.7,
             }
             target: dict[str, Any] = {
-                "edgecolor": TARGET_EDGE, "linewidth": 0.6, "zorder": 3, "animated": True
+                "edgecolor": TARGET_EDGE,
+                "linewidth": 0.6,
+                "zorder": 3,
+                "animated": True,
             }
             if moving:  # shapes set per frame (_place_bodies)
                 panel.debris = ax.add_collection(PathCollection([], **debris, **style), False)
