@@ -138,6 +138,8 @@ class AnchoredPPO(PPO):
             raise RuntimeError("AnchoredPPO: set_reference() must be called before training")
         self._update_learning_rate(self.policy.optimizer)
         progress = self._current_progress_remaining
+        # SB3 types clip_range(_vf) as a float or a schedule; _setup_model made them schedules
+        # (SB3's PPO.train carries the same ignores)
         clip_range = self.clip_range(progress)  # type: ignore[operator]
         clip_range_vf = self.clip_range_vf(progress) if self.clip_range_vf is not None else None  # type: ignore[operator]
         logs: dict[str, list[float]] = {
@@ -224,6 +226,7 @@ class AnchoredPPO(PPO):
         assert self.critic_optimizer is not None
         self._update_learning_rate(self.critic_optimizer)
         progress = self._current_progress_remaining
+        # (a schedule: see train())
         clip_range_vf = self.clip_range_vf(progress) if self.clip_range_vf is not None else None  # type: ignore[operator]
         params = [p for group in self.critic_optimizer.param_groups for p in group["params"]]
         losses: list[float] = []
