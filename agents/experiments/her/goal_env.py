@@ -184,7 +184,7 @@ class GoalConditionedEnv(gym.Wrapper[dict[str, np.ndarray], np.ndarray, np.ndarr
     def __init__(
         self, env: gym.Env[np.ndarray, np.ndarray], crash_penalty: float = DEFAULT_CRASH_PENALTY
     ) -> None:
-        super().__init__(env)  # type: ignore[arg-type]  # (the same stub slip)
+        super().__init__(env)  # type: ignore[arg-type]  # (gymnasium's slip, as above)
         penalty = float(crash_penalty)
         if not np.isfinite(penalty) or penalty <= 1.0:
             raise ValueError(f"crash_penalty: a finite value > 1 needed, got {crash_penalty!r}")
