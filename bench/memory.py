@@ -104,7 +104,7 @@ def memory_child(num_envs: int, env_id: str = ID_2D) -> dict[str, Any]:
     seen: set[int] = set()  # an array held by two attributes counts once
     shell = un.shell
     owners = [("env", un), ("shell", shell), ("supply", shell.supply)]
-    owners += [("field", un.batch.field), ("missions", un.batch)]
+    owners += [("field", un.batch.field), ("batch", un.batch)]
     for owner, obj in owners:
         for name, value in _named_values(obj):
             if isinstance(value, np.ndarray) and id(value) not in seen:

@@ -132,23 +132,6 @@ class MissionBatch:
     (N,) m and ``speed_scale`` (N,) m/s (the observation's L and V).
     """
 
-    # the arrays of ``self.missions``, also attributes (batch.state is batch.missions.state)
-    state: np.ndarray
-    time: np.ndarray
-    steps: np.ndarray
-    delta_v: np.ndarray
-    captured: np.ndarray
-    collision: np.ndarray
-    out_of_bounds: np.ndarray
-    success: np.ndarray
-    gaps: np.ndarray
-    nearest: np.ndarray
-    min_clearance: np.ndarray
-    potential: np.ndarray
-    accel: np.ndarray
-    hold: np.ndarray
-    score: np.ndarray
-
     def __init__(
         self,
         cfg: EnvConfig,
@@ -188,9 +171,6 @@ class MissionBatch:
         # every obstacle ranked by gap when the observation shows obstacles
         ranked = cfg.observation == "kinematics" and cfg.obs_obstacles > 0
         self.missions: Missions = new_missions(n, d, t, n_bodies, n_bodies - t if ranked else 0)
-        # the per-mission arrays are also attributes (batch.state is batch.missions.state)
-        for name, array in self.missions._asdict().items():
-            setattr(self, name, array)
         # per field, beside the bodies of self.field
         self.dock = np.zeros((n, d))
         self.low = np.zeros((n, d))

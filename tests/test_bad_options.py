@@ -314,13 +314,13 @@ def test_a_failed_reset_leaves_the_vector_env_as_it_was(case):
     env, twin = stepped_vector(), stepped_vector()
     options = bad_reset_options(env.config)[case]
     batch = env.batch
-    before = {k: getattr(batch, k).copy() for k in ("state", "time", "captured")}
+    before = {k: getattr(batch.missions, k).copy() for k in ("state", "time", "captured")}
     centers = batch.field.centers.copy()
     with pytest.raises(ValueError, match=r"chaser_state|dim|bogus|must share"):
         env.reset(seed=123, options=options)
     assert env.batch is batch
     for key, value in before.items():
-        np.testing.assert_array_equal(getattr(batch, key), value)
+        np.testing.assert_array_equal(getattr(batch.missions, key), value)
     np.testing.assert_array_equal(batch.field.centers, centers)
     actions = np.tile(PUSH, (2, 1))
     for _ in range(5):
@@ -417,7 +417,7 @@ def test_a_non_integer_discrete_action_is_refused(action):
 def test_the_vector_env_refuses_non_real_actions(action):
     env = DebrisFieldVectorEnv(num_envs=2, action=action)
     env.reset(seed=0)
-    state = env.batch.state.copy()
+    state = env.batch.missions.state.copy()
     good = np.zeros((2, 2)) if action == "continuous" else np.zeros(2, dtype=np.int64)
     for bad in (
         good.astype(complex),
@@ -427,7 +427,7 @@ def test_the_vector_env_refuses_non_real_actions(action):
     ):
         with pytest.raises(ValueError, match="action"):
             env.step(bad)
-    np.testing.assert_array_equal(env.batch.state, state)
+    np.testing.assert_array_equal(env.batch.missions.state, state)
 
 
 def test_a_huge_action_is_full_thrust_in_its_direction():

@@ -242,7 +242,7 @@ def test_memory_row(all_rows):
     assert _finite_positive(row["array_bytes_per_env"])
     assert _finite_positive(row["obs_buffer_bytes_per_env"])
     names = {(a["owner"], a["name"]) for a in row["arrays"]}
-    assert {("field", "centers"), ("missions", "state"), ("env", "observation")} <= names
+    assert {("field", "centers"), ("batch", "missions.state"), ("env", "observation")} <= names
     assert [a["nbytes"] for a in row["arrays"]] == sorted(
         (a["nbytes"] for a in row["arrays"]), reverse=True
     )

@@ -197,12 +197,12 @@ def test_vector_env_actions_either_refused_by_name_or_finite(vector_env, data):
     obs, _ = env.reset(seed=data.draw(st.integers(0, 50)))
     shape = (2, 2) if env.config.action == "continuous" else (2,)
     action = data.draw(actions_for(shape))
-    state = env.batch.state.copy()
+    state = env.batch.missions.state.copy()
     try:
         obs, reward, _, _, _ = env.step(action)
     except ValueError as err:
         assert "action" in str(err)
-        np.testing.assert_array_equal(env.batch.state, state)
+        np.testing.assert_array_equal(env.batch.missions.state, state)
         return
     assert env.observation_space.contains(obs) and np.isfinite(reward).all()
 

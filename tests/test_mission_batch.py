@@ -327,11 +327,3 @@ def test_the_env_reports_its_current_goal():
     assert env.captured.all()
     assert env.current_goal == (DOCK_GOAL, pytest.approx(92.0), 0)
 
-
-def test_the_batch_declares_every_per_mission_array_of_the_missions_record():
-    """``MissionBatch`` exposes each field of :class:`Missions` as an attribute (declared, so
-    that the type checker sees them); a new field must be declared too."""
-    from debris_gym.mission_data import Missions
-
-    declared = MissionBatch.__annotations__
-    assert set(Missions._fields) <= set(declared), set(Missions._fields) - set(declared)

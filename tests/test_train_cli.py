@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 pytest.importorskip("stable_baselines3")
@@ -285,6 +285,7 @@ RANGED = sorted(ALGO_KWARG_RANGES)
         st.text(max_size=6),
     ),
 )
+@example(algo="ppo", key="batch_size", value="0\x1f")  # numeric text with a unit separator
 def test_algo_kwargs_are_refused_by_name_or_lie_in_their_range(algo, key, value):
     """Fuzz over the ranged keyword arguments: either a ValueError naming the key, or a config
     whose value lies in the documented range."""

@@ -303,7 +303,7 @@ def test_a_pinned_field_flies_through_autoresets_until_the_next_reset():
     for _ in range(6):  # a truncation, its autoreset, two steps of the next episode
         env.step(np.zeros((2, 2), dtype=np.float32))
     assert all(s is scen for s in env.scenarios)
-    assert env.batch.time[0] > 0.0
+    assert env.batch.missions.time[0] > 0.0
     env.reset(seed=0)
     fresh = DebrisFieldVectorEnv(num_envs=2, max_episode_steps=3, delta_v_budget=None)
     fresh.reset(seed=0)

@@ -189,17 +189,17 @@ class DebrisFieldEnv(gym.Env):
     @property
     def chaser_state(self) -> np.ndarray:
         """Current chaser LVLH state [position (m), velocity (m/s)] (a copy)."""
-        return self._missions.state[0].copy()
+        return self._missions.missions.state[0].copy()
 
     @property
     def captured(self) -> np.ndarray:
         """Per-target capture flags (a copy), in scenario target order."""
-        return self._missions.captured[0].copy()
+        return self._missions.missions.captured[0].copy()
 
     @property
     def elapsed(self) -> float:
         """Simulated time since reset (s)."""
-        return float(self._missions.time[0])
+        return float(self._missions.missions.time[0])
 
     @property
     def trail(self) -> np.ndarray:
@@ -218,7 +218,7 @@ class DebrisFieldEnv(gym.Env):
     @property
     def potential(self) -> float:
         """The shaping potential Φ of the current state (dimensionless, docs/environments.md)."""
-        return float(self._missions.potential[0])
+        return float(self._missions.missions.potential[0])
 
     @property
     def geometry(self) -> FieldGeometry:
@@ -243,13 +243,14 @@ class DebrisFieldEnv(gym.Env):
         with the distance from the chaser's centre to the dock in m) or nothing left (−2, gap
         0), and how many goals come after it. The rule the shaping potential and the goal
         observation use."""
-        m, cfg = self._missions, self.config
+        batch, cfg = self._missions, self.config
+        m = batch.missions
         index, gap, after = current_goal(
             0, m.gaps, m.captured, cfg.target_order == "queued", cfg.return_to_dock,
             cfg.chaser_radius,
         )  # fmt: skip
         if index == DOCK_GOAL:
-            offset = m.state[0, : self.dim] - m.dock[0]
+            offset = m.state[0, : self.dim] - batch.dock[0]
             gap = math.sqrt(float(offset @ offset))
         return Goal(int(index), float(gap), int(after))
 
@@ -259,10 +260,7 @@ class DebrisFieldEnv(gym.Env):
 
     @property
     def _missions(self) -> MissionBatch:
-        batch = self._shell.batch
-        if batch is None:
-            raise RuntimeError("call reset() first")
-        return batch
+        return self._shell.batch_in_use
 
     # --- gymnasium API ------------------------------------------------------------------------
 
@@ -299,7 +297,7 @@ class DebrisFieldEnv(gym.Env):
             self._np_random, self._np_random_seed = saved
             raise
         self._field_geometry = None
-        state = self._missions.state[0]
+        state = self._missions.missions.state[0]
         self._trail.clear()
         self._trail.append(state[: self.dim].copy())
         terms = (0.0,) * len(REWARD_TERMS)
@@ -316,8 +314,7 @@ class DebrisFieldEnv(gym.Env):
         """
         shell = self._shell
         result = shell.step(self._action(action))
-        m = shell.missions
-        self._trail.append(m.state[0, : self.dim].copy())
+        self._trail.append(shell.batch_in_use.missions.state[0, : self.dim].copy())
         if self.render_mode == "human":
             self.render()
         info = shell.row_info(0, result.terms[0].tolist())
@@ -351,12 +348,12 @@ class DebrisFieldEnv(gym.Env):
             self._renderer = Renderer(self.render_mode, fps=self.metadata["render_fps"])
         frame = self._renderer.draw(
             scenario=scenario,
-            chaser_state=self._missions.state[0],
-            captured=self._missions.captured[0],
+            chaser_state=self._missions.missions.state[0],
+            captured=self._missions.missions.captured[0],
             trail=np.asarray(self._trail),
-            accel=self._missions.accel[0],
-            time=float(self._missions.time[0]),
-            delta_v=float(self._missions.delta_v[0]),
+            accel=self._missions.missions.accel[0],
+            time=float(self._missions.missions.time[0]),
+            delta_v=float(self._missions.missions.delta_v[0]),
         )
         return frame if self.render_mode == "rgb_array" else None
 

@@ -156,7 +156,7 @@ class MissionShell:
     # --- reading ------------------------------------------------------------------------------
 
     @property
-    def missions(self) -> MissionBatch:
+    def batch_in_use(self) -> MissionBatch:
         """The batch, after the first reset.
 
         Raises:
@@ -204,18 +204,19 @@ class MissionShell:
         """Every mission's observation, into ``out`` (N, size) float32 or a new array."""
         if out is None:
             out = np.empty((self.num, self._obs_size), dtype=np.float32)
-        return self.missions.observe(out, self.horizon)
+        return self.batch_in_use.observe(out, self.horizon)
 
     def info(self, terms: np.ndarray) -> dict[str, Any]:
         """The :data:`INFO_KEYS` of every mission as new arrays (row i = mission i);
         ``terms`` (N, 7) the step's reward terms (by term name under ``"reward_terms"``)."""
-        m = self.missions
+        batch = self.batch_in_use
+        m = batch.missions
         return {
             "chaser_state": m.state.copy(),
             "time": m.time.copy(),
             "delta_v": m.delta_v.copy(),
-            "targets_captured": m.captured_counts(),
-            "n_targets": np.full(self.num, m.n_targets),
+            "targets_captured": batch.captured_counts(),
+            "n_targets": np.full(self.num, batch.n_targets),
             "captured": m.captured.copy(),
             "min_clearance": m.min_clearance - self.config.chaser_radius,
             "collision": m.collision.copy(),
@@ -229,14 +230,15 @@ class MissionShell:
     def row_info(self, i: int, terms: Sequence[float]) -> dict[str, Any]:
         """The :data:`INFO_KEYS` of mission ``i`` as Python scalars and arrays of its own;
         ``terms`` its 7 reward terms."""
-        m = self.missions
+        batch = self.batch_in_use
+        m = batch.missions
         captured = m.captured[i].copy()
         return {
             "chaser_state": m.state[i].copy(),
             "time": float(m.time[i]),
             "delta_v": float(m.delta_v[i]),
             "targets_captured": int(np.count_nonzero(captured)),
-            "n_targets": m.n_targets,
+            "n_targets": batch.n_targets,
             "captured": captured,
             "min_clearance": float(m.min_clearance[i]) - self.config.chaser_radius,
             "collision": bool(m.collision[i]),
@@ -313,7 +315,7 @@ class MissionShell:
             self._install_scenario(rows, pinned)
         else:
             self._install(rows, fields)
-        self.missions.begin(rows, states)
+        self.batch_in_use.begin(rows, states)
         self._restart[:] = False
         if pinned is None:
             self.supply.draw_ahead(rows)
@@ -403,7 +405,7 @@ class MissionShell:
         if fields is None:
             self._install_scenario(rows, self.supply.paper_field())
             return
-        batch = self.missions
+        batch = self.batch_in_use
         t = fields.n_targets
         start = batch.field.polygon_start
         spins = None if fields.spins is None else fields.spins[:, start:]
@@ -421,7 +423,7 @@ class MissionShell:
 
     def _install_scenario(self, rows: np.ndarray, scenario: Scenario) -> None:
         """Load ``scenario`` into the rows ``rows``."""
-        batch = self.missions
+        batch = self.batch_in_use
         batch.load_scenario(rows, scenario)
         for i in rows.tolist():
             self.pinned[i], self._built[i] = scenario, None
@@ -466,10 +468,10 @@ class MissionShell:
         rows = np.flatnonzero(mask)
         if self._pin is not None:
             self._install_scenario(rows, self._pin)
-            self.missions.begin(rows)
+            self.batch_in_use.begin(rows)
             return
         self._install(rows, self.supply.take(rows))
-        self.missions.begin(rows)
+        self.batch_in_use.begin(rows)
         self.supply.draw_ahead(rows)
 
     def close(self) -> None:

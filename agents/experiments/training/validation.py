@@ -67,8 +67,10 @@ _FLOAT_RE = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
 
 def number(value: Any) -> Any:
     """YAML 1.1 reads ``3e-4`` as a string; turn numeric strings into floats."""
-    if isinstance(value, str) and _FLOAT_RE.match(value.strip()):
-        return float(value)
+    if isinstance(value, str):
+        text = value.strip()  # str.strip knows more white space than float() does ("0\x1f")
+        if _FLOAT_RE.match(text):
+            return float(text)
     return value
 
 
