@@ -145,12 +145,12 @@ class FieldBatch:
         if any(b.is_polygon for b in bodies[:ps]):
             raise ValueError(f"bodies before index {ps} must be circles in this batch")
         polys = bodies[ps:]
-        v = max([self.max_vertices, *(len(b.vertices) for b in polys if b.is_polygon)])
+        v = max([self.max_vertices, *(len(b.vertices) for b in polys if b.vertices is not None)])
         vertices = np.zeros((1, len(polys), v, 2))
         counts = np.zeros((1, len(polys)), dtype=np.int64)
         angles = scenario.body_angles(t)[ps:] if t != 0.0 else None
         for j, body in enumerate(polys):
-            if body.is_polygon:
+            if body.vertices is not None:
                 m = len(body.vertices)
                 vertices[0, j, :m] = body.vertices
                 if angles is not None and angles[j] != 0.0:

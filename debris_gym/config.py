@@ -48,6 +48,16 @@ class Option:
             text = f"[{lo}, {hi}]"
         return text + (" or None" if self.optional else "")
 
+    def limits(self) -> tuple[float, float]:
+        """``(low, high)`` of a key bounded on both sides.
+
+        Raises:
+            TypeError: the key is unbounded on a side (the caller took the wrong key).
+        """
+        if self.low is None or self.high is None:
+            raise TypeError(f"this option is unbounded on a side: {self.describe()}")
+        return self.low, self.high
+
 
 MAX_FIELD_SIZE = 1e6
 """Largest ``field_size`` (m)."""
@@ -376,7 +386,7 @@ def _checked(key: str, value: Any, kind: str) -> Any:
             raise ValueError(f"{key}={_show(value)} is not allowed; allowed: {allowed}")
         return bool(value)
     if kind == "str":
-        if not isinstance(value, str) or value not in opt.choices:
+        if not isinstance(value, str) or value not in (opt.choices or ()):
             raise ValueError(f"{key}={_show(value)} is not allowed; allowed: {allowed}")
         return str(value)
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
@@ -390,7 +400,7 @@ def _checked(key: str, value: Any, kind: str) -> Any:
         try:
             number = float(value)
         except OverflowError:  # e.g. a Fraction beyond float range
-            number = math.inf if value > 0 else -math.inf
+            number = -math.inf if value < 0 else math.inf
         if not math.isfinite(number):
             raise ValueError(f"{key} must be finite, got {_show(value)}; allowed: {allowed}{unit}")
         if kind == "int":

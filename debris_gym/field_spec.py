@@ -202,12 +202,13 @@ class FieldArrays:
     def scenario(self, k: int, *, mean_motion: float, dt: float, max_accel: float) -> Scenario:
         """Field ``k`` as a :class:`Scenario` with the given physical parameters (a
         ``motion="cwh"`` one when the field moves)."""
-        moving = self.velocities is not None
+        velocities, spins = self.velocities, self.spins
+        moving = velocities is not None
         return scenario_from_arrays(
             self.centers[k], self.radii[k], self.vertices[k], self.n_vertices[k],
             self.n_targets, self.bounds, mean_motion=mean_motion, dt=dt, max_accel=max_accel,
-            velocities=self.velocities[k] if moving else None,
-            spins=self.spins[k] if moving and self.spins is not None else None,
+            velocities=velocities[k] if velocities is not None else None,
+            spins=spins[k] if moving and spins is not None else None,
         )  # fmt: skip
 
 

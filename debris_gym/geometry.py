@@ -57,7 +57,7 @@ class FieldGeometry:
         self.inflate = float(inflate)
         bodies = scenario.bodies
         self.n_bodies = len(bodies)
-        most = max((len(b.vertices) for b in bodies if b.is_polygon), default=3)
+        most = max((len(b.vertices) for b in bodies if b.vertices is not None), default=3)
         self.batch = FieldBatch(1, self.n_bodies, self.dim, max_vertices=most)
         self.batch.load(0, scenario, self.time if scenario.moving else 0.0)
         self.centers = self.batch.centers[0]
@@ -216,11 +216,13 @@ def distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     One array operation per axis instead of a reduction over a short last axis (which numpy does
     slowly): ``sqrt((a₀ − b₀)² + (a₁ − b₁)² [+ (a₂ − b₂)²])``, summed in that order.
     """
-    sq = None
+    sq: np.ndarray | None = None
     for axis in range(a.shape[-1]):
         delta = a[..., axis] - b[..., axis]
         delta *= delta
         sq = delta if sq is None else np.add(sq, delta, out=sq)
+    if sq is None:
+        raise ValueError(f"distance needs points with at least one axis, got shape {a.shape}")
     return np.sqrt(sq, out=sq)
 
 

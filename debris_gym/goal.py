@@ -23,7 +23,7 @@ NO_GOAL = -2
 class Goal(NamedTuple):
     """A mission's current goal (see :func:`current_goal`)."""
 
-    index: int
+    index: int  # type: ignore[assignment]  # the public name; shadows tuple.index on purpose
     """Target index (≥ 0), :data:`DOCK_GOAL` (−1) or :data:`NO_GOAL` (−2)."""
     gap: float
     """For a target, the gap from the chaser's surface to the target's surface (m, negative

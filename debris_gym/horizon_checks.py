@@ -307,8 +307,8 @@ def _inside_fault_of(block: _Block, radii, low, high, accel) -> MotionFault | No
     best = None
     bad = np.argwhere(g < -tol)
     if bad.size:
-        k, b = int(bad[0, 0]), int(bad[0, 1])
-        best = MotionFault(block.t0 + k * block.dt, b, -1, _positions(pos[k, b]))
+        k0, b0 = int(bad[0, 0]), int(bad[0, 1])
+        best = MotionFault(block.t0 + k0 * block.dt, b0, -1, _positions(pos[k0, b0]))
     if g.shape[0] < 2:
         return best
     lo, hi = g[:-1], g[1:]
@@ -398,8 +398,8 @@ def _pairs_fault(block: _Block, radii, states, i, j) -> MotionFault | None:
     best = None
     bad = np.argwhere(f < -tol)
     if bad.size:
-        k, p = int(bad[0, 0]), int(bad[0, 1])
-        best = _pair_fault(block.t0 + k * dt, i[p], j[p], block.samples[k], dim)
+        k0, p0 = int(bad[0, 0]), int(bad[0, 1])
+        best = _pair_fault(block.t0 + k0 * dt, i[p0], j[p0], block.samples[k0], dim)
     if f.shape[0] < 2:
         return best
     velocity, accel = rate_bounds(states[i] - states[j], block.n, dim)

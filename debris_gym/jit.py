@@ -18,9 +18,14 @@ import contextlib
 import hashlib
 import os
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 import numba
+
+if TYPE_CHECKING:
+    from numba.core.dispatcher import Dispatcher
 
 COMPILED_MODULES = (
     "batch_geometry",
@@ -42,7 +47,7 @@ STRUCTURE_MODULES = ("mission_data", "field_spec")
 fields by position), or whose constants compiled code bakes in (``MAX_POLYGON_VERTICES``): a
 change to them drops the cache too."""
 
-COMPILE_OPTIONS: dict[str, object] = {
+COMPILE_OPTIONS: dict[str, Any] = {
     "cache": True,
     "nogil": True,
     "error_model": "numpy",
@@ -121,16 +126,25 @@ with contextlib.suppress(OSError):
         COMPILED_MODULES + STRUCTURE_MODULES + DECORATOR_MODULES,
     )
 
-kernel = numba.njit(**COMPILE_OPTIONS)
+_Function = TypeVar("_Function", bound=Callable[..., Any])
+
+
+class Decorator(Protocol):
+    """The type of the decorators below: a function in, its numba dispatcher out."""
+
+    def __call__(self, function: _Function, /) -> Dispatcher[_Function]: ...
+
+
+kernel: Decorator = numba.njit(**COMPILE_OPTIONS)
 """Decorator for a compiled loop called from Python."""
 
-inlined = numba.njit(**COMPILE_OPTIONS, inline="always")
+inlined: Decorator = numba.njit(**COMPILE_OPTIONS, inline="always")
 """Decorator for a compiled helper that kernels call (inlined into them)."""
 
-threaded = numba.njit(**COMPILE_OPTIONS, parallel=True)
+threaded: Decorator = numba.njit(**COMPILE_OPTIONS, parallel=True)
 """Decorator for a compiled loop whose ``numba.prange`` iterations run on several threads."""
 
-borrowing = numba.njit(**{**COMPILE_OPTIONS, "_nrt": False})
+borrowing: Decorator = numba.njit(**{**COMPILE_OPTIONS, "_nrt": False})
 """Decorator for a compiled loop without numba's reference counting (its runtime, NRT, left
 out of the loop's code): the loop only borrows the arrays its caller hands it, and may not
 allocate (numba refuses to compile an allocation there). Kernels it calls keep their
@@ -138,7 +152,7 @@ reference counting (``_nrt=True`` in :data:`COMPILE_OPTIONS`: numba would otherw
 them with the caller's setting)."""
 
 
-def specialise(dispatcher, *args):
+def specialise(dispatcher: Dispatcher[Any], *args: object) -> Callable[..., Any]:
     """The machine code of ``dispatcher`` (compiled or loaded from the cache if need be) for the
     types of ``args``, as a callable that skips numba's per-call type dispatch.
 

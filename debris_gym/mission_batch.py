@@ -17,7 +17,8 @@ reference (numpy and pymunk, one env at a time). No gymnasium import.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from collections.abc import Callable
+from typing import Any, NamedTuple
 
 import numba
 import numpy as np
@@ -94,7 +95,8 @@ def body_reach(sub: np.ndarray, dim: int) -> tuple[float, float]:
 def check_threads(threads: int) -> int:
     """``threads`` validated: a whole number from 1 to numba's thread count (the cores, or
     ``NUMBA_NUM_THREADS``)."""
-    limit = numba.config.NUMBA_NUM_THREADS
+    # numba sets its config from the environment at run time: the name is invisible to a checker
+    limit = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]
     if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)):
         raise ValueError(f"num_threads must be a whole number in [1, {limit}], got {threads!r}")
     if not 1 <= threads <= limit:
@@ -181,9 +183,10 @@ class MissionBatch:
         self._outputs: StepOutputs = new_step_outputs(n)
         self._field_view: Field | None = None
         self._heads: dict[str, tuple] | None = None
-        self._step_code = None  # the step's machine code, resolved on the first step
-        self._observe_code = None
-        self._begin_code: dict[bool, object] = {}
+        # the step's machine code, resolved on the first step
+        self._step_code: Callable[..., Any] | None = None
+        self._observe_code: Callable[..., Any] | None = None
+        self._begin_code: dict[bool, Callable[..., Any]] = {}
 
     def __getstate__(self) -> dict:
         # the resolved machine code does not pickle: it is resolved again on first use

@@ -49,7 +49,7 @@ from debris_gym.scenario_checks import (
     check_layout,
     check_values,
 )
-from debris_gym.scenario_values import mapping, number, sequence, show, vector
+from debris_gym.scenario_values import mapping, number, pair, sequence, show, vector
 
 __all__ = ["BODY_KEYS", "MOTION_FAULTS", "MOTION_MODELS", "Body", "Scenario", "as_scenario"]
 
@@ -70,7 +70,7 @@ MAX_FILE_BYTES = 64 * 2**20
 """Largest scenario file read (bytes): the largest scenario (20 targets, 2 000 obstacles, every
 one a 64-vertex polygon) takes under 10 MB as ``save`` writes it."""
 
-MAX_OBJECTS = 1 + sum(int(OPTIONS[option].high) for option in BODY_COUNTS.values())
+MAX_OBJECTS = 1 + sum(int(OPTIONS[option].limits()[1]) for option in BODY_COUNTS.values())
 """Most JSON objects (``{...}``) a scenario file holds: the scenario and one per body. A file
 with more is refused as soon as the parser meets one more, before it is read whole into Python
 objects (a 1e6-body file would otherwise take tens of seconds and most of a gigabyte)."""
@@ -327,7 +327,7 @@ class Scenario:
                 raise ValueError(f"{key} must be a string, got {show(data[key])}")
         scenario = cls(
             dim=dim,
-            bounds=tuple(vector(pair, 2, f"bounds[{a}]") for a, pair in enumerate(bounds)),
+            bounds=tuple(pair(low_high, f"bounds[{a}]") for a, low_high in enumerate(bounds)),
             dock=vector(data["dock"], dim, "dock"),
             targets=built["targets"],
             obstacles=built["obstacles"],
@@ -429,8 +429,12 @@ def _parse(text: str) -> Any:
         out = dict(pairs)
         if len(out) != len(pairs):
             seen: set[str] = set()
-            twice = next(k for k, _ in pairs if k in seen or seen.add(k))
-            raise ValueError(f"an object has the key {twice!r} twice; each key may appear once")
+            for key, _ in pairs:
+                if key in seen:
+                    raise ValueError(
+                        f"an object has the key {key!r} twice; each key may appear once"
+                    )
+                seen.add(key)
         return out
 
     return json.loads(text, object_pairs_hook=build, parse_int=_integer)

@@ -115,7 +115,8 @@ def check_count(kind: str, count: int) -> None:
     body is built)."""
     option = BODY_COUNTS[kind]
     opt = OPTIONS[option]
-    if not opt.low <= count <= opt.high:
+    low, high = opt.limits()
+    if not low <= count <= high:
         raise ValueError(
             f"{kind} has {count} bodies; allowed: {opt.describe()} (the env's {option})"
         )
@@ -147,7 +148,7 @@ def check_values(scenario: ScenarioFields) -> None:
     if not _bodies_pass(scenario):  # the fast screen found something: find and name it
         radius_min = {"targets": "target_radius_min", "obstacles": "obstacle_radius_min"}
         for kind in BODY_COUNTS:
-            min_radius = float(OPTIONS[radius_min[kind]].low)
+            min_radius = float(OPTIONS[radius_min[kind]].limits()[0])
             for i, body in enumerate(getattr(scenario, kind)):
                 _check_body(body, dim, f"{kind}[{i}]", min_radius, scenario.motion)
                 if kind == "targets" and body.vertices is not None:
@@ -225,8 +226,8 @@ def _body_arrays_pass(
         return False
     low = np.where(
         np.arange(len(bodies)) < len(scenario.targets),
-        OPTIONS["target_radius_min"].low,
-        OPTIONS["obstacle_radius_min"].low,
+        OPTIONS["target_radius_min"].limits()[0],
+        OPTIONS["obstacle_radius_min"].limits()[0],
     )
     r = np.array(radii, dtype=float)
     if not (np.isfinite(r).all() and np.all(r >= low)):
@@ -236,7 +237,7 @@ def _body_arrays_pass(
         return True
     if dim != 2:
         return False
-    shapes = [b.vertices for b in polygons]
+    shapes = [b.vertices for b in polygons if b.vertices is not None]
     counts = np.array([len(v) for v in shapes])
     if not (
         all(type(v) is tuple for v in shapes)

@@ -28,6 +28,7 @@ __all__ = [
     "interval",
     "mapping",
     "number",
+    "pair",
     "polygon_shapes",
     "radius_matches",
     "sequence",
@@ -35,14 +36,14 @@ __all__ = [
     "vector",
 ]
 
-MIN_WORLD_SIZE = float(OPTIONS["field_size"].low)
+MIN_WORLD_SIZE = float(OPTIONS["field_size"].limits()[0])
 """Shortest allowed edge of the world box (m), the env's smallest ``field_size``.
 
 Rewards and observations are scaled by L = half the world's largest edge: in a world of a few
 metres one step's progress term reaches thousands, and the env's default capture zone (5 m) is
 larger than the world itself."""
 
-MAX_WORLD_COORDINATE = float(OPTIONS["field_size"].high)
+MAX_WORLD_COORDINATE = float(OPTIONS["field_size"].limits()[1])
 """Largest allowed |bound| (m): the world lies within the env's largest ``field_size`` of the
 LVLH origin (the reference orbit), where the linear CWH model holds."""
 
@@ -105,6 +106,13 @@ def vector(value: Any, dim: int, key: str, unit: str = "m") -> tuple[float, ...]
     return tuple(number(v, f"{key}[{i}]", unit=unit) for i, v in enumerate(value))
 
 
+def pair(value: Any, key: str, unit: str = "m") -> tuple[float, float]:
+    """``value`` as two finite floats (a 2D point, a ``[low, high]`` range), else ``ValueError``
+    naming ``key``."""
+    first, second = vector(value, 2, key, unit)
+    return first, second
+
+
 def sequence(value: Any, key: str, what: str) -> list[Any] | tuple[Any, ...]:
     """``value`` if it is a list or tuple, else ``ValueError`` naming ``key``."""
     if not isinstance(value, (list, tuple)):
@@ -159,7 +167,7 @@ def check_polygon(vertices: Any, radius: float | None, key: str) -> tuple[tuple[
         raise ValueError(
             f"{key} has {len(vertices)} vertices; allowed: 3 to {MAX_VERTICES} per polygon"
         )
-    pts = tuple(vector(v, 2, f"{key}[{k}]") for k, v in enumerate(vertices))
+    pts = tuple(pair(v, f"{key}[{k}]") for k, v in enumerate(vertices))
     xy = np.asarray(pts)
     left, turns, circumradius = polygon_shapes(xy, np.array([len(pts)]))
     if left[0] < len(pts):

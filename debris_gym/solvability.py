@@ -68,11 +68,10 @@ def route_proof(
     reach = radii + chaser_radius
 
     def inside(points: np.ndarray, margin) -> np.ndarray:  # (K, P, dim) -> (K, P)
-        ok = None
+        ok = np.ones(points.shape[:-1], dtype=bool)
         for axis in range(dim):
             x = points[..., axis]
-            axis_ok = (x - margin > low[axis]) & (x + margin < high[axis])
-            ok = axis_ok if ok is None else ok & axis_ok
+            ok &= (x - margin > low[axis]) & (x + margin < high[axis])
         return ok
 
     def free(points: np.ndarray) -> np.ndarray:  # (K, P, dim) -> (K, P)
@@ -87,7 +86,7 @@ def route_proof(
     t = n_targets
     depth = radii[:, :t] + chaser_radius + 0.5 * capture_radius
     points = centers[:, :t, None, :] + depth[..., None, None] * dirs  # (K, T, D, dim)
-    ok &= free(points.reshape(num, -1, dim)).reshape(num, t, -1).any(axis=2).all(axis=1)
+    ok &= np.any(free(points.reshape(num, -1, dim)).reshape(num, t, -1), axis=2).all(axis=1)
     return ok
 
 
@@ -195,7 +194,8 @@ def field_occupancy(
     tiles = FieldBatch(rows, width, dim, max_vertices=max(v, 3))
     tiles.load_arrays(np.arange(rows), tile_centers, tile_radii, tile_vertices, tile_counts)
     index = np.indices(shape).reshape(dim, -1) // tile
-    cell_tile = np.ravel_multi_index(tuple(index), n_tiles)
+    index_rows: tuple[np.ndarray, ...] = tuple(index)
+    cell_tile = np.ravel_multi_index(index_rows, n_tiles)
     flat = mesh.reshape(-1, dim)
     out = occupied.reshape(-1)
     for start in range(0, flat.shape[0], _CHUNK):

@@ -447,3 +447,12 @@ def test_the_thrust_model_keeps_a_huge_ball_actions_direction():
     np.testing.assert_allclose(
         commanded_accel(huge, 0.05, "ball"), 0.05 * np.array([[0.6, -0.8], [1.0, 0.0], [0.6, -0.8]])
     )
+
+
+def test_an_option_gives_its_limits_only_when_bounded_on_both_sides():
+    """``Option.limits()`` is ``(low, high)`` of a numeric key; a categorical key has none and
+    says so with a TypeError instead of handing out None."""
+    size = OPTIONS["field_size"]
+    assert size.limits() == (size.low, size.high) and size.low is not None
+    with pytest.raises(TypeError, match="unbounded"):
+        OPTIONS["observation"].limits()

@@ -320,6 +320,8 @@ class MPCTracker:
             carried offsets are those of p̂_k's half-spaces moved to t0 + (k+1)·dt.
         """
         motion, dt = self.motion, self.dt
+        if motion is None:
+            raise RuntimeError("half-spaces that move with the bodies need the tracker's motion")
         k_pts = len(points)
         normals = np.empty((k_pts, self.M, self.dim))
         offsets = np.empty((k_pts, self.M))

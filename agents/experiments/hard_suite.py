@@ -42,6 +42,7 @@ import numpy as np
 import debris_gym  # registers the IDs; locates the suite folder
 from agents.experiments.cli import MAX_EPISODES, MAX_SEED, integer
 from agents.planners.rrt import RRTParams
+from agents.policies.base import unwrap
 from agents.policies.registry import make_agent
 from debris_gym.scenario import Scenario
 from debris_gym.suites import RESERVED_SEEDS, Mission, Suite, read_suite, write_suite
@@ -107,7 +108,7 @@ class Screen:
     apf_success: bool
     detections: int
     solved_by: str | None
-    scenario: Scenario | None
+    scenario: Scenario
 
     @property
     def apf_stalled(self) -> bool:
@@ -171,7 +172,9 @@ def screen_seed(env: gym.Env, watcher: Any, solvers: dict[str, Any], seed: int) 
         if "could not place" in str(error):
             return None
         raise
-    scenario = env.unwrapped.scenario
+    scenario = unwrap(env).scenario
+    if scenario is None:
+        raise RuntimeError(f"the env has no field after reset(seed={seed})")
     apf_success = bool(info["is_success"])
     detections = int(watcher.detections)
     solved_by = None
@@ -302,7 +305,7 @@ def rows_markdown(rows: Sequence[MissionRow]) -> str:
         if mine[0].escapes is not None:
             esc = sum(1 for r in mine if r.escapes)
             det = sum(1 for r in mine if r.detections)
-            fired = f"{esc} / {det} ({sum(r.escapes for r in mine)} escapes)"
+            fired = f"{esc} / {det} ({sum(r.escapes or 0 for r in mine)} escapes)"
         lines.append(
             f"| {name} | {sum(r.success for r in mine)} / {len(mine)} | "
             f"{sum(r.collision for r in mine)} | {np.mean([r.delta_v for r in mine]):.1f} | "

@@ -440,11 +440,9 @@ class Descent:
                 return "arrived", None, min_clear
             reason = _stalled(dists, self.params, f_att, f_rep)
             nxt = self.step(x, f_att + f_rep, clearance)
-            if reason is None and nxt is None:
-                reason = "zero_force"
-            if reason is not None:
+            if reason is not None or nxt is None:
                 tail = np.asarray(points[-min(len(points), 10) :])
-                return reason, tail.mean(axis=0), min_clear
+                return reason or "zero_force", tail.mean(axis=0), min_clear
             x = nxt
             points.append(x)
             dists.append(float(np.linalg.norm(self.goal - x)))

@@ -237,15 +237,15 @@ def astar_path(
     s_cell = _snap(grid, occ, start, hop, radius)
     g_cell = _snap(grid, occ, goal, hop, radius)
     info.update(start_cell=s_cell, goal_cell=g_cell)
-    failure = None
+    cells = None
     if s_cell is None:
         failure = "start_blocked"
     elif g_cell is None:
         failure = "goal_blocked"
-    cells = None if failure else astar(occ, s_cell, g_cell)
-    if failure is None and cells is None:
+    else:
+        cells = astar(occ, s_cell, g_cell)
         failure = "no_path"
-    if failure is not None:
+    if cells is None:
         info["reason"] = failure
         return PlanResult(False, start[None].copy(), 0.0, info)
     info["cells"] = cells

@@ -136,7 +136,9 @@ class EdgeChecker:
         hits = set(self.safe.touched(path, gaps))
         if hits - self.ignore:
             return False
-        return not (hits and self.ignore.intersection(self.physical.touched(path, gaps)))
+        if not hits or self.physical is None:  # (no ignored bodies: no physical geometry)
+            return True
+        return not self.ignore.intersection(self.physical.touched(path, gaps))
 
     def path_free(self, waypoints: np.ndarray) -> bool:
         """Whether every segment of the polyline is free."""
@@ -262,7 +264,7 @@ def exit_index(
 
 def densify(waypoints: np.ndarray, spacing: float) -> np.ndarray:
     """Insert points so that no segment is longer than ``spacing`` (m); drops the first point."""
-    out = []
+    out: list[np.ndarray] = []
     for a, b in zip(waypoints[:-1], waypoints[1:]):
         n = max(1, math.ceil(float(np.linalg.norm(b - a)) / spacing))
         out.extend(a + (b - a) * (k / n) for k in range(1, n + 1))

@@ -456,7 +456,8 @@ def _solve(
     box = thrust_model == "box"
     n_slack = d if box else 1
     n_u, n_s = T * d, T * n_slack
-    soft = params.sphere_penalty is not None
+    penalty = params.sphere_penalty
+    soft = penalty is not None
     n_e = T - 1 if soft else 0  # one sphere violation (in ℓ) per inner point
     nz = n_u + n_s + n_e
     blocks: list[sp.spmatrix] = []
@@ -518,12 +519,13 @@ def _solve(
     if soft:
         add(sp.hstack([sp.csr_matrix((n_e, n_u + n_s)), sp.identity(n_e)]), np.zeros(n_e),
             np.full(n_e, np.inf))  # fmt: skip
-    A = sp.vstack(blocks, format="csc")
+    # scipy-stubs type vstack's format= for sparse arrays only, not sparse matrices
+    A = sp.vstack(blocks, format="csc")  # type: ignore[call-overload]
     lo, hi = np.concatenate(lower), np.concatenate(upper)
     q = np.zeros(nz)
     q[n_u : n_u + n_s] = 1.0
-    if soft:  # fuel is in units of a·Δ (m/s), violations in ℓ = a·Δ² (m)
-        q[n_u + n_s :] = params.sphere_penalty * step
+    if penalty is not None:  # fuel is in units of a·Δ (m/s), violations in ℓ = a·Δ² (m)
+        q[n_u + n_s :] = penalty * step
     if params.solver == "highs":
         status, z = _solve_lp(q, A, lo, hi)
     else:
@@ -552,11 +554,12 @@ def _solve_lp(
     eq = lo == hi
     up = ~eq & np.isfinite(hi)
     down = ~eq & np.isfinite(lo)
-    A = A.tocsr()
-    a_ub = sp.vstack([A[np.flatnonzero(up)], -A[np.flatnonzero(down)]], format="csr")
+    rows = A.tocsr()
+    a_ub = sp.vstack([rows[np.flatnonzero(up)], -rows[np.flatnonzero(down)]], format="csr")
     b_ub = np.concatenate([hi[up], -lo[down]])
-    res = linprog(
-        q, A_ub=a_ub, b_ub=b_ub, A_eq=A[np.flatnonzero(eq)], b_eq=lo[eq],
+    # scipy-stubs type A_ub / A_eq as dense, but HiGHS takes sparse matrices
+    res = linprog(  # type: ignore[call-overload]
+        q, A_ub=a_ub, b_ub=b_ub, A_eq=rows[np.flatnonzero(eq)], b_eq=lo[eq],
         bounds=(None, None), method="highs",
     )  # fmt: skip
     if res.status != 0 or res.x is None:

@@ -322,7 +322,10 @@ def edge_cost(
 def shortest_chain(graph: SphereGraph, source: int = 0, target: int = 1) -> SphereChain:
     """``MinPath``: the least-cost chain of spheres from node ``source`` to node ``target``
     (Dijkstra on the edge costs)."""
-    dist, pred = dijkstra(graph.adjacency, indices=source, return_predecessors=True)
+    # scipy-stubs type indices as an array, but an int is allowed (1-D results)
+    dist, pred = dijkstra(  # type: ignore[call-overload]
+        graph.adjacency, indices=source, return_predecessors=True
+    )
     info = {"nodes": graph.n_nodes, "samples": graph.samples}
     d = graph.centers.shape[1]
     if not np.isfinite(dist[target]):

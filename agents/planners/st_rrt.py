@@ -322,8 +322,11 @@ class _Search:
         if r_new is None:
             return None
         near_d = tree.metric(q_new, t_new, self.v)
-        order = np.argsort(near_d)[: self.p.rewire_neighbours]
-        order = [int(j) for j in order if math.isfinite(near_d[j])]
+        order = [
+            int(j)
+            for j in np.argsort(near_d)[: self.p.rewire_neighbours]
+            if math.isfinite(near_d[j])
+        ]
         if i not in order:
             order.append(i)
         lengths = np.linalg.norm(tree.pos[order] - q_new, axis=1)
@@ -398,6 +401,8 @@ class _Search:
 
     def solution(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         s, g = self.trees
+        if self.best_pair is None:
+            raise RuntimeError("no solution found yet")
         a, b = self.best_pair
         first = s.path(a)[::-1]
         second = g.path(b)[1:]  # b is the same state as a

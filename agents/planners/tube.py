@@ -149,7 +149,7 @@ def build_tube(
 
 def _difference(count: int, order: int) -> sp.csr_matrix:
     """(count − order, count) forward-difference operator of the given order."""
-    op = sp.identity(count, format="csr")
+    op: sp.csr_matrix | sp.csc_matrix | sp.bsr_matrix = sp.identity(count, format="csr")
     for _ in range(order):
         m = op.shape[0]
         op = (sp.eye(m - 1, m, k=1) - sp.eye(m - 1, m)) @ op
@@ -209,7 +209,7 @@ def smooth_in_tube(
     pin = sp.kron(sp.identity(count, format="csr")[pin_rows], eye_d)
     pin_v = cs[pin_rows].reshape(-1)
     a_lim = p.accel_fraction * max_accel / math.sqrt(d) * h * h / ell
-    blocks = [facet, pin]
+    blocks: list[sp.spmatrix] = [facet, pin]
     lower = [np.full(facet.shape[0], -np.inf), pin_v]
     upper = [facet_u, pin_v]
     info: dict[str, Any] = {}
@@ -220,9 +220,11 @@ def smooth_in_tube(
             a_blocks.append(d2)
             lo.append(np.full(d2.shape[0], -a_lim))
             hi.append(np.full(d2.shape[0], a_lim))
+        # scipy-stubs type vstack's format= for sparse arrays only, not sparse matrices
+        constraints = sp.vstack(a_blocks, format="csc")  # type: ignore[call-overload]
         solver = osqp.OSQP()
         solver.setup(
-            P, q, sp.vstack(a_blocks, format="csc"), np.concatenate(lo), np.concatenate(hi),
+            P, q, constraints, np.concatenate(lo), np.concatenate(hi),
             verbose=False, polishing=True, eps_abs=1e-4, eps_rel=1e-4, max_iter=p.max_iter,
         )  # fmt: skip
         res = solver.solve(raise_error=False)

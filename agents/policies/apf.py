@@ -182,9 +182,9 @@ class APFAgent(ClassicalAgent):
             self.frame_pos = frame[:d]
             state = state - frame
             vel = state[d:]
-        compensation = -cwh_acceleration(state, self.env.scenario.mean_motion)
+        compensation = -cwh_acceleration(state, self.scenario.mean_motion)
         if goal is None:  # mission over: hold still
-            accel = prioritised_sum(compensation, -vel / self.env.scenario.dt, self._limit())
+            accel = prioritised_sum(compensation, -vel / self.scenario.dt, self._limit())
             return self.accel_to_action(accel)
         key = (goal.kind, goal.index)
         if key != self.goal_key:
@@ -231,7 +231,7 @@ class APFAgent(ClassicalAgent):
 
     def frame_vel(self) -> np.ndarray:
         """Velocity (m/s) of the goal's frame now (zero in a frozen field or for the dock)."""
-        if self.motion is None or self.goal_key is None or self.goal_key[1] is None:
+        if self.body_vel is None or self.goal_key is None or self.goal_key[1] is None:
             return np.zeros_like(self.frame_pos)
         return self.body_vel[self.goal_key[1]]
 
@@ -242,10 +242,10 @@ class APFAgent(ClassicalAgent):
     # --- helpers -------------------------------------------------------------------------------
 
     def _limit(self) -> float:
-        return self.env.scenario.max_accel
+        return self.scenario.max_accel
 
     def _decel(self) -> float:
-        return self.guidance.brake_fraction * self.env.scenario.max_accel
+        return self.guidance.brake_fraction * self.scenario.max_accel
 
     def _damping(
         self,
@@ -265,7 +265,7 @@ class APFAgent(ClassicalAgent):
         Sliding along a surface stays lightly damped.
         """
         p = self.params
-        dt = self.env.scenario.dt
+        dt = self.scenario.dt
         cap = 1.6 / dt
         base = self.guidance.damping
         if float(np.linalg.norm(aim - pos)) <= p.d_star:
@@ -289,7 +289,7 @@ class APFAgent(ClassicalAgent):
 
     def _goal_braking(self, pos: np.ndarray, vel: np.ndarray, aim: np.ndarray) -> np.ndarray:
         """Cuts the speed down to the braking limit for the distance left to the goal."""
-        dt = self.env.scenario.dt
+        dt = self.scenario.dt
         speed = float(np.linalg.norm(vel))
         limit = braking_speed(float(np.linalg.norm(aim - pos)), self._decel(), dt)
         if speed <= limit or speed == 0.0:
@@ -319,7 +319,7 @@ class APFAgent(ClassicalAgent):
             (unit directions toward each body or bound (k, dim), the largest net acceleration
             along each (k,) (m/s²); negative means the chaser must brake now).
         """
-        scen, dt = self.env.scenario, self.env.scenario.dt
+        scen, dt = self.scenario, self.scenario.dt
         p = self.params
         decel = self._decel()
         buffer = np.where(active, p.margin, 0.25 * self.env.config.capture_radius)

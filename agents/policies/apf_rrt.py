@@ -110,7 +110,7 @@ class APFRRTAgent(APFAgent):
         self.goal_escapes = 0
         self.history: list[tuple[float, np.ndarray, np.ndarray]] = []
         self.best_gap = math.inf  # closest approach to the goal (m) before the window
-        self.stall_steps = max(1, round(self.guidance.stall_time / self.env.scenario.dt))
+        self.stall_steps = max(1, round(self.guidance.stall_time / self.scenario.dt))
 
     def on_new_goal(self, goal: Goal) -> None:
         super().on_new_goal(goal)

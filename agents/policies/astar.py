@@ -62,25 +62,28 @@ class AStarAgent(MPCPathAgent):
         self.stats.update(exact_grid_retries=0)
 
     def prepare_snapshot(self, snapshot: Scenario) -> None:
-        self.grid = GridMap(snapshot, self.grid.cell)
+        self.grid = GridMap(snapshot, self._prepared_grid().cell)
+
+    def _prepared_grid(self) -> GridMap:
+        if self.grid is None:
+            raise RuntimeError("the A* grid is built when the agent first acts (predict())")
+        return self.grid
 
     def plan_path(self, start: np.ndarray, goal: Goal) -> PlanResult:
         cfg = self.env.config
         margin = self.margin if self.margin is not None else self.tracker.keepout_margin
-        inflate = self.grid.body_inflation(
-            cfg.chaser_radius + margin, goal.index, cfg.chaser_radius
-        )
-        result = None
+        grid = self._prepared_grid()
+        inflate = grid.body_inflation(cfg.chaser_radius + margin, goal.index, cfg.chaser_radius)
         for conservative in (True, False):
             result = astar_path(
                 self.plan_scenario,
                 start,
                 goal.point,
-                cell=self.grid.cell,
+                cell=grid.cell,
                 inflate=inflate,
                 min_inflate=cfg.chaser_radius,
                 conservative=conservative,
-                grid=self.grid,
+                grid=grid,
             )
             if result.success:
                 break

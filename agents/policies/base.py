@@ -82,9 +82,7 @@ class ClassicalAgent:
                 f"a classical agent flies the one env it was built with; got a batch of "
                 f"{obs.shape[0]} observations"
             )
-        scenario = self.env.scenario
-        if scenario is None:
-            raise RuntimeError("reset the env before calling predict()")
+        scenario = self.scenario
         new_episode = self.env.elapsed == 0.0 and self._episode_time != 0.0
         if scenario is not self._scenario or new_episode:
             self._scenario = scenario
@@ -94,6 +92,18 @@ class ClassicalAgent:
         if not np.all(np.isfinite(action)):
             raise FloatingPointError(f"{self.name} produced a non-finite action {action}")
         return (action[None] if batched else action), state
+
+    @property
+    def scenario(self) -> Scenario:
+        """The env's current field.
+
+        Raises:
+            RuntimeError: the env has not been reset yet (it has no field).
+        """
+        scenario = self.env.scenario
+        if scenario is None:
+            raise RuntimeError("reset the env before calling predict()")
+        return scenario
 
     # --- hooks --------------------------------------------------------------------------------
 
@@ -109,4 +119,4 @@ class ClassicalAgent:
     def accel_to_action(self, accel: np.ndarray) -> np.ndarray:
         """Acceleration (m/s²) → normalised action, by the env's own inverse thrust model
         (:func:`debris_gym.thrust.action_for_accel`)."""
-        return action_for_accel(accel, self.env.scenario.max_accel, self.env.config.thrust_model)
+        return action_for_accel(accel, self.scenario.max_accel, self.env.config.thrust_model)

@@ -16,7 +16,10 @@ import pickle
 import re
 import zipfile
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from stable_baselines3.common.base_class import BaseAlgorithm
 
 LEARNED_ALGOS = ("ppo", "sac", "td3", "dqn", "recurrent_ppo")
 """Algorithms whose saved models :func:`agents.load_agent` loads: the SB3 classes of the same
@@ -29,7 +32,7 @@ CHECKPOINT_RE = re.compile(r"^(?P<prefix>.+)_(?P<steps>\d+)_steps$")
 """The stem of an SB3 checkpoint, ``rl_model_N_steps``."""
 
 
-def algo_class(algo: str) -> type:
+def algo_class(algo: str) -> type[BaseAlgorithm]:
     """The Stable-Baselines3 class of ``algo`` (one of :data:`LEARNED_ALGOS`).
 
     Raises:
@@ -46,7 +49,13 @@ def algo_class(algo: str) -> type:
                 '(or pip install -e ".[rl]")'
             ) from None
         return RecurrentPPO
-    return {"ppo": sb3.PPO, "sac": sb3.SAC, "td3": sb3.TD3, "dqn": sb3.DQN}[algo]
+    classes: dict[str, type[BaseAlgorithm]] = {
+        "ppo": sb3.PPO,
+        "sac": sb3.SAC,
+        "td3": sb3.TD3,
+        "dqn": sb3.DQN,
+    }
+    return classes[algo]
 
 
 def sidecar_path(model_path: str | Path, kind: str) -> Path:

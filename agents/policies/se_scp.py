@@ -40,7 +40,7 @@ from agents.control.reference import ReferenceParams
 from agents.planners.mission import Goal
 from agents.planners.polytopes import inscribed_polytope
 from agents.planners.result import PlanResult
-from agents.planners.scp import SCPParams, scp_trajectory
+from agents.planners.scp import SCPParams, SCPResult, scp_trajectory
 from agents.planners.spherical_expansion import (
     ExpansionParams,
     chain_waypoints,
@@ -115,10 +115,9 @@ class SweptGeometry:
     def signed_distance(self, points: np.ndarray) -> np.ndarray:
         """(M, n_bodies) least signed distance (m) over the times."""
         pts = np.asarray(points, dtype=float).reshape(-1, self.dim)
-        out = None
-        for geometry, shift in zip(self.geometries, self.shifts, strict=True):
-            gaps = geometry.signed_distance(pts + shift)
-            out = gaps if out is None else np.minimum(out, gaps)
+        out = self.geometries[0].signed_distance(pts + self.shifts[0])
+        for geometry, shift in zip(self.geometries[1:], self.shifts[1:], strict=True):
+            out = np.minimum(out, geometry.signed_distance(pts + shift))
         return out
 
 
@@ -196,7 +195,7 @@ class SESCPAgent(MPCPathAgent):
         self.fallback_every = fallback_every
         self.keep_fraction = keep_fraction
         self.seed = seed
-        self.last_scp = None
+        self.last_scp: SCPResult | None = None
 
     def prepare(self, scenario: Scenario) -> None:
         self._rng = np.random.default_rng(self.seed)
@@ -206,6 +205,7 @@ class SESCPAgent(MPCPathAgent):
             raise ValueError(f"scp step must be a whole number of env steps, got {step!r} s")
         self._substeps = ratio
         self._scp = dataclasses.replace(self.scp_params, step=step)
+        self._scp_step = step
         self._step_model = discretize(scenario.mean_motion, scenario.dt, scenario.dim)
         self._trajectory: np.ndarray | None = None
         self._arrival: tuple[tuple, float] | None = None
@@ -252,7 +252,7 @@ class SESCPAgent(MPCPathAgent):
         state = np.asarray(self.env.chaser_state, float) - frame
         # keep the arrival time of the first plan toward this goal (a shrinking horizon): a
         # re-plan re-solves the rest of the same manoeuvre instead of starting a new one
-        now, step = self.env.elapsed, self._scp.step
+        now, step = self.env.elapsed, self._scp_step
         key = (goal.kind, goal.index)
         steps = None
         if self._arrival is not None and self._arrival[0] == key:
@@ -293,7 +293,7 @@ class SESCPAgent(MPCPathAgent):
             return True
         d = self.env.dim
         ahead = ref.states[min(ref.progress + 1, len(ref.states) - 1) :][: self.check_steps]
-        dt = self.env.scenario.dt
+        dt = self.scenario.dt
         times = now + dt * np.arange(1, len(ahead) + 1)
         frame = self.goal.index if self.goal.kind == "target" else None
         cfg = self.env.config

@@ -83,6 +83,8 @@ class SlotSetExtractor(BaseFeaturesExtractor):
         hidden_dim: width of ``phi``'s hidden layer.
     """
 
+    context_index: torch.Tensor  # a registered buffer (so it follows the module's device)
+
     def __init__(
         self,
         observation_space: gym.spaces.Box,

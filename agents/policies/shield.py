@@ -237,7 +237,7 @@ class SafetyShield:
     def _command_accel(self, action: Any) -> np.ndarray:
         """The acceleration (m/s²) ``action`` commands, after the env's own input checks."""
         scen = self._current_scenario()
-        if self.discrete:
+        if self.table is not None:  # a discrete action space
             index = checked_discrete_action(action, len(self.table))
             return self.table[index] * scen.max_accel
         a = checked_continuous_actions(action, (self.dim,))
@@ -260,7 +260,7 @@ class SafetyShield:
     def _candidates(self, setting: _Setting, u_cmd: np.ndarray) -> tuple[Any, np.ndarray]:
         """Candidate actions and the accelerations (m/s²) they command, the command's first."""
         amax = setting.max_accel
-        if self.discrete:
+        if self.table is not None:  # a discrete action space
             return np.arange(len(self.table)), self.table * amax
         p = self.params
         levels = np.arange(1, p.levels + 1) / p.levels
@@ -291,7 +291,7 @@ class SafetyShield:
     def _setting(self) -> _Setting:
         """Everything one decision needs: models, the bodies on the sample grid, backups."""
         scen = self._current_scenario()
-        if scen is not self._scenario:  # a new episode's field: its motion, once
+        if scen is not self._scenario or self._motion is None:  # a new field: its motion, once
             self._scenario, self._motion = scen, FieldMotion(scen)
         p, d = self.params, self.dim
         dt, n = float(scen.dt), float(scen.mean_motion)
@@ -331,7 +331,7 @@ class SafetyShield:
     def _saturate(self, u: np.ndarray, amax: float) -> np.ndarray:
         """Accelerations (N, d) cut to what the env can fly: its thrust model, or the nearest
         discrete action."""
-        if self.discrete:
+        if self.table is not None:  # a discrete action space
             table = self.table * amax
             best = np.argmin(np.linalg.norm(u[:, None, :] - table[None], axis=2), axis=1)
             return table[best]

@@ -9,7 +9,7 @@ training with the shield on, and reports the counters in ``info``.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
@@ -143,7 +143,7 @@ class ShieldWrapper(gym.Wrapper):
         self.stats = ShieldStats()
         return obs, {**info, "shield_intervened": False, **self.stats.as_info()}
 
-    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+    def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         """Step with the shield's action in place of ``action``."""
         decision = self.shield.decide(action)
         self.stats.add(decision.intervened, decision.size)

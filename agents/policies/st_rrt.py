@@ -105,10 +105,17 @@ class STRRTAgent(ClassicalAgent):
         self.replan_distance = replan_distance
         self.stall_steps = stall_steps
         self.retry_steps = retry_steps
-        self.tracker: MPCTracker | None = None
+        self._tracker: MPCTracker | None = None
         self.stats: dict[str, Any] = {}
         self.plan_times: list[float] = []
         self.decision_times: list[float] = []
+
+    @property
+    def tracker(self) -> MPCTracker:
+        """The episode's :class:`MPCTracker` (``RuntimeError`` before the agent first acts)."""
+        if self._tracker is None:
+            raise RuntimeError(f"the {self.name!r} agent has no tracker before it first acts")
+        return self._tracker
 
     # --- ClassicalAgent -----------------------------------------------------------------------
 
@@ -118,7 +125,7 @@ class STRRTAgent(ClassicalAgent):
         moving = self.motion if scenario.moving else None
         self.mission = MissionPlan(scenario, cfg, self.ordering, motion=moving)
         self.geometry = FieldGeometry(scenario)
-        self.tracker = MPCTracker(
+        self._tracker = MPCTracker(
             scenario, self.mpc_params, thrust_model=cfg.thrust_model,
             chaser_radius=cfg.chaser_radius, geometry=self.geometry, motion=moving,
         )  # fmt: skip
@@ -185,6 +192,8 @@ class STRRTAgent(ClassicalAgent):
 
     def _planned(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Trajectory positions and velocities (goal frame) at times ``t`` (held at the end)."""
+        if self._traj is None:
+            raise RuntimeError("no trajectory planned")
         times, pos, vel = self._traj
         p = np.stack([np.interp(t, times, pos[:, i]) for i in range(pos.shape[1])], -1)
         v = np.stack([np.interp(t, times, vel[:, i]) for i in range(vel.shape[1])], -1)
@@ -193,7 +202,7 @@ class STRRTAgent(ClassicalAgent):
 
     def _reference(self, now: float) -> tuple[np.ndarray, np.ndarray]:
         """Reference positions / velocities (LVLH) at now + k·dt, k = 1 … N."""
-        n_steps, d, dt = self.tracker.N, self.env.dim, self.env.scenario.dt
+        n_steps, d, dt = self.tracker.N, self.env.dim, self.scenario.dt
         rel_pos, rel_vel = self._planned(now + dt * np.arange(1, n_steps + 1))
         track = self.motion.body_track(self._frame, now, n_steps)
         return rel_pos + track[:, :d], rel_vel + track[:, d:]
@@ -208,7 +217,7 @@ class STRRTAgent(ClassicalAgent):
         if np.linalg.norm(here - planned[0]) > self._replan_distance:
             self.stats["replans"] += 1
             return True
-        if now > self._traj[0][-1] + self.stall_steps * self.env.scenario.dt:
+        if now > self._traj[0][-1] + self.stall_steps * self.scenario.dt:
             self.stats["stall_replans"] += 1
             return True
         return False
@@ -220,7 +229,7 @@ class STRRTAgent(ClassicalAgent):
         capture depth), never more than the chaser's present gap to a body's circumscribed
         circle, so the start is always a valid state."""
         cfg = self.env.config
-        scen = self.env.scenario
+        scen = self.scenario
         n_bodies = len(scen.bodies)
         inflation = np.full(n_bodies, cfg.chaser_radius + self.tracker.keepout_margin)
         if goal.kind == "target":
@@ -235,11 +244,12 @@ class STRRTAgent(ClassicalAgent):
         if goal is None:
             self._traj = None
             return
-        cfg, scen, d = self.env.config, self.env.scenario, self.env.dim
+        cfg, scen, d = self.env.config, self.scenario, self.env.dim
         t0 = time.perf_counter()
         goal = self._goal = self.mission.current_goal(self.env.captured, state[:d], now) or goal
         self._frame = goal.index if goal.kind == "target" else None
-        self._margins = {goal.index: 0.25 * cfg.capture_radius} if goal.kind == "target" else {}
+        target = goal.index  # None for the dock
+        self._margins = {target: 0.25 * cfg.capture_radius} if target is not None else {}
         frame_state = self._frame_state(now)
         rel = state - frame_state
         goal_rel = goal.point - frame_state[:d]
@@ -270,7 +280,7 @@ class STRRTAgent(ClassicalAgent):
         self, start: np.ndarray, goal: np.ndarray, now: float
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """A straight line to the goal at half the planning speed (after a failed search)."""
-        dt = self.env.scenario.dt
+        dt = self.scenario.dt
         length = float(np.linalg.norm(goal - start))
         steps = max(1, int(np.ceil(length / (0.5 * self.params.max_speed * dt))))
         frac = np.linspace(0.0, 1.0, steps + 1)[:, None]

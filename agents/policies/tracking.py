@@ -100,9 +100,20 @@ class MPCPathAgent(ClassicalAgent):
         self.ordering = ordering
         self.replan_distance = replan_distance
         self.stall_steps = stall_steps
-        self.tracker: MPCTracker | None = None
+        self._tracker: MPCTracker | None = None
         self.stats: dict[str, Any] = {}
         self.decision_times: list[float] = []
+
+    @property
+    def tracker(self) -> MPCTracker:
+        """The episode's :class:`MPCTracker`.
+
+        Raises:
+            RuntimeError: before the first episode's plan (the agent has not acted yet).
+        """
+        if self._tracker is None:
+            raise RuntimeError(f"the {self.name!r} agent has no tracker before it first acts")
+        return self._tracker
 
     # --- hooks --------------------------------------------------------------------------------
 
@@ -142,7 +153,7 @@ class MPCPathAgent(ClassicalAgent):
         self.geometry = FieldGeometry(scenario)
         self.plan_scenario = scenario
         self.plan_geometry = self.geometry
-        self.tracker = MPCTracker(
+        self._tracker = MPCTracker(
             scenario,
             self.mpc_params,
             thrust_model=cfg.thrust_model,
@@ -157,6 +168,8 @@ class MPCPathAgent(ClassicalAgent):
         self._goal_key: tuple | None = None
         self._goal: Goal | None = None
         self._ref: PathReference | None = None
+        self._best_progress = 0  # the path sample reached, and decisions since it was
+        self._since_progress = 0
         self._margins: dict[int, float] = {}
         self.stats = {
             "plans": 0,
@@ -173,9 +186,10 @@ class MPCPathAgent(ClassicalAgent):
         env, d = self.env, self.env.dim
         state = env.chaser_state
         pos = state[:d]
-        now = env.elapsed if self.motion is not None else None
+        elapsed = env.elapsed
+        now = elapsed if self.motion is not None else None
         captured = env.captured
-        key = tuple(bool(c) for c in captured)
+        key: tuple[Any, ...] = tuple(bool(c) for c in captured)
         goal = None
         self._since_plan += 1
         if self.mission.nearest:  # the env's goal can change without a capture
@@ -186,35 +200,35 @@ class MPCPathAgent(ClassicalAgent):
             self._goal = goal or self.mission.current_goal(captured, pos, now)
             self.tracker.reset()
             self._new_path(pos)
-        elif self.motion is not None and self.plan_expired(now):
+        elif self.motion is not None and self.plan_expired(elapsed):
             self._new_path(pos)
         elif self._ref is not None and self._ref.deviation > self._replan_distance:
             self.stats["replans"] += 1
             self._new_path(pos)
-        elif self._ref is not None and self._stalled():
+        elif self._ref is not None and self._stalled(self._ref):
             self.stats["stall_replans"] += 1
             self._new_path(pos)
-        if self._ref is None:  # nothing left to do: hold still
+        # a path (_ref) is only ever made for a goal
+        if self._ref is None or self._goal is None:  # nothing left to do: hold still
             accel = self.tracker.brake(state)
         elif self.motion is None:
             ref_pos, ref_vel = self._ref.horizon(state, self.tracker.N)
             accel = self.tracker.command(state, ref_pos, ref_vel, margins=self._margins)
         else:  # the path lives in the goal's frame: add the goal's predicted motion back
-            frame = self._goal.index if self._goal.kind == "target" else None
-            rel = state - self.motion.body_state(frame, now)
+            frame = self._goal.index  # None for the dock
+            rel = state - self.motion.body_state(frame, elapsed)
             rel_pos, rel_vel = self._ref.horizon(rel, self.tracker.N)
-            track = self.motion.body_track(frame, now, self.tracker.N)
+            track = self.motion.body_track(frame, elapsed, self.tracker.N)
             accel = self.tracker.command(
                 state, rel_pos + track[:, :d], rel_vel + track[:, d:],
-                margins=self.tracker.reachable_margins(pos, now, self._margins), now=now,
+                margins=self.tracker.reachable_margins(pos, elapsed, self._margins), now=elapsed,
             )  # fmt: skip
         action = self.accel_to_action(accel)
         self.decision_times.append(time.perf_counter() - t0)
         return action
 
-    def _stalled(self) -> bool:
-        """No progress along the path, short of its end, for ``stall_steps`` decisions."""
-        ref = self._ref
+    def _stalled(self, ref: PathReference) -> bool:
+        """No progress along ``ref``, short of its end, for ``stall_steps`` decisions."""
         if ref.progress > self._best_progress:
             self._best_progress = ref.progress
             self._since_progress = 0
@@ -240,7 +254,8 @@ class MPCPathAgent(ClassicalAgent):
             if goal.kind == "target":
                 frame_pos = self.motion.body_state(goal.index, now)[: len(pos)]
             self.prepare_snapshot(self.plan_scenario)
-        self._margins = {goal.index: 0.25 * cfg.capture_radius} if goal.kind == "target" else {}
+        target = goal.index  # None for the dock
+        self._margins = {target: 0.25 * cfg.capture_radius} if target is not None else {}
         result = self.plan_path(pos, goal)
         self.stats["plan_time"] += time.perf_counter() - t0
         self.stats["plans"] += 1
@@ -260,7 +275,7 @@ class MPCPathAgent(ClassicalAgent):
         frame in a moving field) with the speed profile of :class:`PathReference`. A subclass
         whose planner times its path (``result``) may return any object with the same
         ``horizon`` / ``deviation`` / ``progress`` / ``s`` / ``spacing``."""
-        scen = self.env.scenario
+        scen = self.scenario
         return PathReference(
             waypoints,
             max_accel=scen.max_accel,

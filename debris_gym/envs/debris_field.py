@@ -312,14 +312,15 @@ class DebrisFieldEnv(ShellView, gym.Env):
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode= to make()")
             return None
-        if self._shell.batch is None:
+        scenario = self.scenario
+        if self._shell.batch is None or scenario is None:
             raise RuntimeError("call reset() before render()")
         from debris_gym.envs.rendering import Renderer
 
         if self._renderer is None:
             self._renderer = Renderer(self.render_mode, fps=self.metadata["render_fps"])
         frame = self._renderer.draw(
-            scenario=self.scenario,
+            scenario=scenario,
             chaser_state=self._missions.missions.state[0],
             captured=self._missions.missions.captured[0],
             trail=np.asarray(self._trail),

@@ -128,7 +128,8 @@ def _window_pyplot() -> tuple[Any, str]:
     except ImportError:  # matplotlib < 3.9
         from matplotlib import rcsetup
 
-        interactive = {b.lower() for b in rcsetup.interactive_bk}
+        # (gone from matplotlib 3.9 on, whose stubs are the ones checked)
+        interactive = {b.lower() for b in rcsetup.interactive_bk}  # type: ignore[attr-defined]
     if backend not in interactive and not backend.startswith("module://"):
         return None, f"the matplotlib backend {backend!r} is not interactive"
     return plt, ""
@@ -286,7 +287,7 @@ class Renderer:
         accel = np.asarray(accel, dtype=float).reshape(d)
 
         if self._bodies is not None:
-            self._place_bodies(time)
+            self._place_bodies(self._bodies, scenario, time)
         colours = np.where(captured[:, None], self._rgba_done, self._rgba_open)
         thrust = float(np.linalg.norm(accel)) / scenario.max_accel
         arrow = accel / scenario.max_accel * (ARROW_FRACTION * scenario.size)
@@ -346,7 +347,7 @@ class Renderer:
             window = self._path_window
             start = math.floor(time / window) * window if math.isfinite(window) else 0.0
             if start != self._path_start:
-                self._draw_paths(scenario, start)
+                self._draw_paths(scenario, self._bodies, start)
 
     def _build_frame(self, scenario: Scenario) -> None:
         """Figure, axes, titles, status labels and legend: everything but the field itself."""
@@ -411,7 +412,7 @@ class Renderer:
         """Make the scenario's artists. A frozen field's debris, dock and target labels are drawn
         over the frame layer here and the result cached; a moving field's bodies and labels are
         dynamic, and its field layer (paths and dock) is drawn by :meth:`_draw_paths`."""
-        from matplotlib.collections import PatchCollection, PathCollection
+        from matplotlib.collections import Collection, PatchCollection, PathCollection
         from matplotlib.lines import Line2D
         from matplotlib.patches import Circle, Polygon
         from matplotlib.transforms import IdentityTransform
@@ -438,9 +439,18 @@ class Renderer:
                 animated=True,
             )  # fmt: skip
             tx, ty = panel.xy(centres)
-            style = {"zorder": 1, "alpha": alpha, "animated": True}
-            debris = {"facecolor": DEBRIS_FACE, "edgecolor": DEBRIS_EDGE, "linewidth": 0.7}
-            target = {"edgecolor": TARGET_EDGE, "linewidth": 0.6, "zorder": 3, "animated": True}
+            style: dict[str, Any] = {"zorder": 1, "alpha": alpha, "animated": True}
+            debris: dict[str, Any] = {
+                "facecolor": DEBRIS_FACE,
+                "edgecolor": DEBRIS_EDGE,
+                "linewidth": 0.7,
+            }
+            target: dict[str, Any] = {
+                "edgecolor": TARGET_EDGE,
+                "linewidth": 0.6,
+                "zorder": 3,
+                "animated": True,
+            }
             if moving:  # shapes set per frame (_place_bodies)
                 panel.debris = ax.add_collection(PathCollection([], **debris, **style), False)
                 panel.field = [ax.add_line(dock)]
@@ -453,7 +463,7 @@ class Renderer:
                     ),
                     autolim=False,
                 )  # fmt: skip
-                targets = PathCollection([], **target)
+                targets: Collection = PathCollection([], **target)
             else:
                 patches = [panel.patch(b, lo, hi, Circle, Polygon) for b in scenario.obstacles]
                 collection = PatchCollection(patches, **debris, **style)
@@ -474,7 +484,7 @@ class Renderer:
         if not moving:
             self._background = canvas.copy_from_bbox(fig.bbox)
 
-    def _draw_paths(self, scenario: Scenario, start: float) -> None:
+    def _draw_paths(self, scenario: Scenario, bodies: MovingBodies, start: float) -> None:
         """Field layer of a moving field: each body's path from ``start`` (s) over the path window
         (bodies cut by ``outline`` have none: their centres are far off the view), then the dock;
         cached as the background of the frames in that window."""
@@ -491,9 +501,9 @@ class Renderer:
             panel.paths = []
             if paths is not None:
                 for chosen, colour in ((~is_target, DEBRIS_ORBIT), (is_target, TARGET_ORBIT)):
-                    lines = paths[chosen & ~self._bodies.huge][:, :, [panel.h, panel.v]]
+                    lines = paths[chosen & ~bodies.huge][:, :, [panel.h, panel.v]]
                     collection = LineCollection(
-                        lines, colors=colour, linewidths=1.0, zorder=0.5, animated=True
+                        list(lines), colors=colour, linewidths=1.0, zorder=0.5, animated=True
                     )
                     panel.paths.append(panel.ax.add_collection(collection, autolim=False))
             for artist in (*panel.paths, *panel.field):
@@ -501,9 +511,8 @@ class Renderer:
         self._background = canvas.copy_from_bbox(fig.bbox)
         self._path_start = start
 
-    def _place_bodies(self, time: float) -> None:
+    def _place_bodies(self, bodies: MovingBodies, scenario: Scenario, time: float) -> None:
         """Put a moving field's bodies, target rings and labels where they are at ``time``."""
-        bodies, scenario = self._bodies, self._scenario
         centres, vertices = bodies.at(time)
         n_targets = len(scenario.targets)
         for panel in self._panels:

@@ -18,6 +18,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode
 
+from debris_gym.envs.vector import DebrisFieldVectorEnv
+
 try:
     from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 except ImportError as exc:  # pragma: no cover - exercised only without SB3
@@ -40,13 +42,19 @@ class NativeVecEnv(VecEnv):
 
     def __init__(self, env_id: str, num_envs: int, **kwargs: Any) -> None:
         self.env_id = env_id
-        self.venv = gym.make_vec(
+        venv = gym.make_vec(
             env_id,
             num_envs=num_envs,
             vectorization_mode="vector_entry_point",
             autoreset_mode=AutoresetMode.SAME_STEP,
             **kwargs,
         )
+        if not isinstance(venv, DebrisFieldVectorEnv):
+            raise ValueError(
+                f"env_id {env_id!r} builds a {type(venv).__name__}, not debris-gym's native "
+                "vector env: use a DebrisGym ID"
+            )
+        self.venv = venv
         super().__init__(
             num_envs, self.venv.single_observation_space, self.venv.single_action_space
         )
@@ -79,7 +87,7 @@ class NativeVecEnv(VecEnv):
         Raises:
             ValueError: now, naming the bad key or value (checked against the env's options).
         """
-        self.venv.unwrapped.shell.checked_mission(mission)
+        self.venv.shell.checked_mission(mission)
         self._new_mission = dict(mission)
 
     def step_async(self, actions: np.ndarray) -> None:

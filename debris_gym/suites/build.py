@@ -94,15 +94,22 @@ def build_suite(name: str, recipe: StandardSuite, command: str) -> Suite:
     import gymnasium as gym
 
     import debris_gym  # noqa: F401  (registers the IDs)
+    from debris_gym.envs import DebrisFieldEnv
 
     kwargs = dict(recipe.env_kwargs)
     env = gym.make(recipe.env_id, **kwargs)
     try:
+        field_env = env.unwrapped
+        if not isinstance(field_env, DebrisFieldEnv):
+            raise ValueError(f"env_id {recipe.env_id!r} is not a DebrisGym env")
         missions = []
         for i in range(recipe.count):
             seed = recipe.first_seed + i
             env.reset(seed=seed)
-            missions.append(Mission(seed, env.unwrapped.scenario))
+            scenario = field_env.scenario
+            if scenario is None:
+                raise RuntimeError(f"{recipe.env_id} has no field after reset(seed={seed})")
+            missions.append(Mission(seed, scenario))
     finally:
         env.close()
     return Suite(

@@ -21,6 +21,7 @@ import numpy as np
 from agents.experiments.evaluation.failures import AgentFailure, describe
 from agents.experiments.evaluation.metrics import trajectory_metrics
 from agents.experiments.evaluation.records import EpisodeRecord, Trajectory, scenario_fingerprint
+from agents.policies.base import unwrap
 from agents.policies.shielded import ShieldedAgent
 from debris_gym.scenario import Scenario
 
@@ -55,10 +56,12 @@ def run_episode(
             something other than ``(action, state)``, or gave an action the env refused (NaN, a
             wrong shape, None, a string, ...); the error names the agent, episode and step.
     """
-    base = env.unwrapped
+    base = unwrap(env)
     options = None if scenario is None else {"scenario": scenario}
     obs, info = env.reset(seed=seed, options=options)
     scenario = base.scenario
+    if scenario is None:
+        raise RuntimeError(f"the env has no field after reset(seed={seed})")
     d = base.dim
     states = [np.asarray(info["chaser_state"], dtype=float)]
     accels: list[np.ndarray] = []

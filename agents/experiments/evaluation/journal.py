@@ -80,7 +80,9 @@ def record_from_json(data: dict[str, Any]) -> EpisodeRecord:
         KeyError, TypeError, ValueError: ``data`` is not such a record.
     """
     defaults = {name: 0 for name in SHIELD_COLUMNS}  # journals written before the shield
-    values = {name: data[name] if name in data else defaults[name] for name in RECORD_FIELDS}
+    values: dict[str, Any] = {
+        name: data[name] if name in data else defaults[name] for name in RECORD_FIELDS
+    }
     trajectory = None
     if data.get("trajectory") is not None:
         t = data["trajectory"]

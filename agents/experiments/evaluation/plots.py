@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import io
 import math
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -44,7 +44,7 @@ LEGEND_ROW_IN = 0.2
 """Height of one legend row (inches, font size 8)."""
 
 
-def agent_style(index: int) -> tuple[str, str]:
+def agent_style(index: int) -> tuple[str, Literal["-", "--"]]:
     """(colour, line style) of the agent at position ``index`` of a plot."""
     colour = AGENT_COLOURS[index % len(AGENT_COLOURS)]
     return colour, "-" if index < len(AGENT_COLOURS) else "--"
@@ -134,11 +134,11 @@ def episode_figure(results: EvaluationResults, episode: int) -> Any:
     handles: list[Any] = []
     for k, ((h, v), ax) in enumerate(zip(views, axes, strict=True)):
         style_field_axes(ax, scenario, h, v, title=n > 1)
-        patches = []
+        patches: list[Patch] = []
         for j, body in enumerate(scenario.obstacles):
             b = n_targets + j
-            if body.vertices is not None:
-                pts = scenario.body_vertices(b, float(met[b]) * scenario.dt)
+            pts = scenario.body_vertices(b, float(met[b]) * scenario.dt)  # None: a circle
+            if pts is not None:
                 patches.append(Polygon(pts[:, [h, v]], closed=True))
             else:
                 patches.append(Circle((centres[b, h], centres[b, v]), body.radius))

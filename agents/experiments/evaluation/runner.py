@@ -479,5 +479,8 @@ def _check_same_scenarios(records: list[EpisodeRecord], episodes: int) -> list[S
         ids = {r.scenario_id for r in group}
         if len(ids) != 1:
             raise RuntimeError(f"agents met different scenarios in episode {i}: {sorted(ids)}")
-        scenarios.append(group[0].scenario)
+        scenario = group[0].scenario
+        if scenario is None:
+            raise RuntimeError(f"the records of episode {i} hold no field")
+        scenarios.append(scenario)
     return scenarios

@@ -414,6 +414,7 @@ def _as_policy(label: str, obj: Any, env: gym.Env) -> Any:
                     "deterministic) method; a factory must return a policy"
                 )
             as_factory = f"called with the env it returned a {type(product).__name__}, no policy"
+    problem: str | None
     try:
         action = obj(_probe_observation(env))
     except (Exception, SystemExit) as exc:

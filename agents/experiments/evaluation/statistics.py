@@ -107,7 +107,7 @@ def t_interval(
     return mean - half, mean + half
 
 
-def is_constant(values: Sequence[float]) -> bool:
+def is_constant(values: Sequence[float] | np.ndarray) -> bool:
     """Whether every value equals the first (True for one value; False for none)."""
     x = np.asarray(values, dtype=float)
     return bool(x.size >= 1 and np.all(x == x[0]))
@@ -356,7 +356,8 @@ def summarize(results: EvaluationResults, reference: str | None = None) -> dict[
             entry[key] = k / n
             entry[f"{key}_ci95"] = list(wilson_interval(k, n))
         n_targets = max((r.n_targets for r in recs), default=None)
-        columns = {  # key: (per-episode values, the metric's range)
+        # key: (per-episode values, the metric's range)
+        columns: dict[str, tuple[list[float], tuple[float | None, float | None]]] = {
             "targets_captured_mean": ([r.targets_captured for r in recs], (0, n_targets)),
             "delta_v_mean": ([r.delta_v for r in recs], (0.0, None)),
             "time_mean": ([r.time for r in recs], (0.0, None)),

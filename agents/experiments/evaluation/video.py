@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import warnings
 from pathlib import Path
-from typing import Any
+from typing import Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
@@ -50,7 +50,7 @@ class ShieldFrames(gym.Wrapper):
         self._seen, self._intervened = 0, False
         return self.env.reset(**kwargs)
 
-    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+    def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         count = self.agent.stats.interventions if self.agent is not None else 0
         self._intervened = count > self._seen
         self._seen = count

@@ -178,17 +178,21 @@ class GoalConditionedEnv(gym.Wrapper[dict[str, np.ndarray], np.ndarray, np.ndarr
             (> 1, finite; default 100).
     """
 
+    # gymnasium's Wrapper types the wrapped env with the wrapper's own observation type
+    env: gym.Env[np.ndarray, np.ndarray]  # type: ignore[assignment]
+
     def __init__(
         self, env: gym.Env[np.ndarray, np.ndarray], crash_penalty: float = DEFAULT_CRASH_PENALTY
     ) -> None:
-        super().__init__(env)
+        super().__init__(env)  # type: ignore[arg-type]  # (gymnasium's slip, as above)
         penalty = float(crash_penalty)
         if not np.isfinite(penalty) or penalty <= 1.0:
             raise ValueError(f"crash_penalty: a finite value > 1 needed, got {crash_penalty!r}")
         self.crash_penalty = penalty
         self.layout = GoalLayout(env)
         goal_space = spaces.Box(-np.inf, np.inf, (self.layout.goal_size,), dtype=np.float32)
-        self.observation_space = spaces.Dict(
+        # gymnasium types a Dict space's elements as spaces, not as their values
+        self.observation_space = spaces.Dict(  # type: ignore[assignment]
             {
                 "observation": env.observation_space,
                 "achieved_goal": goal_space,

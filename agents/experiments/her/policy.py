@@ -32,6 +32,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 from stable_baselines3 import SAC
+from stable_baselines3.common.base_class import BaseAlgorithm
 
 from agents.experiments.her.goal_env import GoalLayout
 
@@ -49,15 +50,12 @@ class GoalPolicy:
         env: the env it flies (its unwrapped debris-gym env gives the goal layout).
     """
 
-    def __init__(self, model: SAC, env: gym.Env[Any, Any]) -> None:
+    def __init__(self, model: BaseAlgorithm, env: gym.Env[Any, Any]) -> None:
         self.model = model
-        self.goal_conditioned = isinstance(model.observation_space, spaces.Dict)
+        space = model.observation_space
+        self.goal_conditioned = isinstance(space, spaces.Dict)
         self.layout = GoalLayout(env) if self.goal_conditioned else None
-        expected = (
-            model.observation_space["observation"].shape
-            if self.goal_conditioned
-            else model.observation_space.shape
-        )
+        expected = space["observation"].shape if isinstance(space, spaces.Dict) else space.shape
         if expected != env.observation_space.shape:
             raise ValueError(
                 f"env: observation shape {env.observation_space.shape} differs from the model's "

@@ -133,6 +133,8 @@ class CrashFlagHerReplayBuffer(HerReplayBuffer):
     stored infos of every relabelled sample, and the env's full infos made that markedly slower
     (docs/benchmarks.md, "Measured design choices")."""
 
+    # (the signature of SB3's HerReplayBuffer.add, which overrides ReplayBuffer.add's arrays
+    # with dicts and carries the same ignore)
     def add(  # type: ignore[override]
         self,
         obs: dict[str, np.ndarray],

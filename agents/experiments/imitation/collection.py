@@ -7,7 +7,7 @@ from __future__ import annotations
 import dataclasses
 import multiprocessing
 import signal
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -122,6 +122,7 @@ def collect(
         for i in range(0, len(seeds), chunk)
     ]
     obs_parts, act_parts, stats = [], [], RolloutStats()
+    results: Iterator[tuple[np.ndarray, np.ndarray, RolloutStats]]
     if config.workers == 1:
         results = map(_rollouts, tasks)
         pool = None

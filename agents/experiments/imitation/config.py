@@ -110,13 +110,14 @@ class ImitationConfig:
             "learning_rate": (0.0, None, True),
             "weight_decay": (0.0, None, False),
         }
-        for key, (low, high, low_open) in floats.items():
+        for key, (least, most, low_open) in floats.items():
             value = getattr(self, key)
-            upper = f"{high:g}]" if high is not None else "inf)"
-            allowed = f"{'(' if low_open else '['}{low:g}, {upper}"
+            upper = f"{most:g}]" if most is not None else "inf)"
+            allowed = f"{'(' if low_open else '['}{least:g}, {upper}"
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise ValueError(f"{key} must be a number in {allowed}, got {value!r}")
-            inside = (value > low if low_open else value >= low) and (high is None or value <= high)
+            above = value > least if low_open else value >= least
+            inside = above and (most is None or value <= most)
             if not (np.isfinite(value) and inside):
                 raise ValueError(f"{key}={value!r} is out of range; allowed: {allowed}")
         arch = self.net_arch

@@ -138,7 +138,7 @@ def _imitate(
         log(_round_line(history[-1]))
 
     model_path = out / "model.zip"
-    run_log = {
+    run_log: dict[str, Any] = {
         "config": config.to_dict(),
         "rounds": history,
         "wall_s": time.time() - started,

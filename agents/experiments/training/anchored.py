@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 import torch as th
 from stable_baselines3 import PPO
+from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.utils import explained_variance
 from torch.nn import functional as F
 
@@ -87,7 +88,7 @@ class AnchoredPPO(PPO):
         self.critic_warmup = int(critic_warmup)
         self.anchor_coef = float(anchor_coef)
         self.anchor_decay = int(anchor_decay)
-        self.reference_policy: th.nn.Module | None = None
+        self.reference_policy: ActorCriticPolicy | None = None
         self.critic_optimizer: th.optim.Optimizer | None = None
         super().__init__(policy, env, **kwargs)
 
@@ -98,7 +99,8 @@ class AnchoredPPO(PPO):
             raise ValueError("the policy has no separate value parameters to warm up")
         params = [p for n, p in self.policy.named_parameters() if n in names]
         # its own optimiser: the warm-up leaves the policy's Adam moments untouched
-        self.critic_optimizer = self.policy.optimizer_class(
+        # SB3 types optimizer_class as torch's Optimizer base, whose __init__ takes no lr
+        self.critic_optimizer = self.policy.optimizer_class(  # type: ignore[call-arg]
             params, lr=self.lr_schedule(1), **self.policy.optimizer_kwargs
         )
 
@@ -106,7 +108,7 @@ class AnchoredPPO(PPO):
         # neither goes into the zip, so a plain PPO.load reads it (evaluate.py, load_agent)
         return [*super()._excluded_save_params(), "reference_policy", "critic_optimizer"]
 
-    def set_reference(self, policy: th.nn.Module) -> None:
+    def set_reference(self, policy: ActorCriticPolicy) -> None:
         """Anchor to ``policy`` (a frozen copy is kept; its deterministic action is μ₀)."""
         reference = copy.deepcopy(policy).to(self.device)
         reference.set_training_mode(False)
@@ -136,6 +138,8 @@ class AnchoredPPO(PPO):
             raise RuntimeError("AnchoredPPO: set_reference() must be called before training")
         self._update_learning_rate(self.policy.optimizer)
         progress = self._current_progress_remaining
+        # SB3 types clip_range(_vf) as a float or a schedule; _setup_model made them schedules
+        # (SB3's PPO.train carries the same ignores)
         clip_range = self.clip_range(progress)  # type: ignore[operator]
         clip_range_vf = self.clip_range_vf(progress) if self.clip_range_vf is not None else None  # type: ignore[operator]
         logs: dict[str, list[float]] = {
@@ -222,6 +226,7 @@ class AnchoredPPO(PPO):
         assert self.critic_optimizer is not None
         self._update_learning_rate(self.critic_optimizer)
         progress = self._current_progress_remaining
+        # (a schedule: see train())
         clip_range_vf = self.clip_range_vf(progress) if self.clip_range_vf is not None else None  # type: ignore[operator]
         params = [p for group in self.critic_optimizer.param_groups for p in group["params"]]
         losses: list[float] = []

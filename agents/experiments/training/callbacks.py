@@ -69,7 +69,8 @@ class CurriculumCallback(BaseCallback):
         if stage == self.current:
             return
         mission = config.stage_mission(stage)
-        self.training_env.set_mission(mission)  # VecNormalize/VecMonitor hand it down
+        # NativeVecEnv's; VecNormalize/VecMonitor hand it down (attribute forwarding)
+        self.training_env.set_mission(mission)  # type: ignore[attr-defined]
         self.current = stage
         final = stage == len(config.curriculum)
         what = "the final task" if final else f"until {config.curriculum[stage]['until']:,}"
@@ -214,26 +215,30 @@ class HeldOutEvalCallback(EvalCallback):
         # EvalCallback writes its log in place (a Ctrl-C mid-write would leave it cut): let
         # it write to a scratch name, and write the real file below, atomically
         log_path = self.log_path
-        if log_path is not None:
-            self.log_path = str(Path(log_path).with_name(".evaluations_scratch"))
+        scratch = (
+            None if log_path is None else str(Path(log_path).with_name(".evaluations_scratch"))
+        )
+        if scratch is not None:
+            self.log_path = scratch
         try:
             result = super()._on_step()
         finally:
-            if log_path is not None:
+            if scratch is not None:
                 with contextlib.suppress(FileNotFoundError):
-                    Path(self.log_path + ".npz").unlink()
+                    Path(scratch + ".npz").unlink()
             self.log_path = log_path
         self.evaluations_targets.append(self._targets_buffer)
         if len(self.evaluations_successes) < len(self.evaluations_timesteps):
-            self.evaluations_successes.append([np.nan])  # no episode reported is_success
+            # no episode reported is_success (SB3 types the list as bools only)
+            self.evaluations_successes.append([np.nan])  # type: ignore[list-item]
         if self.log_path is not None:  # EvalCallback's file, plus targets captured
-            arrays = dict(
-                timesteps=self.evaluations_timesteps,
-                results=self.evaluations_results,
-                ep_lengths=self.evaluations_length,
-                successes=self.evaluations_successes,
-                targets_captured=self.evaluations_targets,
-            )
+            arrays: dict[str, Any] = {
+                "timesteps": self.evaluations_timesteps,
+                "results": self.evaluations_results,
+                "ep_lengths": self.evaluations_length,
+                "successes": self.evaluations_successes,
+                "targets_captured": self.evaluations_targets,
+            }
             save_whole(Path(self.log_path + ".npz"), lambda tmp: np.savez(tmp, **arrays))
         self.seconds += time.perf_counter() - start
         returns = self.evaluations_results[-1] if self.evaluations_results else [np.nan]

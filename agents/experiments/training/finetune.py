@@ -19,6 +19,7 @@ The init run (``imitate.py`` or ``train.py`` output) gives the fine-tune run
 
 from __future__ import annotations
 
+import functools
 import shutil
 import sys
 import zipfile
@@ -234,13 +235,14 @@ class FrozenObsVecNormalize(VecNormalize):
         return wrapper
 
     def reset(self) -> Any:
-        obs = self.venv.reset()
+        obs = _array_observations(self.venv.reset())
         self.old_obs = obs
         self.returns = np.zeros(self.num_envs)
         return self.normalize_obs(obs)
 
     def step_wait(self) -> Any:
-        obs, rewards, dones, infos = self.venv.step_wait()
+        observations, rewards, dones, infos = self.venv.step_wait()
+        obs = _array_observations(observations)
         self.old_obs, self.old_reward = obs, rewards
         if self.training:  # the return's scale is learned; the observation's is not
             self._update_reward(rewards)
@@ -256,7 +258,15 @@ class FrozenObsVecNormalize(VecNormalize):
         state = self.__getstate__()
         state["training"] = False
         # rebuilt as VecNormalize.__new__ + __setstate__, the way a plain one unpickles
-        return copyreg._reconstructor, (VecNormalize, object, None), state
+        # (a private name of copyreg: typeshed leaves it out)
+        return copyreg._reconstructor, (VecNormalize, object, None), state  # type: ignore[attr-defined]
+
+
+def _array_observations(obs: Any) -> np.ndarray | dict[str, np.ndarray]:
+    """``obs`` as VecNormalize takes it: an array or a dict of arrays (not a tuple)."""
+    if not isinstance(obs, (np.ndarray, dict)):
+        raise TypeError(f"observations must be an array or a dict of arrays, got {type(obs)}")
+    return obs
 
 
 def finetune_train_env(venv: Any, config: TrainConfig, stats: Path | None) -> FrozenObsVecNormalize:
@@ -343,7 +353,7 @@ def save_reference(out: Path, config: TrainConfig) -> None:
         (source.parent / "config.yaml", target.with_suffix(".yaml")),
     ]
     for src, dst in pairs:
-        save_atomic(dst, lambda tmp, src=src: shutil.copyfile(src, tmp))
+        save_atomic(dst, functools.partial(shutil.copyfile, src))
 
 
 def reference_path(config: TrainConfig, out: Path) -> Path:

@@ -341,7 +341,7 @@ def _prepare_resume(options: TrainOptions, out: Path, device: str, command: str)
         ) from None
     model.tensorboard_log = tensorboard_dir(out)
     model.set_random_seed(segment_seed)
-    if config.init.path is not None:
+    if isinstance(model, finetune.AnchoredPPO):  # a fine-tuning run (config.init.path)
         finetune.configure_resumed(model, config, out)
     if config.algo in OFF_POLICY:
         _restore_replay_buffer(model, config, checkpoint)

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from agents.experiments.training.config import TrainConfig
+from agents.policies.base import unwrap
 
 __all__ = ["algo_kwargs", "policy_kwargs", "set_encoder_kwargs"]
 
@@ -43,7 +44,7 @@ def set_encoder_kwargs(config: TrainConfig) -> dict[str, Any]:
     options = {k: v for k, v in config.env_kwargs.items() if k != "max_episode_steps"}
     env = gym.make(config.env_id, **options)
     try:
-        context, slots = slot_layout(env.unwrapped.observation_names())
+        context, slots = slot_layout(unwrap(env).observation_names())
     finally:
         env.close()
     return {

@@ -175,7 +175,7 @@ def validate_curriculum(
     return out
 
 
-def validate_policy_kwargs(data: Any, policy_cls: type, source: str) -> dict[str, Any]:
+def validate_policy_kwargs(data: Any, policy_cls: type[Any], source: str) -> dict[str, Any]:
     params = inspect.signature(policy_cls.__init__).parameters
     known = [p for p in params if p not in ("self", "observation_space", "action_space")]
     known = [p for p in known if p != "lr_schedule"]
@@ -337,7 +337,7 @@ def _typed_like_default(value: Any, default: Any, where: str, source: str) -> An
     return value
 
 
-def validate_algo_kwargs(data: Any, cls: type, algo: str, source: str) -> dict[str, Any]:
+def validate_algo_kwargs(data: Any, cls: type[Any], algo: str, source: str) -> dict[str, Any]:
     """The SB3 keyword arguments of a recipe, each checked against :data:`ALGO_KWARG_RANGES`
     (or, for keys without a range, against the type of SB3's default).
 
@@ -362,7 +362,12 @@ def validate_algo_kwargs(data: Any, cls: type, algo: str, source: str) -> dict[s
         value = kwargs[key] = number(value)  # YAML 1.1 reads 3e-4 as a string
         if value is None and key in ("clip_range_vf", "target_kl"):
             continue
-        if key in ("learning_rate", "clip_range") and isinstance(value, str):
+        # (learning_rate, clip_range and train_freq always have a range)
+        if (
+            key in ("learning_rate", "clip_range")
+            and isinstance(value, str)
+            and allowed is not None
+        ):
             if not (value.startswith("lin_") and _FLOAT_RE.match(value[4:].strip())):
                 raise config_error(
                     source,
@@ -382,7 +387,7 @@ def validate_algo_kwargs(data: Any, cls: type, algo: str, source: str) -> dict[s
             if initial is not None:
                 _in_range(initial, Range(float, 0, low_open=True), key, source)
             continue
-        if key == "train_freq" and isinstance(value, list):
+        if key == "train_freq" and isinstance(value, list) and allowed is not None:
             if len(value) != 2 or value[1] not in ("step", "episode"):
                 raise config_error(
                     source,
