@@ -113,9 +113,40 @@ def _order_length(i, order, m, start, return_to_dock, gaps, chaser_radius, cente
 
 
 @inlined
+def _tabulate_legs(i, order, m, return_to_dock, centers, radii, dock, legs, homes):
+    """legs[a, b] = :func:`_leg` (i, a, b) for the targets a ≠ b in ``order[:m]`` (one square
+    root per pair), homes[a] = :func:`_home` (i, a) when the mission returns to the dock."""
+    for p in range(m):
+        a = order[p]
+        for q in range(p + 1, m):
+            b = order[q]
+            s = 0.0
+            for k in range(centers.shape[2]):
+                d = centers[i, a, k] - centers[i, b, k]
+                s += d * d
+            root = math.sqrt(s)
+            legs[a, b] = max(root - radii[i, a] - radii[i, b], 0.0)
+            legs[b, a] = max(root - radii[i, b] - radii[i, a], 0.0)
+        if return_to_dock:
+            homes[a] = _home(i, a, centers, radii, dock)
+
+
+@inlined
+def _tabulated_length(i, order, m, return_to_dock, gaps, chaser_radius, legs, homes):
+    """:func:`_order_length` of ``order[:m]`` from the chaser, over tabulated legs (the same
+    sum in the same order, so the same number)."""
+    total = max(gaps[i, order[0]] - chaser_radius, 0.0)
+    for k in range(1, m):
+        total += legs[order[k - 1], order[k]]
+    if return_to_dock:
+        total += homes[order[m - 1]]
+    return total
+
+
+@inlined
 def remaining_tour(
     i, gaps, captured, queued, return_to_dock, chaser_radius, centers, radii, dock, state, order,
-    counters,
+    counters, legs, homes,
 ):  # fmt: skip
     """Length (m) of the shortest remaining mission of row ``i`` as it stands now: from the
     chaser's surface through every uncaptured target (surface to surface) and, if a return is
@@ -125,7 +156,9 @@ def remaining_tour(
 
     The shaping potential of the v1 world (``shaping_potential="tour"``) is minus this over L:
     an agent following any shortest tour gains potential from its first step, whichever target
-    it heads for first. ``order`` and ``counters`` are (T,) int64 scratch.
+    it heads for first. ``order`` and ``counters`` are (T,) int64 scratch, ``legs`` (T, T)
+    and ``homes`` (T,) float scratch: the exact search tabulates every leg once (each equal to
+    :func:`_leg` of its pair, so every order's length is the sum :func:`_order_length` gives).
     """
     m = 0
     for j in range(captured.shape[1]):
@@ -160,10 +193,9 @@ def remaining_tour(
         return _order_length(
             i, order, m, True, return_to_dock, gaps, chaser_radius, centers, radii, dock
         )
-    # every order, by Heap's algorithm (iterative)
-    best = _order_length(
-        i, order, m, True, return_to_dock, gaps, chaser_radius, centers, radii, dock
-    )
+    # every order, by Heap's algorithm (iterative), over the legs tabulated once
+    _tabulate_legs(i, order, m, return_to_dock, centers, radii, dock, legs, homes)
+    best = _tabulated_length(i, order, m, return_to_dock, gaps, chaser_radius, legs, homes)
     for k in range(m):
         counters[k] = 0
     k = 1
@@ -176,9 +208,7 @@ def remaining_tour(
                 order[c], order[k] = order[k], order[c]
             best = min(
                 best,
-                _order_length(
-                    i, order, m, True, return_to_dock, gaps, chaser_radius, centers, radii, dock
-                ),
+                _tabulated_length(i, order, m, return_to_dock, gaps, chaser_radius, legs, homes),
             )
             counters[k] += 1
             k = 1

@@ -202,6 +202,10 @@ class StepScratch(NamedTuple):
     """(T,) int64 scratch of the tour potential."""
     counters: np.ndarray
     """(T,) int64 scratch of the tour potential."""
+    legs: np.ndarray
+    """(T, T) scratch of the tour potential: the legs between targets (m)."""
+    homes: np.ndarray
+    """(T,) scratch of the tour potential: each target's distance to the dock (m)."""
 
 
 def hold_steps(capture_hold: float, dt: float) -> int:

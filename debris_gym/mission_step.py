@@ -315,17 +315,18 @@ def potential(i, rules, shaping, state, gaps, captured, centers, dock, length_sc
     return phi
 
 
-@kernel  # not inlined: the v0 world's step does not carry it
+@inlined
 def tour_potential(
     i, rules, shaping, state, gaps, captured, centers, radii, dock, length_scale, speed_scale,
-    order, counters,
+    order, counters, legs, homes,
 ):  # fmt: skip
     """Φ of mission ``i`` with ``shaping_potential="tour"`` (the v1 world): −(the shortest
     remaining mission / L) (:func:`debris_gym.goal.remaining_tour`), less the optional terms of
-    ``shaping`` as :func:`potential` applies them. ``order`` and ``counters`` are (T,) scratch."""
+    ``shaping`` as :func:`potential` applies them. ``order``, ``counters`` (T,), ``legs``
+    (T, T) and ``homes`` (T,) are scratch (:func:`~debris_gym.goal.remaining_tour`)."""
     tour = remaining_tour(
         i, gaps, captured, rules.queued, rules.return_to_dock, rules.chaser_radius, centers,
-        radii, dock, state, order, counters,
+        radii, dock, state, order, counters, legs, homes,
     )  # fmt: skip
     phi = -tour / length_scale[i]
     if shaping is not None:
@@ -419,6 +420,8 @@ def begin_rows(rows, states, rules, shaping, missions, field):
     n_targets = rules.n_targets
     order = np.empty(n_targets, dtype=np.int64)  # scratch of the tour potential
     counters = np.empty(n_targets, dtype=np.int64)
+    legs = np.empty((n_targets, n_targets))
+    homes = np.empty(n_targets)
     for r in range(rows.shape[0]):
         i = rows[r]
         for k in range(nearest.shape[1]):  # a new field: sort from index order
@@ -449,7 +452,7 @@ def begin_rows(rows, states, rules, shaping, missions, field):
         if rules.tour_potential:
             potential_of[i] = tour_potential(
                 i, rules, shaping, state, gaps, captured, centers, radii, dock, length_scale,
-                speed_scale, order, counters,
+                speed_scale, order, counters, legs, homes,
             )  # fmt: skip
         else:
             potential_of[i] = potential(
@@ -488,6 +491,8 @@ def step_scratch(rules, field):
         np.empty((n_path, dim)),
         np.empty(n_targets, dtype=np.int64),
         np.empty(n_targets, dtype=np.int64),
+        np.empty((n_targets, n_targets)),
+        np.empty(n_targets),
     )
 
 
@@ -511,7 +516,7 @@ def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out, scrat
     n_targets = rules.n_targets
     path, start, accel = scratch.path, scratch.start, scratch.accel
     touched, rel = scratch.touched, scratch.relative_path
-    order, counters = scratch.order, scratch.counters
+    order, counters, legs, homes = scratch.order, scratch.counters, scratch.legs, scratch.homes
     for i in range(lo, hi):
         if not live[i]:
             for k in range(terms.shape[1]):
@@ -559,7 +564,7 @@ def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out, scrat
         if rules.tour_potential:
             phi = tour_potential(
                 i, rules, shaping, state, gaps, captured, centers, radii, dock, length_scale,
-                speed_scale, order, counters,
+                speed_scale, order, counters, legs, homes,
             )  # fmt: skip
         else:
             phi = potential(

@@ -55,7 +55,7 @@ def test_remaining_tour_is_the_shortest_order(seed, n_targets, dim, queued, retu
     got = remaining_tour(
         0, gaps[None], captured, queued, return_to_dock, CHASER_RADIUS, centers, radii,
         np.zeros((1, dim)), chaser[None], np.zeros(n_targets, np.int64),
-        np.zeros(n_targets, np.int64),
+        np.zeros(n_targets, np.int64), np.zeros((n_targets, n_targets)), np.zeros(n_targets),
     )  # fmt: skip
     assert abs(got - want) <= 1e-9 * max(1.0, want)
 
