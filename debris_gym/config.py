@@ -147,6 +147,19 @@ OPTIONS: dict[str, Option] = {
         doc="how long the chaser must stay in capture range and speed: every step end over at "
         "least this span (1 + ceil(capture_hold / dt) consecutive step ends; 0 = one)",
     ),
+    "capture_rule": Option(
+        choices=("dwell", "hold"),
+        doc="'dwell': a capture is the step ends of capture_hold in capture range and speed "
+        "(v0, v1); 'hold': also within capture_drift of where the hold began, the target not "
+        "touched during the hold, and a step that collides captures nothing (v2)",
+    ),
+    "capture_drift": Option(
+        "m",
+        0.0,
+        MAX_LENGTH,
+        doc="capture_rule='hold': how far the chaser's position relative to the target may move "
+        "from where the hold began, at any step end of the hold",
+    ),
     "solid_targets": Option(
         choices=(False, True),
         doc="targets are solid: touching one at any speed, captured or not, is a collision "
@@ -191,6 +204,13 @@ OPTIONS: dict[str, Option] = {
     "reward_collision": Option("", 0.0, MAX_WEIGHT, doc="penalty for a collision"),
     "reward_out_of_bounds": Option("", 0.0, MAX_WEIGHT, doc="penalty for leaving the world bounds"),
     "reward_time": Option("", 0.0, MAX_WEIGHT, doc="penalty per step"),
+    "reward_budget": Option(
+        "",
+        0.0,
+        MAX_WEIGHT,
+        doc="penalty for running out of Δv (the mission ends failed, unless that step succeeds, "
+        "collides or leaves the bounds)",
+    ),
     "shaping_gamma": Option("", 0.0, 1.0, doc="γ of the shaping term F = γΦ(s′) − Φ(s)"),
     "shaping_potential": Option(
         choices=("goal", "tour"),
@@ -244,6 +264,11 @@ OPTIONS: dict[str, Option] = {
         doc="the nearest-obstacle slots hold the nearest bodies other than the current goal, "
         "targets included (captured ones too: they are still bodies to avoid)",
     ),
+    "obs_hold": Option(
+        choices=(False, True),
+        doc="append each target slot's hold progress: step ends held / the step ends a capture "
+        "needs, 0 to 1",
+    ),
     "obs_goal": Option(
         choices=(False, True),
         doc="append the current goal at a 10× finer scale: relative position / (L/10), "
@@ -278,6 +303,8 @@ class EnvConfig:
     capture_radius: float = 5.0
     capture_speed: float = 0.5
     capture_hold: float = 0.0
+    capture_rule: str = "dwell"
+    capture_drift: float = 1.0
     solid_targets: bool = False
     debris_motion: str = "frozen"
     drift_offset_min: float = 2.0
@@ -299,6 +326,7 @@ class EnvConfig:
     reward_collision: float = 50.0
     reward_out_of_bounds: float = 50.0
     reward_time: float = 0.01
+    reward_budget: float = 0.0
     shaping_gamma: float = 0.99
     shaping_potential: str = "goal"
     shaping_terminal: str = "zero"
@@ -309,6 +337,7 @@ class EnvConfig:
     shaping_closing: float = 0.0
     shaping_closing_distance: float = 20.0
     obs_goal: bool = False
+    obs_hold: bool = False
     obs_other_targets: bool = False
 
     def __post_init__(self) -> None:

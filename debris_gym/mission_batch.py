@@ -287,7 +287,7 @@ class MissionBatch:
 
         Returns:
             :class:`~debris_gym.mission_data.StepOutputs`: ``reward`` (N,), ``terminated``
-            (N,), ``truncated`` (N,), ``terms`` (N, 7), buffers that the next call overwrites;
+            (N,), ``truncated`` (N,), ``terms`` (N, 8), buffers that the next call overwrites;
             rows not in ``live`` are zero / False. ``terms`` columns follow
             :data:`debris_gym.rewards.REWARD_TERMS`.
         """

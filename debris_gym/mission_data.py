@@ -49,6 +49,12 @@ class Rules(NamedTuple):
     """Highest speed relative to the target at which a capture counts (m/s)."""
     hold_steps: int
     """Consecutive step ends a capture needs (:func:`hold_steps`)."""
+    hold_capture: bool
+    """``capture_rule == "hold"``: the hold must also stay within ``capture_drift`` of where it
+    began and untouched, and a step that collides captures nothing."""
+    capture_drift: float
+    """Largest move (m) of the chaser's position relative to the target from where the hold
+    began (``hold_capture`` only)."""
     moving: bool
     """The bodies move on unforced CWH motion (``debris_motion`` is not "frozen")."""
     solid_targets: bool
@@ -84,6 +90,7 @@ class Rules(NamedTuple):
     reward_collision: float
     reward_out_of_bounds: float
     reward_time: float
+    reward_budget: float
 
 
 class Shaping(NamedTuple):
@@ -133,6 +140,11 @@ class Missions(NamedTuple):
     score: np.ndarray
     """(N,) the unshaped task score so far: the sum of every reward term but the progress
     shaping, undiscounted (what tables rank by; the shaping only guides learning)."""
+    hold_anchor: np.ndarray
+    """(N, T, dim) the chaser's position relative to each target (m) at the first step end of
+    its current hold (``capture_rule="hold"``)."""
+    budget_spent: np.ndarray
+    """(N,) bool: the mission ended failed because the Δv budget ran out."""
 
 
 class Field(NamedTuple):
@@ -179,7 +191,7 @@ class StepOutputs(NamedTuple):
     truncated: np.ndarray
     """(N,) bool: the step limit reached."""
     terms: np.ndarray
-    """(N, 7) reward terms, columns in :data:`REWARD_TERMS` order."""
+    """(N, 8) reward terms, columns in :data:`REWARD_TERMS` order."""
 
 
 class StepScratch(NamedTuple):
@@ -237,6 +249,8 @@ def make_rules(
         capture_radius=float(cfg.capture_radius),
         capture_speed=float(cfg.capture_speed),
         hold_steps=hold_steps(cfg.capture_hold, dt),
+        hold_capture=cfg.capture_rule == "hold",
+        capture_drift=float(cfg.capture_drift),
         moving=cfg.debris_motion != "frozen",
         solid_targets=bool(cfg.solid_targets),
         body_matrix_t=body_matrix_t,
@@ -286,6 +300,8 @@ def new_missions(num: int, dim: int, n_targets: int, n_bodies: int, n_ranked: in
         accel=np.zeros((num, dim)),
         hold=np.zeros((num, n_targets), dtype=np.int64),
         score=np.zeros(num),
+        hold_anchor=np.zeros((num, n_targets, dim)),
+        budget_spent=np.zeros(num, dtype=bool),
     )
 
 

@@ -7,8 +7,10 @@ One row (mission) of a step is::
     contacts   the swept contact check along the sampled path (relative to each moving body)
     move       the bodies' own exact unforced flight over the step (moving fields)
     measure    the gaps to every body at the step's end (and the obstacle ranking, clearance)
+    judge      collision (first: with the "hold" capture rule a colliding step captures
+               nothing)
     captures   targets held in range at a low relative speed for long enough
-    judge      collision, bounds, success; terminated and truncated
+    judge      bounds, success, the Δv budget; terminated and truncated
     reward     the named terms, with the potential-based progress term
 
 Each phase is an inlined compiled function; :func:`step_rows` reads as that list.
@@ -47,9 +49,9 @@ from debris_gym.swept_contacts import moving_path_touches, path_touches
 from debris_gym.thrust import delta_v_rate_row, thrust_row
 
 # reward term columns, in REWARD_TERMS order
-_T_CAPTURE, _T_SUCCESS, _T_PROGRESS, _T_DV, _T_COLLISION, _T_OOB, _T_TIME = range(7)
+_T_CAPTURE, _T_SUCCESS, _T_PROGRESS, _T_DV, _T_COLLISION, _T_OOB, _T_TIME, _T_BUDGET = range(8)
 assert REWARD_TERMS == (
-    "capture", "success", "progress", "delta_v", "collision", "out_of_bounds", "time"
+    "capture", "success", "progress", "delta_v", "collision", "out_of_bounds", "time", "budget"
 )  # fmt: skip
 
 # --- phases -----------------------------------------------------------------------------------
@@ -180,11 +182,17 @@ def speed_of(i, state):
 
 
 @inlined
-def captures(i, rules, state, gaps, velocities, captured, hold):
+def captures(i, rules, state, gaps, centers, velocities, touched, captured, hold, anchor):
     """Count a step end toward each target's capture: the chaser within ``capture_radius`` of
     the target's surface (surface to surface) with its velocity relative to the target's at
     most ``capture_speed``; a target held so for :attr:`Rules.hold_steps` consecutive step ends
-    is captured (queued: only the queue head counts). Returns how many were captured now."""
+    is captured (queued: only the queue head counts). Returns how many were captured now.
+
+    With :attr:`Rules.hold_capture` a step end also counts only if the target was not
+    ``touched`` during the step and the chaser's position relative to the target is within
+    ``capture_drift`` of ``anchor[i, j]``, its relative position at the hold's first step end;
+    a step end in range and speed that drifted further starts a new hold from itself.
+    """
     dim = velocities.shape[2]
     new = 0
     reach = rules.capture_radius + rules.chaser_radius
@@ -195,7 +203,20 @@ def captures(i, rules, state, gaps, velocities, captured, hold):
         for a in range(dim):
             dv = state[i, dim + a] - velocities[i, j, a]
             rel2 += dv * dv
-        if gaps[i, j] <= reach and math.sqrt(rel2) <= rules.capture_speed:
+        held = gaps[i, j] <= reach and math.sqrt(rel2) <= rules.capture_speed
+        if rules.hold_capture:
+            held = held and not touched[j]
+            if held and hold[i, j] > 0:
+                drift2 = 0.0
+                for a in range(dim):
+                    d = state[i, a] - centers[i, j, a] - anchor[i, j, a]
+                    drift2 += d * d
+                if drift2 > rules.capture_drift * rules.capture_drift:
+                    hold[i, j] = 0  # drifted off: this step end starts a new hold
+            if held and hold[i, j] == 0:
+                for a in range(dim):
+                    anchor[i, j, a] = state[i, a] - centers[i, j, a]
+        if held:
             hold[i, j] += 1
         else:
             hold[i, j] = 0
@@ -264,7 +285,9 @@ def succeeds(i, slow, rules, state, captured, dock):
 
 
 @inlined
-def reward(i, new, dv, ended, phi, before, rules, success, collision, out_of_bounds, terms):
+def reward(
+    i, new, dv, ended, phi, before, rules, success, collision, out_of_bounds, budget_spent, terms
+):  # fmt: skip
     """The named reward terms of the step into ``terms[i]`` (potential Φ ``before`` and ``phi``
     after it); returns their sum."""
     terms[i, _T_CAPTURE] = rules.reward_capture * new
@@ -274,6 +297,7 @@ def reward(i, new, dv, ended, phi, before, rules, success, collision, out_of_bou
     terms[i, _T_COLLISION] = -rules.reward_collision * collision[i]
     terms[i, _T_OOB] = -rules.reward_out_of_bounds * out_of_bounds[i]
     terms[i, _T_TIME] = -rules.reward_time
+    terms[i, _T_BUDGET] = -rules.reward_budget * budget_spent[i]
     if ended and rules.terminal_zero:
         terms[i, _T_PROGRESS] -= rules.reward_progress * rules.gamma * phi  # Φ(terminal) = 0
     total = 0.0
@@ -412,6 +436,7 @@ def begin_rows(rows, states, rules, shaping, missions, field):
     collision, out_of_bounds, success = missions.collision, missions.out_of_bounds, missions.success
     gaps, nearest, min_clearance = missions.gaps, missions.nearest, missions.min_clearance
     potential_of, accel = missions.potential, missions.accel
+    budget_spent = missions.budget_spent
     centers, radii, polygon_start = field.centers, field.radii, field.polygon_start
     polygons, n_vertices, vertices = field.polygons, field.n_vertices, field.vertices
     attitude, dock = field.attitude, field.dock
@@ -444,6 +469,7 @@ def begin_rows(rows, states, rules, shaping, missions, field):
         collision[i] = False
         out_of_bounds[i] = False
         success[i] = False
+        budget_spent[i] = False
         measure(
             i, state, gaps, nearest, centers, radii, polygon_start, polygons, n_vertices, vertices,
             attitude,
@@ -505,6 +531,7 @@ def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out, scrat
     collision, out_of_bounds, success = missions.collision, missions.out_of_bounds, missions.success
     gaps, nearest, min_clearance = missions.gaps, missions.nearest, missions.min_clearance
     potential_of, applied = missions.potential, missions.accel
+    anchor, budget_spent = missions.hold_anchor, missions.budget_spent
     centers, radii, polygon_start = field.centers, field.radii, field.polygon_start
     polygons, n_vertices, vertices = field.polygons, field.n_vertices, field.vertices
     velocities, attitude, turns = field.velocities, field.attitude, field.turns
@@ -547,16 +574,21 @@ def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out, scrat
             attitude,
         )  # fmt: skip
         min_clearance[i] = nearest_obstacle(i, n_targets, gaps, min_clearance[i])
-        # captures
+        # judge contacts, then captures (with hold_capture a colliding step captures nothing)
         slow = speed_of(i, state) <= rules.capture_speed
-        new = captures(i, rules, state, gaps, velocities, captured, hold)
-        # judge
         collision[i] = collision[i] or collides(i, start, touched, slow, rules, state, centers)
+        new = 0
+        if not (rules.hold_capture and collision[i]):
+            new = captures(
+                i, rules, state, gaps, centers, velocities, touched, captured, hold, anchor
+            )
+        # judge the rest
         out_of_bounds[i] = outside(i, state, low, high)
         success[i] = success[i] or (
             not collision[i] and succeeds(i, slow, rules, state, captured, dock)
         )
         spent = delta_v[i] >= rules.delta_v_budget
+        budget_spent[i] = spent and not (success[i] or collision[i] or out_of_bounds[i])
         ended = success[i] or collision[i] or out_of_bounds[i] or spent
         terminated[i] = ended
         truncated[i] = rules.max_steps > 0 and steps[i] >= rules.max_steps
@@ -573,8 +605,9 @@ def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out, scrat
         before = potential_of[i]
         potential_of[i] = phi
         rewards[i] = reward(
-            i, new, dv, ended, phi, before, rules, success, collision, out_of_bounds, terms
-        )
+            i, new, dv, ended, phi, before, rules, success, collision, out_of_bounds,
+            budget_spent, terms,
+        )  # fmt: skip
         for k in range(terms.shape[1]):  # the task score: every term but the shaping
             if k != _T_PROGRESS:
                 score[i] += terms[i, k]

@@ -58,6 +58,9 @@ OBSERVATION_BLOCKS: tuple[ObservationBlock, ...] = (
         ),
         lambda cfg: cfg.obs_targets,
     ),
+    ObservationBlock(
+        "target_holds", ("target{k}_hold",), lambda cfg: cfg.obs_targets if cfg.obs_hold else 0
+    ),
     ObservationBlock("dock", ("dock_rel_pos_{a}",), lambda cfg: 1),
     ObservationBlock(
         "obstacles",
@@ -102,6 +105,8 @@ class ObservationLayout(NamedTuple):
     chaser: int
     targets: int
     target_slots: int
+    target_holds: int
+    hold_slots: int
     dock: int
     obstacles: int
     obstacle_slots: int
@@ -132,6 +137,8 @@ def observation_layout(cfg: EnvConfig) -> ObservationLayout:
         chaser=offsets["chaser"],
         targets=offsets["targets"],
         target_slots=slots["targets"],
+        target_holds=offsets["target_holds"],
+        hold_slots=slots["target_holds"],
         dock=offsets["dock"],
         obstacles=offsets["obstacles"],
         obstacle_slots=slots["obstacles"],
@@ -185,6 +192,7 @@ def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
     """Observations of the missions ``lo … hi − 1`` into ``out``, block by block."""
     state, gaps, captured = missions.state, missions.gaps, missions.captured
     nearest, delta_v, steps = missions.nearest, missions.delta_v, missions.steps
+    hold = missions.hold
     centers, radii, dock = field.centers, field.radii, field.dock
     velocities, attitude = field.velocities, field.attitude
     moving = rules.moving
@@ -247,6 +255,14 @@ def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
             for _ in range(2 * dim + 1):
                 k = _put(out, i, k, 0.0)
             k = _put(out, i, k, 1.0)
+
+        # hold progress of the same target slots (empty slots: 0)
+        if layout.hold_slots:
+            k = layout.target_holds
+            for s in range(m):
+                k = _put(out, i, k, min(hold[i, order[s]] / rules.hold_steps, 1.0))
+            for _slot in range(m, layout.hold_slots):
+                k = _put(out, i, k, 0.0)
 
         # dock: relative position / L
         k = layout.dock

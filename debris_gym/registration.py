@@ -49,6 +49,22 @@ target, fine discrete thrust, and undiscounted shaping on the shortest remaining
 never refunds (so the return ranks a success above idling, crashing, fleeing and burning the
 budget, whichever target a tour starts with)."""
 
+HOLD_RULES: dict[str, object] = {
+    "capture_rule": "hold",
+    "capture_speed": 0.1,
+    "capture_drift": 1.0,
+    "reward_budget": 50.0,
+    "obs_hold": True,
+}
+"""The rules v2 adds to the v1 world (docs/environments.md, "What v2 changes"): a capture is a
+hold of 30 s within 1 m of where it began, at ≤ 0.1 m/s relative to the target, untouched; a
+step that collides captures nothing; running out of Δv is a failure penalised like leaving the
+world; the hold's progress is observed. The figures are those of real proximity operations
+([IDSS] contact speeds, the [HTV] capture box; docs/references.md)."""
+
+V2_WORLD: dict[str, object] = {**PHYSICAL_WORLD, **HOLD_RULES}
+"""Every option of the v2 world: the v1 world with :data:`HOLD_RULES`."""
+
 EASY_MISSION: dict[str, object] = {"n_targets": 1, "n_obstacles": 5, "return_to_dock": False}
 """The Easy rung of v1: one target among five other debris, no return (the mission ends at the
 capture)."""
@@ -57,6 +73,24 @@ MEDIUM_MISSION: dict[str, object] = {"n_targets": 2, "n_obstacles": 10, "return_
 """The Medium rung of v1: two targets among ten other debris, then back to the dock."""
 
 ENV_SPECS: dict[str, dict] = {
+    "DebrisGym/Rendezvous2D-v2": {"max_episode_steps": 1000, "kwargs": {"dim": 2, **V2_WORLD}},
+    "DebrisGym/Rendezvous3D-v2": {"max_episode_steps": 1000, "kwargs": {"dim": 3, **V2_WORLD}},
+    "DebrisGym/Rendezvous2D-Easy-v2": {
+        "max_episode_steps": 1000,
+        "kwargs": {"dim": 2, **V2_WORLD, **EASY_MISSION},
+    },
+    "DebrisGym/Rendezvous2D-Medium-v2": {
+        "max_episode_steps": 1000,
+        "kwargs": {"dim": 2, **V2_WORLD, **MEDIUM_MISSION},
+    },
+    "DebrisGym/Rendezvous3D-Easy-v2": {
+        "max_episode_steps": 1000,
+        "kwargs": {"dim": 3, **V2_WORLD, **EASY_MISSION},
+    },
+    "DebrisGym/Rendezvous3D-Medium-v2": {
+        "max_episode_steps": 1000,
+        "kwargs": {"dim": 3, **V2_WORLD, **MEDIUM_MISSION},
+    },
     "DebrisGym/Rendezvous2D-v1": {
         "max_episode_steps": 1000,
         "kwargs": {"dim": 2, **PHYSICAL_WORLD},
@@ -102,9 +136,9 @@ ENV_SPECS: dict[str, dict] = {
     },
 }
 """Every registered ID with its time limit (steps) and keyword arguments. The Easy and Medium
-IDs are difficulty rungs of the v1 world (the same physics, rules and reward; fewer targets and
-debris): the same missions as ``reset(options={"mission": EASY_MISSION})`` on the v1 ID, so a
-curriculum can climb them in one env."""
+IDs are difficulty rungs of the v2 (and of the v1) world (the same physics, rules and reward;
+fewer targets and debris): the same missions as ``reset(options={"mission": EASY_MISSION})`` on
+the default ID of their version, so a curriculum can climb them in one env."""
 
 
 def register_envs() -> None:

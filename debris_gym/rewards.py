@@ -14,6 +14,8 @@ term               value per step
 ``collision``      ``−reward_collision`` on a collision
 ``out_of_bounds``  ``−reward_out_of_bounds`` on leaving the world bounds
 ``time``           ``−reward_time`` every step
+``budget``         ``−reward_budget`` when the Δv budget runs out (the mission failed:
+                   it ends with no success, collision or exit in that step)
 =================  ===============================================================
 
 Φ(s) = −(gap to the current goal / L + goals after it), minus, when ``shaping_speed`` > 0,
@@ -33,4 +35,6 @@ module names them (in the order of ``info["reward_terms"]`` and of the step's te
 
 from __future__ import annotations
 
-REWARD_TERMS = ("capture", "success", "progress", "delta_v", "collision", "out_of_bounds", "time")
+REWARD_TERMS = (
+    "capture", "success", "progress", "delta_v", "collision", "out_of_bounds", "time", "budget"
+)  # fmt: skip

@@ -32,6 +32,12 @@ OBS_MEANING = [
     (r"target(\d+)_rel_vel_(\w)", "target slot {0}: target − chaser velocity, {1}", "m/s", "V"),
     (r"target(\d+)_radius", "target slot {0}: target radius", "m", "L"),
     (r"target(\d+)_captured", "target slot {0}: 1 if captured (or empty slot), else 0", "", "1"),
+    (
+        r"target(\d+)_hold",
+        "target slot {0}: step ends held / the step ends a capture needs (obs_hold)",
+        "",
+        "1",
+    ),
     (r"dock_rel_pos_(\w)", "dock − chaser position, {0}", "m", "L"),
     (
         r"obstacle(\d+)_rel_pos_(\w)",

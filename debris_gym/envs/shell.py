@@ -77,9 +77,11 @@ INFO_KEYS = (
     "targets_captured",
     "n_targets",
     "captured",
+    "hold",
     "min_clearance",
     "collision",
     "out_of_bounds",
+    "budget_spent",
     "is_success",
     "applied_accel",
     "task_score",
@@ -105,7 +107,7 @@ class StepResult(NamedTuple):
     terminated: np.ndarray
     truncated: np.ndarray
     terms: np.ndarray
-    """(N, 7) reward terms, columns in :data:`~debris_gym.rewards.REWARD_TERMS` order."""
+    """(N, 8) reward terms, columns in :data:`~debris_gym.rewards.REWARD_TERMS` order."""
     final_observation: np.ndarray | None = None
     """Same-step autoreset: the ended missions' last observations (rows of ``ended``)."""
     final_info: dict[str, Any] | None = None
@@ -215,7 +217,7 @@ class MissionShell:
 
     def info(self, terms: np.ndarray) -> dict[str, Any]:
         """The :data:`INFO_KEYS` of every mission as new arrays (row i = mission i);
-        ``terms`` (N, 7) the step's reward terms (by term name under ``"reward_terms"``)."""
+        ``terms`` (N, 8) the step's reward terms (by term name under ``"reward_terms"``)."""
         batch = self.batch_in_use
         m = batch.missions
         return {
@@ -225,9 +227,11 @@ class MissionShell:
             "targets_captured": batch.captured_counts(),
             "n_targets": np.full(self.num, batch.n_targets),
             "captured": m.captured.copy(),
+            "hold": m.hold.copy(),
             "min_clearance": m.min_clearance - self.config.chaser_radius,
             "collision": m.collision.copy(),
             "out_of_bounds": m.out_of_bounds.copy(),
+            "budget_spent": m.budget_spent.copy(),
             "is_success": m.success.copy(),
             "applied_accel": m.accel.copy(),
             "task_score": m.score.copy(),
@@ -236,7 +240,7 @@ class MissionShell:
 
     def row_info(self, i: int, terms: Sequence[float]) -> dict[str, Any]:
         """The :data:`INFO_KEYS` of mission ``i`` as Python scalars and arrays of its own;
-        ``terms`` its 7 reward terms."""
+        ``terms`` its 8 reward terms."""
         batch = self.batch_in_use
         m = batch.missions
         captured = m.captured[i].copy()
@@ -247,9 +251,11 @@ class MissionShell:
             "targets_captured": int(np.count_nonzero(captured)),
             "n_targets": batch.n_targets,
             "captured": captured,
+            "hold": m.hold[i].copy(),
             "min_clearance": float(m.min_clearance[i]) - self.config.chaser_radius,
             "collision": bool(m.collision[i]),
             "out_of_bounds": bool(m.out_of_bounds[i]),
+            "budget_spent": bool(m.budget_spent[i]),
             "is_success": bool(m.success[i]),
             "applied_accel": m.accel[i].copy(),
             "task_score": float(m.score[i]),
