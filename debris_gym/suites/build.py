@@ -68,6 +68,22 @@ STANDARD_SUITES: dict[str, StandardSuite] = {
         "field, 3 targets, 20 obstacles, return to dock), drawn from reset seeds "
         "901000000-901000099",
     ),
+    "standard-2d-v2": StandardSuite(
+        env_id="DebrisGym/Rendezvous2D-v2",
+        first_seed=902_000_000,
+        count=100,
+        description="100 missions of DebrisGym/Rendezvous2D-v2 as registered (moving CWH "
+        "field, 3 targets, 20 obstacles, return to dock; capture is a hold), drawn from reset "
+        "seeds 902000000-902000099",
+    ),
+    "standard-3d-v2": StandardSuite(
+        env_id="DebrisGym/Rendezvous3D-v2",
+        first_seed=903_000_000,
+        count=100,
+        description="100 missions of DebrisGym/Rendezvous3D-v2 as registered (moving CWH "
+        "field, 3 targets, 20 obstacles, return to dock; capture is a hold), drawn from reset "
+        "seeds 903000000-903000099",
+    ),
 }
 """The standard suites, by name."""
 
