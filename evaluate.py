@@ -2,8 +2,9 @@
 
 Every agent flies the same episodes: episode i starts with env.reset(seed=SEED + i), and the
 debris field comes from that seed. With --suite NAME every agent flies the frozen suite's
-missions instead (shipped with the package, evaluation-only; suites: standard-2d-v1,
-standard-3d-v1, ...): episode i pins mission i's field, and --episodes N flies the first N.
+missions instead (shipped with the package, evaluation-only; suites: standard-2d-v2,
+standard-3d-v2, hard-v2, and the v1 ones, ...): episode i pins mission i's field, and
+--episodes N flies the first N.
 Outputs in --out DIR:
 
   episodes.csv              one row per agent x episode
@@ -86,7 +87,7 @@ examples:
   python evaluate.py --env DebrisGym/Rendezvous3D-v0 --env-kwargs '{"n_obstacles": 40}'
   python evaluate.py --agents apf,ppo=runs/ppo/model.zip
   python evaluate.py --agents apf,mine=my_pkg.my_mod:make_policy   # your own policy
-  python evaluate.py --suite standard-2d-v1 --agents apf-mpc,astar --episodes 10
+  python evaluate.py --suite standard-2d-v2 --agents apf-mpc,astar --episodes 10
   python evaluate.py --paper --out runs/paper          # [APF-MPC] Table I side by side
   python evaluate.py --agents apf,apf-mpc --shield     # every agent behind the safety shield
   python evaluate.py --agents apf-mpc,pretrained --video 2   # mp4s of the first 2 episodes

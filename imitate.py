@@ -41,8 +41,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--env",
         metavar="ID",
-        default="DebrisGym/Rendezvous2D-v1",
-        help="environment ID (default: DebrisGym/Rendezvous2D-v1)",
+        default="DebrisGym/Rendezvous2D-v2",
+        help="environment ID (default: DebrisGym/Rendezvous2D-v2)",
     )
     cli.add_config_options(parser, "agents/configs/<env>_imitation.yaml", "--set dagger_rounds=2")
     parser.add_argument(

@@ -24,10 +24,10 @@ from agents.experiments import cli
 
 EXAMPLES = """\
 examples:
-  python sweep.py --env DebrisGym/Rendezvous2D-Easy-v1 --samples 4 --timesteps 20000 \\
+  python sweep.py --env DebrisGym/Rendezvous2D-Easy-v2 --samples 4 --timesteps 20000 \\
       --n-envs 4 --out runs/sweep                    # 4 trials on a local Ray
   python sweep.py --config my_recipe.yaml --address auto --out /shared/sweep   # a cluster
-  python evaluate.py --env DebrisGym/Rendezvous2D-Easy-v1 --agents apf,ppo=runs/sweep/best/model.zip
+  python evaluate.py --env DebrisGym/Rendezvous2D-Easy-v2 --agents apf,ppo=runs/sweep/best/model.zip
 """
 
 

@@ -19,7 +19,7 @@ from agents.experiments.run_directory import OutputDirError
 EXAMPLES = """\
 examples:
   python train.py --algo ppo --timesteps 4096 --n-envs 2 --out /tmp/t1     # a quick check
-  python train.py --env DebrisGym/Rendezvous2D-v1 --algo ppo --out runs/ppo  # the full recipe
+  python train.py --env DebrisGym/Rendezvous2D-v2 --algo ppo --out runs/ppo  # the full recipe
   python train.py --algo sac --out runs/sac --set algo_kwargs.batch_size=512
   python train.py --config agents/configs/rendezvous2d_finetune.yaml --init runs/dagger \
       --out runs/ft                                      # RL fine-tuning of a DAgger policy

@@ -63,7 +63,7 @@ def main() -> None:
     parser.add_argument("--steps", type=integer(1, 1_000_000), default=400)
     parser.add_argument("--warmup", type=integer(0, 1_000_000), default=150)
     args = parser.parse_args()
-    warnings.filterwarnings("ignore")  # the v0 IDs' deprecation notice
+    warnings.filterwarnings("ignore")  # the v0 and v1 IDs' deprecation notice
     for env_id in args.ids.split(","):
         env_id = env_id if "/" in env_id else f"DebrisGym/{env_id}"
         t = time_calls(env_id, args.num, args.steps, args.warmup)

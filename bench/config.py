@@ -15,8 +15,8 @@ import debris_gym
 
 DEBRIS_IDS = tuple(debris_gym.ENV_SPECS)
 CARTPOLE = "CartPole-v1"
-ID_2D = "DebrisGym/Rendezvous2D-v1"
-ID_3D = "DebrisGym/Rendezvous3D-v1"
+ID_2D = "DebrisGym/Rendezvous2D-v2"
+ID_3D = "DebrisGym/Rendezvous3D-v2"
 SCALING_COUNTS = (10, 50, 100, 200)
 """Debris counts of the single-env scaling rows (the vector rows take theirs from the sizes)."""
 DEFAULT_OBSTACLES = 20

@@ -1,5 +1,7 @@
 """Section ``decisions``: decision times of every baseline and of the pretrained policy, and of
-APF-MPC and the pretrained policy behind the safety shield (``evaluate.py --shield``).
+APF-MPC and the pretrained policy behind the safety shield (``evaluate.py --shield``). The
+pretrained rows appear when a policy ships for the bench's env (``agents.load_agent``'s
+``pretrained`` for :data:`~bench.config.ID_2D`), as in the default evaluation.
 
 Every agent flies the same seeded missions of the default evaluation (``python evaluate.py``,
 reset seeds :data:`DECISION_SEED`, +1, …) through the evaluation's own loop
@@ -43,6 +45,7 @@ class AgentsAPI(NamedTuple):
 
     baselines: tuple[str, ...]  # names of the classical baselines
     pretrained: str  # the agent spec of the shipped pretrained policy
+    pretrained_ships: Callable[[str], bool]  # env ID -> a pretrained policy ships for it
     agent_env_options: Callable[..., dict[str, Any]]
     build_agent: Callable[..., Any]
     make_env: Callable[..., Any]
@@ -63,11 +66,20 @@ def agents_api() -> AgentsAPI:
     """
     from agents import BASELINES
     from agents.experiments import evaluation
+    from agents.policies.learned import pretrained_path
     from agents.policies.shielded import ShieldedAgent
+
+    def pretrained_ships(env_id: str) -> bool:
+        try:
+            pretrained_path(env_id)
+        except (FileNotFoundError, ValueError):
+            return False
+        return True
 
     return AgentsAPI(
         baselines=tuple(BASELINES),
         pretrained=evaluation.PRETRAINED,
+        pretrained_ships=pretrained_ships,
         agent_env_options=evaluation.agent_env_options,
         build_agent=evaluation.build_agent,
         make_env=evaluation.make_env,
@@ -83,12 +95,14 @@ SHIELD_SUFFIX = "+shield"
 
 def decision_agents() -> list[str]:
     """Every baseline of ``agents.BASELINES``, the shipped pretrained policy, then APF-MPC and the
-    pretrained policy behind the shield (``NAME+shield``)."""
+    pretrained policy behind the shield (``NAME+shield``); the pretrained ones only when a
+    policy ships for :data:`~bench.config.ID_2D`."""
     api = agents_api()
+    learned = [api.pretrained] if api.pretrained_ships(ID_2D) else []
     return [
         *api.baselines,
-        api.pretrained,
-        *(f"{name}{SHIELD_SUFFIX}" for name in ("apf-mpc", api.pretrained)),
+        *learned,
+        *(f"{name}{SHIELD_SUFFIX}" for name in ("apf-mpc", *learned)),
     ]
 
 

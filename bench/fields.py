@@ -44,6 +44,8 @@ def field_cost(spec: FieldSpec, batch: int, count: int, passes: int) -> float:
 
 RESET_IDS = (
     "CartPole-v1",
+    "DebrisGym/Rendezvous2D-v2",
+    "DebrisGym/Rendezvous3D-v2",
     "DebrisGym/Rendezvous2D-v1",
     "DebrisGym/Rendezvous3D-v1",
     "DebrisGym/Rendezvous2D-v0",
@@ -55,7 +57,7 @@ def reset_costs(ids: tuple[str, ...], resets: int, passes: int) -> dict[str, flo
     """Best-of-``passes`` seconds per ``env.reset()`` (no seed) of ``gym.make(id)`` for each
     ID, after ``reset(seed=0)`` and 100 warm-up resets; the passes of the IDs interleaved."""
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the v0 IDs' "out of date" notice
+        warnings.simplefilter("ignore")  # the v0 and v1 IDs' "out of date" notice
         envs = {i: gym.make(i) for i in ids}
     for env in envs.values():
         env.reset(seed=0)

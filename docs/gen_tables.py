@@ -22,7 +22,7 @@ from debris_gym.files import write_atomic
 from debris_gym.registration import ENV_SPECS
 
 DOC = Path(__file__).with_name("environments.md")
-DEFAULT_ID = "DebrisGym/Rendezvous2D-v1"
+DEFAULT_ID = "DebrisGym/Rendezvous2D-v2"
 """The ID the tables describe: the default of every script and headline figure."""
 
 OBS_MEANING = [

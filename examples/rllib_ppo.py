@@ -2,8 +2,8 @@
 the episodes ending in each training iteration.
 
     pip install 'debris-gym[distributed]'
-    python examples/rllib_ppo.py --iterations 5                 # DebrisGym/Rendezvous2D-Easy-v1
-    python examples/rllib_ppo.py --env DebrisGym/Rendezvous2D-v1 --env-runners 2 --iterations 50
+    python examples/rllib_ppo.py --iterations 5                 # DebrisGym/Rendezvous2D-Easy-v2
+    python examples/rllib_ppo.py --env DebrisGym/Rendezvous2D-v2 --env-runners 2 --iterations 50
 
 The env is made on every env runner by its "debris_gym:DebrisGym/..." name, each runner's
 sub-envs through the package's native vector env (agents/experiments/distributed/rllib.py;
@@ -20,7 +20,7 @@ import time
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--env", default="DebrisGym/Rendezvous2D-Easy-v1", help="DebrisGym ID")
+    parser.add_argument("--env", default="DebrisGym/Rendezvous2D-Easy-v2", help="DebrisGym ID")
     parser.add_argument("--iterations", type=int, default=5, help="training iterations")
     parser.add_argument("--env-runners", type=int, default=1, help="sampling processes")
     parser.add_argument("--envs-per-runner", type=int, default=8, help="sub-envs per runner")

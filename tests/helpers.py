@@ -12,12 +12,13 @@ import pytest
 
 from debris_gym.scenario import Body, Scenario
 
-flies_v0 = pytest.mark.filterwarnings(
-    r"ignore:.*DebrisGym/\w+-v0 is out of date:DeprecationWarning"
+flies_old_ids = pytest.mark.filterwarnings(
+    r"ignore:.*DebrisGym/[\w-]+-v[01] is out of date:DeprecationWarning"
 )
-"""Mark of a test (or ``pytestmark`` of a module) that flies a frozen-world v0 ID on purpose: it
-silences, there only, gymnasium's notice that a v1 of the ID exists (which
-``tests/test_env.py::test_a_v0_id_with_a_v1_warns_that_it_is_out_of_date`` checks is given)."""
+"""Mark of a test (or ``pytestmark`` of a module) that flies an old version's ID on purpose (the
+frozen world, v0, or the v1 rules, to reproduce their figures): it silences, there only,
+gymnasium's notice that a newer version of the ID exists (which
+``tests/test_env.py::test_an_old_id_warns_that_it_is_out_of_date`` checks is given)."""
 
 
 def simple_scenario(**overrides) -> Scenario:

@@ -28,10 +28,10 @@ from debris_gym.generators import paper_field
 from debris_gym.geometry import FieldGeometry
 from debris_gym.scenario import Body, Scenario
 from tests.geometry_oracle import OracleField
-from tests.helpers import flies_v0
+from tests.helpers import flies_old_ids
 
 # the agents fly the frozen-world default field (v0) too, as docs/baselines.md does
-pytestmark = flies_v0
+pytestmark = flies_old_ids
 
 # --------------------------------------------------------------------------------------------------
 # fields

@@ -64,7 +64,7 @@ def _moving_field(obstacles: bool, target=(15.0, 260.0)) -> Scenario:
 
 
 def _env(steps: int = 400):
-    return gym.make("DebrisGym/Rendezvous2D-v1", mean_motion=SLOW_N, max_episode_steps=steps)
+    return gym.make("DebrisGym/Rendezvous2D-v2", mean_motion=SLOW_N, max_episode_steps=steps)
 
 
 def _fly(agent, env, scenario):

@@ -25,7 +25,7 @@ from debris_gym.generators import FieldSpec, random_field
 from debris_gym.geometry import FieldGeometry
 from debris_gym.scenario import Body, Scenario
 from debris_gym.solvability import occupancy_grid
-from tests.helpers import flies_v0, simple_scenario
+from tests.helpers import flies_old_ids, simple_scenario
 
 ID = "DebrisGym/Rendezvous2D-v0"
 ROOT = Path(__file__).resolve().parents[1]
@@ -73,7 +73,7 @@ def test_a_field_spec_with_a_float_count_is_refused():
         FieldSpec(n_targets=3.0)
 
 
-@flies_v0
+@flies_old_ids
 @pytest.mark.parametrize(
     ("key", "value"),
     [
@@ -188,7 +188,7 @@ def test_the_route_proof_in_chunks_answers_each_field_as_alone(monkeypatch):
     assert whole.any() and not whole.all()
 
 
-@flies_v0
+@flies_old_ids
 @pytest.mark.slow
 def test_a_crowded_field_without_gaps_resets():
     # seconds, not minutes, per reset of a field this crowded (docs/validation.md)

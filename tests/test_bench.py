@@ -25,10 +25,10 @@ import bench
 from bench import cli, config, decisions, harness, memory, suite, vector
 from bench.config import CARTPOLE, DEBRIS_IDS, DEFAULT_OBSTACLES, ID_2D, ID_3D, TINY
 from debris_gym.files import write_atomic
-from tests.helpers import flies_v0
+from tests.helpers import flies_old_ids
 
 # the bench measures every registered ID, the v0 ones included
-pytestmark = flies_v0
+pytestmark = flies_old_ids
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -320,12 +320,31 @@ def test_train_rows():
     _report_of(train, "## Training throughput")
 
 
+def test_decision_agents_take_the_pretrained_policy_once_one_ships_for_the_env(monkeypatch):
+    """The pretrained rows follow the shipped policies (as the default evaluation does): none
+    while no policy ships for the bench's env, both once an entry names one."""
+    from agents.policies import learned
+
+    api = decisions.agents_api()
+    baselines = list(api.baselines)
+    ships = api.pretrained_ships(config.ID_2D)
+    if not ships:
+        assert decisions.decision_agents() == [*baselines, "apf-mpc+shield"]
+    shipped = {**learned.PRETRAINED_POLICIES, config.ID_2D: ("ppo", "rendezvous2d_finetuned.zip")}
+    monkeypatch.setattr(learned, "PRETRAINED_POLICIES", shipped)
+    assert decisions.decision_agents() == [
+        *baselines, "pretrained", "apf-mpc+shield", "pretrained+shield"
+    ]  # fmt: skip
+    monkeypatch.setattr(learned, "PRETRAINED_POLICIES", {})
+    assert decisions.decision_agents() == [*baselines, "apf-mpc+shield"]
+
+
 def test_decision_rows():
     timed = tiny_run("decisions")
     assert [r["agent"] for r in timed] == decisions.decision_agents()
-    assert "pretrained" in decisions.decision_agents() and "apf-mpc" in decisions.decision_agents()
-    assert decisions.decision_agents()[-2:] == ["apf-mpc+shield", "pretrained+shield"]
-    assert {r["env_id"] for r in timed} == {config.ID_2D}  # v1 has its own pretrained policy
+    assert "apf-mpc" in decisions.decision_agents()
+    assert "apf-mpc+shield" in decisions.decision_agents()
+    assert {r["env_id"] for r in timed} == {config.ID_2D}
     limit = TINY["decision_max_steps"]
     for row in timed:
         assert row["error"] is None, row["error"]

@@ -16,9 +16,11 @@ from agents.experiments.evaluation.journal import EvaluationJournal
 from agents.experiments.evaluation.records import RECORD_FIELDS, TIMING_COLUMNS
 from agents.experiments.evaluation.runner import EvaluationJob, evaluate_agents
 from agents.experiments.evaluation.specs import parse_agent_specs
-from tests.helpers import load_script
+from tests.helpers import flies_old_ids, load_script
 
-EASY = "DebrisGym/Rendezvous2D-Easy-v1"
+EASY = "DebrisGym/Rendezvous2D-Easy-v2"
+LEARNED_EASY = "DebrisGym/Rendezvous2D-Easy-v1"
+"""The Easy rung with a shipped pretrained policy (a learned agent to fly on Ray)."""
 QUICK = ["--env", EASY, "--max-steps", "60", "--plots", "0", "--no-progress"]
 HAS_RAY = importlib.util.find_spec("ray") is not None
 
@@ -91,13 +93,14 @@ def test_stateful_agents_fly_in_order_with_their_finished_episodes_replayed():
 
 
 @pytest.mark.skipif(not HAS_RAY, reason="needs ray (pip install 'debris-gym[distributed]')")
+@flies_old_ids
 def test_ray_records_equal_the_local_records(local_ray):
     agents = "apf,random,zero,pretrained"  # random: a stateful agent; pretrained: a learned one
     kwargs = {"env_kwargs": {}, "max_episode_steps": 60, "progress": False}
-    local = evaluate_agents(EASY, agents, episodes=5, seed=7, **kwargs)
+    local = evaluate_agents(LEARNED_EASY, agents, episodes=5, seed=7, **kwargs)
     arrived = []
     remote = evaluate_agents(
-        EASY, agents, episodes=5, seed=7, on_episode=arrived.append,
+        LEARNED_EASY, agents, episodes=5, seed=7, on_episode=arrived.append,
         backend=RayBackend(workers=2), **kwargs,
     )  # fmt: skip
     assert len(arrived) == 20

@@ -12,9 +12,9 @@ from agents.experiments.distributed.rllib import rllib_env_id
 
 
 def test_ids_get_the_module_prefix_that_registers_them_on_any_worker():
-    assert rllib_env_id("DebrisGym/Rendezvous2D-v1") == "debris_gym:DebrisGym/Rendezvous2D-v1"
-    assert rllib_env_id("debris_gym:DebrisGym/Rendezvous3D-v1") == (
-        "debris_gym:DebrisGym/Rendezvous3D-v1"
+    assert rllib_env_id("DebrisGym/Rendezvous2D-v2") == "debris_gym:DebrisGym/Rendezvous2D-v2"
+    assert rllib_env_id("debris_gym:DebrisGym/Rendezvous3D-v2") == (
+        "debris_gym:DebrisGym/Rendezvous3D-v2"
     )
     with pytest.raises(ValueError, match="must be a DebrisGym ID"):
         rllib_env_id("CartPole-v1")
@@ -29,7 +29,7 @@ def test_ppo_trains_one_iteration_on_an_env_runner_with_the_native_vector_env():
     with pytest.raises(ValueError, match="num_envs_per_env_runner must be an integer >= 1"):
         ppo_config(num_envs_per_env_runner=0)
     config = ppo_config(
-        "DebrisGym/Rendezvous2D-Easy-v1",
+        "DebrisGym/Rendezvous2D-Easy-v2",
         num_env_runners=1,
         num_envs_per_env_runner=4,
         train_batch_size=400,

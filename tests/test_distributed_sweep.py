@@ -16,7 +16,7 @@ from agents.experiments.config_files import load_config_file
 from agents.experiments.training.config import TrainConfig, default_config_path
 from agents.experiments.training.sweep_config import SweepParam
 
-EASY = "DebrisGym/Rendezvous2D-Easy-v1"
+EASY = "DebrisGym/Rendezvous2D-Easy-v2"
 HAS_RAY = importlib.util.find_spec("ray") is not None
 
 
@@ -53,7 +53,7 @@ def test_the_easy_recipe_carries_a_search_space_that_round_trips():
          "'algo_kwargs.gamma' must be a number in [0, 1]"),
         ({"params": {"algo_kwargs.gama": {"choice": [0.99]}}},
          "'algo_kwargs.gama' is unknown (did you mean 'gamma'?)"),
-        ({"params": {"env_id": {"choice": ["DebrisGym/Rendezvous2D-v1"]}}}, "cannot be swept"),
+        ({"params": {"env_id": {"choice": ["DebrisGym/Rendezvous2D-v2"]}}}, "cannot be swept"),
         ({"params": {"algo_kwargs.n_epochs": {"choice": [3]}}, "sede": 1},
          "'sweep.sede' is unknown (did you mean 'seed'?)"),
     ],

@@ -45,9 +45,10 @@ def generated_block(name: str) -> str:
 
 
 def test_the_observation_table_is_the_registered_default_env():
-    """The documented layout is what ``gym.make`` of the default ID observes (74 elements in
-    2D v1), not the constructor's defaults (58, the v0 layout)."""
-    env = gym.make("DebrisGym/Rendezvous2D-v1")
+    """The documented layout is what ``gym.make`` of the default ID observes (77 elements in
+    2D v2), not the constructor's defaults (58, the v0 layout)."""
+    env = gym.make("DebrisGym/Rendezvous2D-v2")
+    assert env.observation_space.shape == (77,)
     names = re.findall(r"^\| (\d+) \| `(\w+)` \|", generated_block("obs-2d"), re.M)
     assert [int(i) for i, _ in names] == list(range(env.observation_space.shape[0]))
     assert [name for _, name in names] == env.unwrapped.observation_names()
@@ -61,11 +62,12 @@ def test_the_option_table_gives_the_registered_value_beside_the_constructor_defa
         cells[key.strip("| `")] = (registered, default)
     assert set(cells) == set(OPTIONS)
     defaults = {f.name: f.default for f in dataclasses.fields(EnvConfig)}
-    v1 = {**defaults, **debris_gym.ENV_SPECS["DebrisGym/Rendezvous2D-v1"]["kwargs"]}
+    v2 = {**defaults, **debris_gym.ENV_SPECS["DebrisGym/Rendezvous2D-v2"]["kwargs"]}
     for key, (registered, default) in cells.items():
-        assert registered.strip("*") == f"`{v1[key]!r}`", key
+        assert registered.strip("*") == f"`{v2[key]!r}`", key
         assert default == f"`{defaults[key]!r}`", key
-    assert cells["capture_speed"] == ("**`0.2`**", "`0.5`")
+    assert cells["capture_speed"] == ("**`0.1`**", "`0.5`")
+    assert cells["capture_rule"] == ("**`'hold'`**", "`'dwell'`")
 
 
 def anchors(text: str) -> set[str]:

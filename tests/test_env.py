@@ -17,11 +17,14 @@ from debris_gym.envs import DebrisFieldEnv
 from debris_gym.envs.vector import DebrisFieldVectorEnv
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.scenario import Body
-from tests.helpers import flies_v0, simple_scenario
+from tests.helpers import flies_old_ids, simple_scenario
 
 # many tests fly the free-space simple_scenario in envs with the default LEO orbit on purpose;
-# every registered ID is checked, the v0 ones included
-pytestmark = [pytest.mark.filterwarnings("ignore:the pinned scenario's physics differ"), flies_v0]
+# every registered ID is checked, the old versions (v0, v1) included
+pytestmark = [
+    pytest.mark.filterwarnings("ignore:the pinned scenario's physics differ"),
+    flies_old_ids,
+]
 
 ALL_IDS = list(debris_gym.ENV_SPECS)
 INFO_KEYS = {
@@ -52,7 +55,7 @@ def test_check_env_passes_without_warnings(env_id, observation, action, display)
 
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        # gymnasium's notice that a v1 of a v0 ID exists (the v0 IDs stay on purpose)
+        # gymnasium's notice that a newer version of an old ID exists (they stay on purpose)
         warnings.filterwarnings("ignore", ".*is out of date", DeprecationWarning)
         env = gym.make(env_id, observation=observation, action=action)
         gym_check_env(env.unwrapped, skip_render_check=display is None)
@@ -79,21 +82,35 @@ def test_make_with_module_prefix_needs_no_import():
     assert out.stdout.split()[0] == "1000"
 
 
-OUT_OF_DATE = [i for i in ALL_IDS if i.endswith("-v0") and i[:-1] + "1" in ALL_IDS]
+def _newest(env_id):
+    """``env_id`` at the newest version registered (gymnasium names IDs ``…-vN``)."""
+    stem, _, version = env_id.rpartition("-v")
+    newer = [int(i.rpartition("-v")[2]) for i in ALL_IDS if i.rpartition("-v")[0] == stem]
+    return f"{stem}-v{max(newer)}" if int(version) < max(newer) else env_id
+
+
+OUT_OF_DATE = [i for i in ALL_IDS if _newest(i) != i]
 
 
 @pytest.mark.parametrize("env_id", OUT_OF_DATE)
-def test_a_v0_id_with_a_v1_warns_that_it_is_out_of_date(env_id):
-    """Gymnasium's notice: the frozen-world v0 IDs stay for reproducing earlier numbers, and
-    whoever makes one is told a v1 exists (tests that fly v0 on purpose filter the notice
-    with ``tests.helpers.flies_v0``)."""
-    assert OUT_OF_DATE == ["DebrisGym/Rendezvous2D-v0", "DebrisGym/Rendezvous3D-v0"]
+def test_an_old_id_warns_that_it_is_out_of_date(env_id):
+    """Gymnasium's notice: the frozen-world v0 IDs and the v1 IDs stay for reproducing earlier
+    numbers, and whoever makes one is told v2 exists (tests that fly them on purpose filter the
+    notice with ``tests.helpers.flies_old_ids``); the v2 IDs and the paper's world do not warn."""
+    assert set(OUT_OF_DATE) == {
+        "DebrisGym/Rendezvous2D-v0", "DebrisGym/Rendezvous3D-v0",
+        "DebrisGym/Rendezvous2D-v1", "DebrisGym/Rendezvous3D-v1",
+        "DebrisGym/Rendezvous2D-Easy-v1", "DebrisGym/Rendezvous2D-Medium-v1",
+        "DebrisGym/Rendezvous3D-Easy-v1", "DebrisGym/Rendezvous3D-Medium-v1",
+    }  # fmt: skip
+    assert _newest(env_id).endswith("-v2")
     for make in (gym.make, lambda i: gym.make_vec(i, 2, vectorization_mode="vector_entry_point")):
-        with pytest.warns(DeprecationWarning, match=rf"{env_id} is out of date.*`v1`"):
+        with pytest.warns(DeprecationWarning, match=rf"{env_id} is out of date.*`v2`"):
             make(env_id)
     with warnings.catch_warnings():
-        warnings.simplefilter("error")  # neither the v1 nor the paper's world warns
-        gym.make(env_id[:-1] + "1")
+        warnings.simplefilter("error")  # neither v2 nor the paper's world warns
+        gym.make(_newest(env_id))
+        gym.make_vec(_newest(env_id), 2, vectorization_mode="vector_entry_point")
         gym.make("DebrisGym/PaperField2D-v0")
 
 

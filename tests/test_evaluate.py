@@ -17,10 +17,10 @@ from scipy import stats
 
 import agents
 from agents.experiments import evaluation as ev
-from tests.helpers import flies_v0, load_script
+from tests.helpers import flies_old_ids, load_script
 
 # evaluations on the frozen-world default field (v0) too
-pytestmark = flies_v0
+pytestmark = flies_old_ids
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "evaluate.py"
@@ -40,6 +40,7 @@ DESIGN_KEYS = (
 CI_KEYS = (
     "success_rate_ci95",
     "collision_rate_ci95",
+    "budget_spent_rate_ci95",
     "targets_captured_mean_ci95",
     "delta_v_mean_ci95",
     "time_mean_ci95",
@@ -101,7 +102,7 @@ def test_script_writes_every_output(tmp_path):
             lo, hi = entry[key]
             assert lo <= entry[key.removesuffix("_ci95")] <= hi
     assert summary["agents"]["zero"]["delta_v_mean"] == 0.0
-    assert (out / "summary.md").read_text().startswith("Env `DebrisGym/Rendezvous2D-v1`")
+    assert (out / "summary.md").read_text().startswith("Env `DebrisGym/Rendezvous2D-v2`")
 
     pngs = sorted(out.glob("trajectories_ep*.png"))
     assert [p.name for p in pngs] == ["trajectories_ep000.png", "trajectories_ep001.png"]
@@ -111,6 +112,71 @@ def test_script_writes_every_output(tmp_path):
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert matplotlib.image.imread(png).shape[2] in (3, 4)
     assert not list(out.glob(".*.tmp"))  # atomic writes leave no temporaries
+
+
+def test_running_out_of_delta_v_is_a_failure_in_every_output(cli, capsys, tmp_path):
+    """An episode whose Δv budget runs out (0.3 m/s: random thrust spends it in a few steps)
+    ends failed with outcome ``delta_v_budget``, and every output says so: the CSV's
+    ``budget_spent`` column, ``budget_spent_rate`` with its Wilson interval in summary.json, the
+    Markdown table's column (printed and in summary.md) and the trajectory plot's legend."""
+    from agents.experiments.evaluation.plots import episode_figure
+
+    out = tmp_path / "eval"
+    argv = ["--agents", "zero,random", "--episodes", "3", "--max-steps", "40", "--plots", "1",
+            "--env-kwargs", json.dumps({**SMALL, "delta_v_budget": 0.3}), "--no-progress",
+            "--workers", "1", "--out", str(out)]  # fmt: skip
+    assert cli.main(argv) == 0
+    printed = capsys.readouterr().out
+    with open(out / "episodes.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    spent = {(r["agent"], r["episode"]): r["budget_spent"] for r in rows}
+    assert spent == {("zero", e): "False" for e in "012"} | {("random", e): "True" for e in "012"}
+    for r in rows:
+        assert r["outcome"] == ("delta_v_budget" if r["agent"] == "random" else "time_limit")
+        assert r["success"] == "False"
+        if r["agent"] == "random":
+            assert float(r["delta_v"]) == pytest.approx(0.3)
+            assert int(r["steps"]) < 40  # ended by the budget, not the time limit
+    summary = json.loads((out / "summary.json").read_text())
+    random_entry, zero_entry = summary["agents"]["random"], summary["agents"]["zero"]
+    assert random_entry["budget_spent_rate"] == 1.0 and zero_entry["budget_spent_rate"] == 0.0
+    assert random_entry["budget_spent_rate_ci95"] == list(ev.wilson_interval(3, 3))
+    assert zero_entry["budget_spent_rate_ci95"] == list(ev.wilson_interval(0, 3))
+    assert "Wilson" in summary["ci_method"]["budget_spent_rate_ci95"]
+    md = (out / "summary.md").read_text()
+    lines = md.splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith("| agent | success |"))
+    column = lines[start].split(" | ").index("Δv budget spent")
+    cells = {
+        line.split(" | ")[0].strip("| "): line.split(" | ")[column]
+        for line in lines[start + 2 : start + 4]
+    }
+    low, _ = ev.wilson_interval(3, 3)
+    assert cells == {"zero": "0 [0, 0.56]", "random": f"1 [{low:.2g}, 1]"}
+    assert md in printed  # the printed table is summary.md
+    results = ev.evaluate_agents(
+        "DebrisGym/Rendezvous2D-v2", "random", episodes=1, seed=0, progress=False,
+        env_kwargs={**SMALL, "delta_v_budget": 0.3}, max_episode_steps=40,
+    )  # fmt: skip
+    legend = [t.get_text() for leg in episode_figure(results, 0).legends for t in leg.get_texts()]
+    assert any(text.startswith("random: Δv budget spent (failed)") for text in legend), legend
+
+
+def test_a_journal_written_before_the_budget_column_reads_its_outcome():
+    """A journaled record without ``budget_spent`` (an unfinished run of an earlier version)
+    takes it from its outcome, so a resumed run still counts the failure."""
+    from agents.experiments.evaluation.journal import record_from_json, record_to_json
+
+    results = ev.evaluate_agents(
+        "DebrisGym/Rendezvous2D-v2", "random,zero", episodes=1, seed=0, progress=False,
+        env_kwargs={**SMALL, "delta_v_budget": 0.3}, max_episode_steps=10,
+    )  # fmt: skip
+    for record in results.records:
+        data = record_to_json(record)
+        del data["budget_spent"]
+        back = record_from_json(json.loads(json.dumps(data)))
+        assert back.budget_spent == (record.outcome == "delta_v_budget") == record.budget_spent
+    assert [r.budget_spent for r in results.records] == [True, False]
 
 
 def test_script_rejects_an_unknown_agent_by_name(tmp_path):

@@ -27,7 +27,7 @@ from agents.experiments.evaluation.journal import (
 )
 from agents.experiments.evaluation.records import TIMING_COLUMNS, scenario_fingerprint
 from agents.experiments.run_directory import MANIFEST, RunDirectoryBusy, RunDirectoryLock
-from tests.helpers import flies_v0, load_script
+from tests.helpers import flies_old_ids, load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "evaluate.py"
@@ -324,7 +324,7 @@ def test_a_damaged_journal_line_is_named_and_a_cut_last_line_dropped(
         journal.read_records()
 
 
-@flies_v0
+@flies_old_ids
 def test_a_journaled_record_reads_back_bit_for_bit():
     results = runner.evaluate_agents(
         "DebrisGym/Rendezvous3D-v0", "random", episodes=1, seed=11,

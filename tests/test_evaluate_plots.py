@@ -22,7 +22,7 @@ from agents.experiments.evaluation.plots import (
 )
 from debris_gym.envs.rendering import TARGET_OPEN
 
-EASY = "DebrisGym/Rendezvous2D-Easy-v1"
+EASY = "DebrisGym/Rendezvous2D-Easy-v2"
 
 
 @pytest.fixture(scope="module")

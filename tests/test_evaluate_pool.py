@@ -18,11 +18,13 @@ from agents.experiments.evaluation.journal import EvaluationJournal
 from agents.experiments.evaluation.pool import ProcessBackend, available_cores
 from agents.experiments.evaluation.records import RECORD_FIELDS, TIMING_COLUMNS
 from agents.experiments.evaluation.runner import evaluate_agents
-from tests.helpers import load_script
+from tests.helpers import flies_old_ids, load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "evaluate.py"
-EASY = "DebrisGym/Rendezvous2D-Easy-v1"
+EASY = "DebrisGym/Rendezvous2D-Easy-v2"
+LEARNED_EASY = "DebrisGym/Rendezvous2D-Easy-v1"
+"""The Easy rung with a shipped pretrained policy (a learned agent to pool)."""
 QUICK = ["--env", EASY, "--max-steps", "40", "--plots", "0", "--no-progress"]
 
 
@@ -36,15 +38,16 @@ def _rows(out: Path) -> list[dict[str, str]]:
         return [{k: v for k, v in r.items() if k not in TIMING_COLUMNS} for r in csv.DictReader(fh)]
 
 
+@flies_old_ids
 def test_pooled_records_equal_one_process_records():
     """Regression: evaluate.py flew every episode in one process; two workers must give the same
     records (random: a stateful agent, flown in order by one worker; pretrained: a learned one)."""
     agents = "apf,random,zero,pretrained"
     kwargs = {"env_kwargs": {}, "max_episode_steps": 40, "progress": False}
-    local = evaluate_agents(EASY, agents, episodes=4, seed=7, **kwargs)
+    local = evaluate_agents(LEARNED_EASY, agents, episodes=4, seed=7, **kwargs)
     arrived = []
     pooled = evaluate_agents(
-        EASY, agents, episodes=4, seed=7, on_episode=arrived.append,
+        LEARNED_EASY, agents, episodes=4, seed=7, on_episode=arrived.append,
         backend=ProcessBackend(workers=2), **kwargs,
     )  # fmt: skip
     assert len(arrived) == 16  # each record handed on as it arrived

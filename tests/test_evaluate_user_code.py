@@ -25,7 +25,7 @@ from tests.helpers import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "evaluate.py"
-EASY = "DebrisGym/Rendezvous2D-Easy-v1"
+EASY = "DebrisGym/Rendezvous2D-Easy-v2"
 QUICK = ["--env", EASY, "--max-steps", "20", "--plots", "0", "--no-progress", "--workers", "1"]
 
 

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from scipy import stats
 
 from agents.experiments import evaluation as ev
-from tests.helpers import flies_v0
+from tests.helpers import flies_old_ids
 
 SMALL = {"n_obstacles": 5}
 
@@ -74,7 +74,7 @@ def _rigged(results, outcomes: dict[str, list[tuple[bool, float, float]]]):
     )
 
 
-@flies_v0
+@flies_old_ids
 def test_paired_success_counts_discordant_episodes_and_reaches_the_table(results):
     # reference "zero" succeeds on episodes 0-5, "random" on 0 and 6: b = 1 (6), c = 5 (1-5)
     zero = [(True, 10.0, 100.0)] * 6 + [(False, 0.0, 50.0)]

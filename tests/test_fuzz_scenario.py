@@ -26,7 +26,7 @@ import debris_gym  # noqa: F401 - registers the IDs
 from debris_gym.envs.common import PHYSICS_DIFFER, field_spec
 from debris_gym.generators import random_field
 from debris_gym.scenario import Scenario
-from tests.helpers import flies_v0
+from tests.helpers import flies_old_ids
 
 ENV_IDS = {2: "DebrisGym/Rendezvous2D-v0", 3: "DebrisGym/Rendezvous3D-v0"}
 STEPS = 3
@@ -41,7 +41,7 @@ Path = tuple[Any, ...]
 
 def _base(dim: int) -> dict[str, Any]:
     """A valid field of the env's own kind, with the env's physics, as a plain dict."""
-    with warnings.catch_warnings():  # at import: the v0 ID on purpose (see flies_v0)
+    with warnings.catch_warnings():  # at import: the v0 ID on purpose (see flies_old_ids)
         warnings.filterwarnings("ignore", ".*is out of date", DeprecationWarning)
         env = gym.make(ENV_IDS[dim])
     cfg = env.unwrapped.config
@@ -306,7 +306,7 @@ def _refused_or_flies(dim: int, data: dict, key: str) -> str:
     return "flew"
 
 
-@flies_v0
+@flies_old_ids
 @pytest.mark.parametrize("dim", [2, 3])
 @FUZZ
 @given(data=st.data())

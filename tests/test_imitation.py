@@ -31,7 +31,7 @@ from agents.experiments.run_directory import RunDirectoryLock
 from agents.experiments.training.config import available_configs
 from agents.planners.mission import MissionPlan
 from debris_gym.envs import DebrisFieldEnv
-from tests.helpers import flies_v0, load_script
+from tests.helpers import flies_old_ids, load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 ENV_ID = "DebrisGym/Rendezvous2D-v1"
@@ -108,7 +108,7 @@ def test_unknown_ordering_is_refused_by_name():
         MissionPlan(env.scenario, env.config, "closest")
 
 
-@flies_v0
+@flies_old_ids
 def test_apf_mpc_with_the_envs_goal_completes_a_mission():
     env = gym.make("DebrisGym/Rendezvous2D-v0")
     expert = agents.make_agent("apf-mpc", env, ordering="nearest")

@@ -18,7 +18,7 @@ from agents.experiments.config_files import load_config_file
 from agents.experiments.training.config import default_config_path
 from tests.helpers import load_script
 
-EASY = "DebrisGym/Rendezvous2D-Easy-v1"
+EASY = "DebrisGym/Rendezvous2D-Easy-v2"
 
 
 def test_the_easy_recipe_trains_from_the_env_reward_alone():

@@ -22,10 +22,10 @@ pytest.importorskip("stable_baselines3")
 
 import agents
 import debris_gym  # noqa: F401  (registers the IDs)
-from tests.helpers import flies_v0, load_script
+from tests.helpers import flies_old_ids, load_script
 
 # learned policies of the frozen-world default field (v0)
-pytestmark = flies_v0
+pytestmark = flies_old_ids
 
 ENV_ID = "DebrisGym/Rendezvous2D-v0"
 ROOT = Path(__file__).resolve().parents[1]

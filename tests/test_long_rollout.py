@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 import debris_gym  # noqa: F401
-from tests.helpers import flies_v0
+from tests.helpers import flies_old_ids
 
-pytestmark = flies_v0  # the frozen-world IDs (v0) among the rollouts
+pytestmark = flies_old_ids  # the frozen-world IDs (v0) among the rollouts
 
 
 def rss_bytes() -> int:

@@ -23,12 +23,15 @@ from debris_gym.mission_batch import MissionBatch, Physics
 from debris_gym.mission_step import sort_by_gap
 from debris_gym.observation import observation_names
 from debris_gym.scenario import Body
-from tests.helpers import flies_v0, simple_scenario
+from tests.helpers import flies_old_ids, simple_scenario
 from tests.reference_env import ReferenceDebrisFieldEnv, reference_observation_names
 
 # some tests fly the free-space simple_scenario in envs with the default LEO orbit on purpose;
 # the reference is flown against the frozen-world IDs (v0) too
-pytestmark = [pytest.mark.filterwarnings("ignore:the pinned scenario's physics differ"), flies_v0]
+pytestmark = [
+    pytest.mark.filterwarnings("ignore:the pinned scenario's physics differ"),
+    flies_old_ids,
+]
 
 INFO_KEYS = ["chaser_state", "time", "delta_v", "targets_captured", "min_clearance", "collision"]
 INFO_KEYS += ["out_of_bounds", "is_success", "captured", "n_targets"]

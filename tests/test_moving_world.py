@@ -16,7 +16,7 @@ import pytest
 from debris_gym.envs import DebrisFieldEnv
 from debris_gym.envs.vector import DebrisFieldVectorEnv
 from debris_gym.scenario import Body, Scenario
-from tests.helpers import LEO_MEAN_MOTION, MOVING_DT, MOVING_WORLD, cw_closed_form, flies_v0
+from tests.helpers import LEO_MEAN_MOTION, MOVING_DT, MOVING_WORLD, cw_closed_form, flies_old_ids
 
 pytestmark = pytest.mark.filterwarnings("ignore:.*flown anyway:UserWarning")
 
@@ -236,7 +236,7 @@ def test_a_pinned_field_must_move_as_the_env_does():
         env.reset(options={"scenario": field(2)})
 
 
-@flies_v0
+@flies_old_ids
 @pytest.mark.parametrize("env_id", ["DebrisGym/Rendezvous3D-v0", "DebrisGym/Rendezvous3D-v1"])
 def test_the_3d_vector_env_lists_its_fields(env_id):
     """Regression: ``scenarios[i]`` of a 3D vector env raised IndexError (no polygon slots)."""

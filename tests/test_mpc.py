@@ -25,7 +25,7 @@ from debris_gym.envs import DebrisFieldEnv
 from debris_gym.scenario import Body, Scenario
 from debris_gym.solvability import occupancy_grid
 from tests.geometry_oracle import OracleField
-from tests.helpers import flies_v0
+from tests.helpers import flies_old_ids
 
 N_MEAN = 1.1313666536110223e-3  # default LEO mean motion (rad/s)
 
@@ -257,7 +257,7 @@ def test_apf_mpc_completes_a_stalled_apf_path_with_astar():
     assert OracleField(scen, inflate=1.0).first_hit(result.waypoints) == -1
 
 
-@flies_v0
+@flies_old_ids
 @pytest.mark.parametrize("name", ["apf-mpc", "astar"])
 def test_baselines_fly_seeded_missions_without_collision(name):
     env = gym.make("DebrisGym/Rendezvous2D-v0")
@@ -276,7 +276,7 @@ def test_baselines_fly_seeded_missions_without_collision(name):
         assert agent.tracker.stats["fallbacks"] == 0
 
 
-@flies_v0
+@flies_old_ids
 def test_predict_single_and_batched():
     env = gym.make("DebrisGym/Rendezvous2D-v0")
     agent = make_agent("apf-mpc", env)

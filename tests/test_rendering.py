@@ -20,10 +20,10 @@ from scipy import ndimage
 import debris_gym  # noqa: F401 - registers the IDs
 from debris_gym.envs import render_bodies, rendering
 from debris_gym.scenario import Body, Scenario
-from tests.helpers import flies_v0
+from tests.helpers import flies_old_ids
 
 # rendering of the frozen-world fields (v0) too
-pytestmark = flies_v0
+pytestmark = flies_old_ids
 
 ENV_IDS = ["DebrisGym/Rendezvous2D-v0", "DebrisGym/Rendezvous3D-v0", "DebrisGym/PaperField2D-v0"]
 

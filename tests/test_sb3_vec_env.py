@@ -12,10 +12,10 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 from debris_gym.integrations.sb3 import NativeVecEnv
-from tests.helpers import flies_v0
+from tests.helpers import flies_old_ids
 
 # the SB3 adapter on the frozen-world default field (v0)
-pytestmark = flies_v0
+pytestmark = flies_old_ids
 
 
 def test_adapter_matches_sb3_dummy_vec_env():

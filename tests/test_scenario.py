@@ -34,10 +34,10 @@ from debris_gym.scenario import Body, Scenario, as_scenario
 from debris_gym.scenario_checks import check_dock_clear
 from debris_gym.solvability import grid_route_exists, is_solvable
 from tests.geometry_oracle import OracleField
-from tests.helpers import flies_v0, simple_scenario
+from tests.helpers import flies_old_ids, simple_scenario
 
 # pinned scenarios in the frozen-world envs (v0) too
-pytestmark = flies_v0
+pytestmark = flies_old_ids
 
 
 def make(spec: FieldSpec, seed: int, capture_radius: float = 5.0) -> Scenario:

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 import debris_gym  # noqa: F401  (registers the IDs)
 from agents import make_agent
 from agents.planners.scp import SCPParams, scp_trajectory
-from tests.helpers import flies_v0
+from tests.helpers import flies_old_ids
 
 N_MEAN = 1.1313666536110223e-3  # default LEO mean motion (rad/s)
 A_MAX = 0.05
@@ -210,7 +210,7 @@ def test_bad_inputs_are_refused_by_name():
         _solve(steps=0)
 
 
-@flies_v0
+@flies_old_ids
 def test_se_scp_agent_completes_a_frozen_mission_without_collision():
     env = gym.make("DebrisGym/Rendezvous2D-v0")
     agent = make_agent("se-scp", env)

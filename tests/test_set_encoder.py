@@ -21,7 +21,7 @@ from agents.policies.set_encoder import SlotSetExtractor, slot_layout
 
 torch = pytest.importorskip("torch")
 
-EASY = "DebrisGym/Rendezvous2D-Easy-v1"
+EASY = "DebrisGym/Rendezvous2D-Easy-v2"
 EXPERIMENTS = CONFIG_DIR / "experiments"
 
 

@@ -23,7 +23,13 @@ from agents.policies.shield import SafetyShield, ShieldParams
 from agents.policies.shielded import ShieldedAgent, ShieldWrapper
 from debris_gym.envs import DebrisFieldEnv
 from debris_gym.scenario import Body, Scenario
-from tests.helpers import LEO_MEAN_MOTION, MOVING_WORLD, cw_closed_form, flies_v0, simple_scenario
+from tests.helpers import (
+    LEO_MEAN_MOTION,
+    MOVING_WORLD,
+    cw_closed_form,
+    flies_old_ids,
+    simple_scenario,
+)
 
 N = LEO_MEAN_MOTION
 
@@ -184,7 +190,7 @@ def test_the_shield_dodges_a_body_on_its_predicted_orbit():
     assert np.linalg.norm(cw_closed_form(start, t_meet)[:2]) < 1e-6
 
 
-@flies_v0
+@flies_old_ids
 @pytest.mark.parametrize(
     ("env_id", "seed"),
     [

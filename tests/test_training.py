@@ -43,7 +43,7 @@ from agents.experiments.training.run import TrainOptions, train
 from agents.policies.learned import LearnedAgent
 from agents.policies.model_files import sidecar_path
 from debris_gym.files import save_atomic
-from tests.helpers import flies_v0, load_script
+from tests.helpers import flies_old_ids, load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 TRAIN = ROOT / "train.py"
@@ -453,7 +453,7 @@ def test_load_agent_single_and_batch_shapes(trained):
     env.close()
 
 
-@flies_v0
+@flies_old_ids
 def test_load_agent_checks_spaces(trained):
     model = trained("ppo") / "model.zip"
     for kwargs, match in (({"obs_obstacles": 4}, "observes"), ({"action": "discrete"}, "acts in")):
@@ -484,7 +484,7 @@ def test_load_agent_errors(trained, tmp_path):
     env.close()
 
 
-@flies_v0
+@flies_old_ids
 def test_the_shipped_pretrained_policy_flies_its_env():
     """agents/pretrained/rendezvous2d_dagger.zip loads with its statistics and the observation
     options of its run, and refuses the default env with an error naming them."""

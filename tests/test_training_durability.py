@@ -28,7 +28,7 @@ from agents.experiments.training.checkpoints import find_latest_checkpoint, mode
 from agents.experiments.training.run import TrainOptions, TrainWriteError, train
 from tests.helpers import ROOT, load_script
 
-EASY = "DebrisGym/Rendezvous2D-Easy-v1"
+EASY = "DebrisGym/Rendezvous2D-Easy-v2"
 SETS = [
     "algo_kwargs.n_steps=32", "algo_kwargs.batch_size=64", "algo_kwargs.n_epochs=1",
     "algo_kwargs.learning_rate=3.0e-4", "policy_kwargs.net_arch=[16]",

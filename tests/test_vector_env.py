@@ -18,11 +18,14 @@ from debris_gym.generators import FieldSpec, random_field
 from debris_gym.geometry import lidar_directions
 from debris_gym.scenario import Body, Scenario
 from tests.geometry_oracle import OracleField
-from tests.helpers import flies_v0, simple_scenario
+from tests.helpers import flies_old_ids, simple_scenario
 
 # some tests fly the free-space simple_scenario in envs with the default LEO orbit on purpose;
 # the native vector env is held to SyncVectorEnv on every ID, the v0 ones included
-pytestmark = [pytest.mark.filterwarnings("ignore:the pinned scenario's physics differ"), flies_v0]
+pytestmark = [
+    pytest.mark.filterwarnings("ignore:the pinned scenario's physics differ"),
+    flies_old_ids,
+]
 
 INFO_KEYS = ["chaser_state", "time", "delta_v", "targets_captured", "min_clearance", "collision"]
 INFO_KEYS += ["out_of_bounds", "is_success", "captured", "task_score"]

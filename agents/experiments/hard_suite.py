@@ -1,24 +1,27 @@
-"""The ``hard`` evaluation suite: seeded v1 2D missions where plain APF falls into a local
-minimum, so that APF-RRT's escape ([An23] §3) is exercised; selected, written and flown here.
+"""The hard evaluation suites: seeded 2D missions where plain APF falls into a local minimum, so
+that APF-RRT's escape ([An23] §3) is exercised; selected, written and flown here.
 
-Selection rule (docs/baselines.md, "The hard suite"):
+Two suites follow the same rule (:data:`HARD_SUITES`): ``hard-v2`` on the v2 world (the
+default, :data:`ENV_ID`) and ``hard`` on the v1 world, kept as it was for reproducing v1
+figures. Selection rule (docs/baselines.md, "The hard suites"):
 
-* fields: ``DebrisGym/Rendezvous2D-v1`` with :data:`ENV_KWARGS` (60 obstacles instead of 20, a
-  4 m smallest gap instead of 10 m: gaps the chaser cannot pass, so the debris forms the concave
-  clusters where APF's minima live); reset seeds tried in order from :data:`FIRST_SEED`
-  (902 000 000, in the range kept for evaluation suites, ``debris_gym.suites.RESERVED_SEEDS``,
-  after the standard suites' 900 000 000 and 901 000 000 blocks); a seed whose field the
-  generator cannot place is skipped;
+* fields: the suite's env (``DebrisGym/Rendezvous2D-v2``, or ``-v1`` for ``hard``) with
+  :data:`ENV_KWARGS` (60 obstacles instead of 20, a 4 m smallest gap instead of 10 m: gaps the
+  chaser cannot pass, so the debris forms the concave clusters where APF's minima live); reset
+  seeds tried in order from the suite's first seed (``hard-v2``: 904 000 000, ``hard``:
+  902 000 000; in the range kept for evaluation suites, ``debris_gym.suites.RESERVED_SEEDS``); a
+  seed whose field the generator cannot place is skipped;
 * kept when **plain APF stalls** — it fails, or its flight falls into a local minimum by the
   APF-RRT test (:class:`~agents.policies.apf_rrt.APFRRTAgent` with ``RRTParams(max_escapes=0)``
   flies exactly as APF and only counts the minima) — **and the mission is solvable**: the
   ``astar`` baseline completes it (success, no collision), or else ``apf-mpc`` does;
 * the first :data:`SUITE_SIZE` kept missions, in seed order, are the suite.
 
-The file, ``debris_gym/suites/hard.json.gz``, is a :mod:`debris_gym.suites` suite: ``evaluate.py
---suite hard`` flies it. Command lines::
+Each file, ``debris_gym/suites/hard-v2.json.gz`` (``hard.json.gz`` for v1), is a
+:mod:`debris_gym.suites` suite: ``evaluate.py --suite hard-v2`` flies it. Command lines::
 
-    python -m agents.experiments.hard_suite select            # writes the suite file
+    python -m agents.experiments.hard_suite select            # writes hard-v2.json.gz
+    python -m agents.experiments.hard_suite select --suite hard   # the v1 file, as shipped
     python -m agents.experiments.hard_suite measure --agents apf,apf-rrt,apf-mpc,astar
 
 ``measure`` adds what ``evaluate.py`` does not record: how often APF-RRT detected a minimum and
@@ -49,11 +52,14 @@ from debris_gym.suites import RESERVED_SEEDS, Mission, Suite, read_suite, write_
 from debris_gym.suites.build import git_commit
 
 __all__ = [
+    "DEFAULT_SUITE",
     "ENV_ID",
     "ENV_KWARGS",
     "FIRST_SEED",
+    "HARD_SUITES",
     "SUITE_PATH",
     "SUITE_SIZE",
+    "HardSuite",
     "MissionRow",
     "Screen",
     "fly_mission",
@@ -65,30 +71,63 @@ __all__ = [
     "select_missions",
 ]
 
-ENV_ID = "DebrisGym/Rendezvous2D-v1"
-"""The env the suite's missions are flown in."""
-
 ENV_KWARGS: dict[str, Any] = {"n_obstacles": 60, "min_gap": 4.0}
-"""Options on top of the v1 world: a denser field with gaps the chaser cannot pass."""
-
-FIRST_SEED = 902_000_000
-"""First reset seed tried (the suite's seeds are this and above, inside the reserved range)."""
+"""Options on top of the registered world: a denser field with gaps the chaser cannot pass."""
 
 SUITE_SIZE = 30
-"""Missions in the suite."""
-
-SUITE_PATH = Path(debris_gym.__file__).resolve().parent / "suites" / "hard.json.gz"
-"""Where the suite file is shipped."""
+"""Missions in a suite."""
 
 SOLVERS = ("astar", "apf-mpc")
 """Baselines tried in turn to show that a mission is solvable."""
 
-DESCRIPTION = (
-    "Rendezvous2D-v1 missions (60 obstacles, 4 m smallest gap) where plain APF stalls - it fails "
-    "or its flight falls into a local minimum by the APF-RRT test - and a baseline (astar, else "
-    "apf-mpc) completes the mission; the first 30 such seeds from 902000000. Selection: "
-    "agents/experiments/hard_suite.py, docs/baselines.md."
-)
+_SUITE_DIR = Path(debris_gym.__file__).resolve().parent / "suites"
+
+
+@dataclass(frozen=True)
+class HardSuite:
+    """One hard suite: its name, the env its missions are drawn from and flown in, the first
+    reset seed tried, and its file."""
+
+    name: str
+    env_id: str
+    first_seed: int
+
+    @property
+    def path(self) -> Path:
+        """Where the suite file is shipped."""
+        return _SUITE_DIR / f"{self.name}.json.gz"
+
+    @property
+    def description(self) -> str:
+        """The suite file's description."""
+        world = self.env_id.split("/")[-1]
+        return (
+            f"{world} missions (60 obstacles, 4 m smallest gap) where plain APF stalls - it fails "
+            "or its flight falls into a local minimum by the APF-RRT test - and a baseline "
+            f"(astar, else apf-mpc) completes the mission; the first {SUITE_SIZE} such seeds from "
+            f"{self.first_seed}. Selection: agents/experiments/hard_suite.py, docs/baselines.md."
+        )
+
+
+HARD_SUITES: dict[str, HardSuite] = {
+    "hard-v2": HardSuite("hard-v2", "DebrisGym/Rendezvous2D-v2", 904_000_000),
+    "hard": HardSuite("hard", "DebrisGym/Rendezvous2D-v1", 902_000_000),
+}
+"""The hard suites by name: ``hard-v2`` on the v2 world, ``hard`` on the v1 world (as shipped
+for reproducing v1 figures)."""
+
+DEFAULT_SUITE = "hard-v2"
+"""The suite ``select`` and ``measure`` work on unless told otherwise."""
+
+ENV_ID = HARD_SUITES[DEFAULT_SUITE].env_id
+"""The env the default suite's missions are flown in."""
+
+FIRST_SEED = HARD_SUITES[DEFAULT_SUITE].first_seed
+"""First reset seed tried for the default suite (its seeds are this and above, inside the
+reserved range)."""
+
+SUITE_PATH = HARD_SUITES[DEFAULT_SUITE].path
+"""Where the default suite's file is shipped."""
 
 
 @dataclass(frozen=True)
@@ -136,10 +175,10 @@ class MissionRow:
     escapes: int | None
 
 
-def _make_env(env_kwargs: dict[str, Any] | None = None) -> gym.Env:
+def _make_env(env_id: str = ENV_ID, env_kwargs: dict[str, Any] | None = None) -> gym.Env:
     # the checker wrapper cannot take a reset that raised (an unplaceable seed) and go on
     kwargs = ENV_KWARGS if env_kwargs is None else env_kwargs
-    return gym.make(ENV_ID, disable_env_checker=True, **kwargs)
+    return gym.make(env_id, disable_env_checker=True, **kwargs)
 
 
 def fly_mission(
@@ -188,9 +227,13 @@ def screen_seed(env: gym.Env, watcher: Any, solvers: dict[str, Any], seed: int) 
 
 
 def select_missions(
-    count: int = SUITE_SIZE, first_seed: int = FIRST_SEED, progress: bool = True
+    count: int = SUITE_SIZE,
+    first_seed: int = FIRST_SEED,
+    progress: bool = True,
+    env_id: str = ENV_ID,
 ) -> Iterator[Screen]:
-    """Screen seeds from ``first_seed`` in order; yield every screen, stop after ``count`` kept.
+    """Screen seeds of ``env_id`` (with :data:`ENV_KWARGS`) from ``first_seed`` in order; yield
+    every screen, stop after ``count`` kept.
 
     Raises:
         ValueError: ``count`` < 1 or ``first_seed`` < 0.
@@ -201,7 +244,7 @@ def select_missions(
         raise ValueError(f"count must be an integer >= 1, got {count!r}")
     if isinstance(first_seed, bool) or int(first_seed) != first_seed or first_seed < 0:
         raise ValueError(f"first_seed must be an integer >= 0, got {first_seed!r}")
-    env = _make_env()
+    env = _make_env(env_id)
     watcher = make_agent("apf-rrt", env, rrt=RRTParams(max_escapes=0))
     solvers = {name: make_agent(name, env) for name in SOLVERS}
     kept = 0
@@ -224,12 +267,15 @@ def select_missions(
         env.close()
 
 
-def hard_suite(missions: Sequence[Screen], command: str, git: str) -> Suite:
-    """The suite of the kept ``missions``.
+def hard_suite(
+    missions: Sequence[Screen], command: str, git: str, which: str = DEFAULT_SUITE
+) -> Suite:
+    """The suite ``which`` (a :data:`HARD_SUITES` name) of the kept ``missions``.
 
     Raises:
         ValueError: a seed outside the range reserved for suites.
     """
+    spec = HARD_SUITES[which]
     outside = [m.seed for m in missions if m.seed not in RESERVED_SEEDS]
     if outside:
         raise ValueError(
@@ -237,9 +283,9 @@ def hard_suite(missions: Sequence[Screen], command: str, git: str) -> Suite:
             f"{RESERVED_SEEDS.start}…{RESERVED_SEEDS.stop - 1}; choose --first-seed inside it"
         )
     return Suite(
-        name="hard",
-        env_id=ENV_ID,
-        description=DESCRIPTION,
+        name=spec.name,
+        env_id=spec.env_id,
+        description=spec.description,
         env_kwargs=dict(ENV_KWARGS),
         missions=tuple(Mission(m.seed, m.scenario) for m in missions),
         provenance={"command": command, "git": git},
@@ -323,14 +369,30 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     sub = parser.add_subparsers(dest="command", required=True)
     sel = sub.add_parser("select", help="screen seeds and write the suite file")
+    sel.add_argument(
+        "--suite",
+        choices=tuple(HARD_SUITES),
+        default=DEFAULT_SUITE,
+        help=f"which suite: its env, first seed and file (default: {DEFAULT_SUITE})",
+    )
     sel.add_argument("--count", type=integer(1, MAX_EPISODES), default=SUITE_SIZE, help="missions")
     sel.add_argument(
-        "--first-seed", type=integer(0, MAX_SEED), default=FIRST_SEED, help="first seed tried"
+        "--first-seed",
+        type=integer(0, MAX_SEED),
+        default=None,
+        help="first seed tried (default: the suite's)",
     )
-    sel.add_argument("--out", type=Path, default=SUITE_PATH, help="suite file to write")
+    sel.add_argument(
+        "--out", type=Path, default=None, help="suite file to write (default: the suite's)"
+    )
     sel.add_argument("--log", type=Path, default=None, help="also write every screen (JSONL)")
     mea = sub.add_parser("measure", help="fly baselines on the suite, print a table")
-    mea.add_argument("--suite", type=Path, default=SUITE_PATH, help="suite file to read")
+    mea.add_argument(
+        "--suite",
+        type=Path,
+        default=SUITE_PATH,
+        help=f"suite file to read (default: {DEFAULT_SUITE}'s, {SUITE_PATH.name})",
+    )
     mea.add_argument("--agents", default="apf,apf-rrt,apf-mpc,astar", help="baselines, comma-sep")
     mea.add_argument(
         "--episodes", type=integer(1, MAX_EPISODES), default=None, help="fly the first N missions"
@@ -338,7 +400,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     mea.add_argument("--json", type=Path, default=None, help="also write the rows (JSON)")
     args = parser.parse_args(argv)
     if args.command == "select":
-        if args.count < 1 or args.first_seed < 0:
+        spec = HARD_SUITES[args.suite]
+        first_seed = spec.first_seed if args.first_seed is None else args.first_seed
+        out = spec.path if args.out is None else args.out
+        if args.count < 1 or first_seed < 0:
             parser.error("--count must be >= 1 and --first-seed >= 0")
         command = "python -m agents.experiments.hard_suite " + " ".join(
             sys.argv[1:] if argv is None else argv
@@ -346,7 +411,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         kept: list[Screen] = []
         log = None if args.log is None else open(args.log, "w", encoding="utf-8")
         try:
-            for screen in select_missions(args.count, args.first_seed):
+            for screen in select_missions(args.count, first_seed, env_id=spec.env_id):
                 if screen.kept:
                     kept.append(screen)
                 if log is not None:
@@ -357,8 +422,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         finally:
             if log is not None:
                 log.close()
-        write_suite(hard_suite(kept, command.strip(), git_commit()), args.out)
-        print(f"wrote {len(kept)} missions to {args.out}")
+        write_suite(hard_suite(kept, command.strip(), git_commit(), spec.name), out)
+        print(f"wrote {len(kept)} missions to {out}")
         return 0
     suite = read_suite(args.suite)
     if args.episodes is not None:

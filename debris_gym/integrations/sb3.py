@@ -5,7 +5,7 @@ observation, the last one in ``info["terminal_observation"]``) and per-env info 
 builds the native env in ``SAME_STEP`` mode and translates. Requires ``stable-baselines3``.
 
     from debris_gym.integrations.sb3 import NativeVecEnv
-    venv = NativeVecEnv("DebrisGym/Rendezvous2D-v1", num_envs=64)
+    venv = NativeVecEnv("DebrisGym/Rendezvous2D-v2", num_envs=64)
     model = PPO("MlpPolicy", venv)
 """
 

@@ -38,7 +38,7 @@ def rllib_env_id(env_id: str) -> str:
 
 
 def ppo_config(
-    env_id: str = "DebrisGym/Rendezvous2D-Easy-v1",
+    env_id: str = "DebrisGym/Rendezvous2D-Easy-v2",
     env_kwargs: dict[str, Any] | None = None,
     *,
     num_env_runners: int = 1,

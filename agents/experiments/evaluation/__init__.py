@@ -29,7 +29,7 @@ Your own policy, from Python::
     from agents.experiments.evaluation import evaluate_agents, summarize, summary_markdown
 
     results = evaluate_agents(
-        "DebrisGym/Rendezvous2D-v1",
+        "DebrisGym/Rendezvous2D-v2",
         {"apf": "apf", "mine": MyPolicy()},  # or a factory: {"mine": lambda env: MyPolicy(env)}
         episodes=20,
         seed=0,
@@ -40,7 +40,7 @@ A frozen suite (:mod:`debris_gym.suites`) from Python: its first N missions, eac
 
     from debris_gym.suites import load_suite
 
-    suite = load_suite("standard-2d-v1")
+    suite = load_suite("standard-2d-v2")
     results = evaluate_agents(suite.env_id, "apf-mpc,astar", episodes=10, seed=0, suite=suite)
 
 A policy is anything with SB3's ``predict(obs, state=None, episode_start=None,

@@ -29,15 +29,19 @@ __all__ = ["run_episode"]
 
 
 def _outcome(info: dict[str, Any], truncated: bool) -> str:
+    """How the episode ended, from its last step's info: the env's own verdict first (its
+    Δv budget running out is a failure of its own, even on the time limit's last step)."""
     if info["is_success"]:
         return "success"
     if info["collision"]:
         return "collision"
     if info["out_of_bounds"]:
         return "out_of_bounds"
+    if info["budget_spent"]:
+        return "delta_v_budget"
     if truncated:
         return "time_limit"
-    return "delta_v_budget"
+    raise RuntimeError(f"the episode ended with no outcome in its info: {sorted(info)}")
 
 
 def run_episode(
@@ -128,6 +132,7 @@ def run_episode(
         n_targets=int(info["n_targets"]),
         collision=bool(info["collision"]),
         out_of_bounds=bool(info["out_of_bounds"]),
+        budget_spent=bool(info["budget_spent"]),
         delta_v=float(info["delta_v"]),
         time=float(info["time"]),
         steps=len(ms),

@@ -79,7 +79,9 @@ def record_from_json(data: dict[str, Any]) -> EpisodeRecord:
     Raises:
         KeyError, TypeError, ValueError: ``data`` is not such a record.
     """
-    defaults = {name: 0 for name in SHIELD_COLUMNS}  # journals written before the shield
+    defaults: dict[str, Any] = {name: 0 for name in SHIELD_COLUMNS}  # before the shield
+    # before its own column, a spent budget was the outcome alone
+    defaults["budget_spent"] = data.get("outcome") == "delta_v_budget"
     values: dict[str, Any] = {
         name: data[name] if name in data else defaults[name] for name in RECORD_FIELDS
     }

@@ -90,6 +90,16 @@ def meeting_steps(scenario: Any, recs: list, track: np.ndarray | None = None) ->
     return when
 
 
+OUTCOME_WORDS = {
+    "success": "success",
+    "collision": "collision",
+    "out_of_bounds": "out of bounds",
+    "delta_v_budget": "Δv budget spent (failed)",
+    "time_limit": "time limit",
+}
+"""How each episode outcome reads in a legend."""
+
+
 def _legend_label(text: str) -> str:
     if len(text) <= LEGEND_LABEL_CHARS:
         return text
@@ -201,10 +211,11 @@ def episode_figure(results: EvaluationResults, episode: int) -> Any:
                     color=colour, linestyle="none", zorder=7,
                 )  # fmt: skip
             if k == 0:
+                outcome = OUTCOME_WORDS.get(rec.outcome, rec.outcome)
                 handles.append(
                     Line2D(
                         [], [], color=colour, linestyle=style, linewidth=2.0,
-                        label=f"{_legend_label(rec.agent)}: {rec.outcome.replace('_', ' ')}, "
+                        label=f"{_legend_label(rec.agent)}: {outcome}, "
                         f"{rec.targets_captured}/{rec.n_targets} captured, "
                         f"Δv {rec.delta_v:.3g} m/s",
                     )

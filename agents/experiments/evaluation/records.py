@@ -62,7 +62,9 @@ class EpisodeRecord:
     """Result of one agent on one episode. Fields marked for CSV become ``episodes.csv`` columns.
 
     Units: delta_v m/s, time s, path_length m, min_clearance m (smallest surface gap to any
-    body, chaser radius subtracted), decision times ms. ``task_score`` is the env's unshaped
+    body, chaser radius subtracted), decision times ms. ``outcome`` is how the episode ended:
+    ``success``, ``collision``, ``out_of_bounds``, ``delta_v_budget`` (the Δv budget ran out:
+    a failure, flagged by ``budget_spent``) or ``time_limit``. ``task_score`` is the env's unshaped
     score of the episode (every reward term but the progress shaping, undiscounted);
     ``episode_return`` the shaped return. ``shield_*``: with the safety shield on
     (``evaluate.py --shield``), the commands it replaced and the mean and largest change
@@ -78,6 +80,7 @@ class EpisodeRecord:
     n_targets: int = _csv()
     collision: bool = _csv()
     out_of_bounds: bool = _csv()
+    budget_spent: bool = _csv()
     delta_v: float = _csv()
     time: float = _csv()
     steps: int = _csv()

@@ -187,8 +187,8 @@ def summary_markdown(summary: dict[str, Any]) -> str:
         _title(summary),
         "",
         "| agent | success | targets captured | task score | Δv [m/s] | time [s] | path [m] "
-        "| collision | min clearance [m] | decision p50 / p95 [ms] |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| collision | Δv budget spent | min clearance [m] | decision p50 / p95 [ms] |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for label, e in summary["agents"].items():
         captured = _with_ci(e, "targets_captured_mean")
@@ -199,14 +199,15 @@ def summary_markdown(summary: dict[str, Any]) -> str:
             f"| {_with_ci(e, 'task_score_mean')} | {_with_ci(e, 'delta_v_mean')} "
             f"| {_with_ci(e, 'time_mean')} "
             f"| {_with_ci(e, 'path_length_mean')} | {_with_ci(e, 'collision_rate', 2)} "
-            f"| {format_number(e['min_clearance_min'])} "
+            f"| {_with_ci(e, 'budget_spent_rate', 2)} | {format_number(e['min_clearance_min'])} "
             f"| {format_number(e['decision_ms_p50'])} / {format_number(e['decision_ms_p95'])} |"
         )
     lines += [
         "",
         "Brackets: 95 % confidence intervals — Wilson score for rates; for means a percentile "
         "bootstrap over episodes (seeded), which stays inside the metric's range (means are "
-        "over all episodes, failed ones included). Task score: the env's unshaped score per "
+        "over all episodes, failed ones included). Δv budget spent: the episodes that ended "
+        "because the Δv budget ran out (a failure). Task score: the env's unshaped score per "
         "episode (captures and success minus Δv, collision, bounds and time penalties; the "
         "shaping left out).",
     ]

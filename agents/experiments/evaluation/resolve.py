@@ -47,7 +47,7 @@ __all__ = [
     "resume_plan",
 ]
 
-DEFAULT_ENV = "DebrisGym/Rendezvous2D-v1"
+DEFAULT_ENV = "DebrisGym/Rendezvous2D-v2"
 """Env of a plain ``python evaluate.py``."""
 
 DEFAULT_EPISODES = 20

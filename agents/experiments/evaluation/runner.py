@@ -202,7 +202,7 @@ def evaluate_agents(
     env also gets the observation options it was trained with (:func:`agent_env_options`).
 
     Args:
-        env_id: a registered ID, e.g. ``"DebrisGym/Rendezvous2D-v1"``.
+        env_id: a registered ID, e.g. ``"DebrisGym/Rendezvous2D-v2"``.
         agent_specs: what to evaluate (see :mod:`agents.experiments.evaluation.specs`): a
             comma-separated string (``"apf,ppo=runs/ppo/model.zip"``), a list of specs, or a
             mapping ``{label: spec}`` whose values may also be your own policy objects (anything

@@ -2,8 +2,8 @@
 
 Every interval stays inside its metric's range:
 
-* rates (success, collision, out of bounds) get a Wilson score interval [Wilson27], exactly 0
-  or 1 at the ends of [0, 1];
+* rates (success, collision, out of bounds, Δv budget spent) get a Wilson score interval
+  [Wilson27], exactly 0 or 1 at the ends of [0, 1];
 * means of per-episode metrics (targets captured in [0, n_targets]; Δv, time and path length,
   non-negative; the task score) get a seeded percentile bootstrap [Efron93]: its ends are means
   of resampled episodes, so they lie between the smallest and largest value observed, never
@@ -58,7 +58,7 @@ CI_METHODS = {
     "t": "Student t interval of the mean (scipy.stats.t), 95 %",
 }
 
-RATE_KEYS = ("success_rate", "collision_rate", "out_of_bounds_rate")
+RATE_KEYS = ("success_rate", "collision_rate", "out_of_bounds_rate", "budget_spent_rate")
 MEAN_KEYS = (
     "targets_captured_mean", "delta_v_mean", "time_mean", "path_length_mean", "task_score_mean"
 )  # fmt: skip
@@ -351,6 +351,7 @@ def summarize(results: EvaluationResults, reference: str | None = None) -> dict[
             "success_rate": sum(r.success for r in recs),
             "collision_rate": sum(r.collision for r in recs),
             "out_of_bounds_rate": sum(r.out_of_bounds for r in recs),
+            "budget_spent_rate": sum(r.budget_spent for r in recs),
         }
         for key, k in counts.items():
             entry[key] = k / n

@@ -17,7 +17,7 @@ from agents.experiments.training.config import EVAL_SEED, MAX_EVAL_EPISODES, MAX
 EPILOG = """examples:
   python -m agents.experiments.her --timesteps 300000 --seed 0 --out runs/her
   python -m agents.experiments.her --timesteps 300000 --seed 0 --out runs/sac --no-her
-  DEBRIS_HER_MODEL=runs/her/model.zip python evaluate.py --env DebrisGym/Rendezvous2D-Easy-v1 \\
+  DEBRIS_HER_MODEL=runs/her/model.zip python evaluate.py --env DebrisGym/Rendezvous2D-Easy-v2 \\
       --agents her=agents.experiments.her.policy:policy --episodes 30
 """
 
@@ -38,9 +38,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--out", required=True, metavar="DIR", help="run directory")
     parser.add_argument(
         "--env",
-        default="DebrisGym/Rendezvous2D-Easy-v1",
+        default="DebrisGym/Rendezvous2D-Easy-v2",
         metavar="ID",
-        help="a one-target, no-return env (default: DebrisGym/Rendezvous2D-Easy-v1)",
+        help="a one-target, no-return env (default: DebrisGym/Rendezvous2D-Easy-v2)",
     )
     parser.add_argument("--no-her", action="store_true", help="plain SAC, the control")
     parser.add_argument(

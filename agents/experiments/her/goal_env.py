@@ -1,11 +1,11 @@
 """A goal-conditioned view of a one-target rendezvous env, for hindsight experience replay (HER).
 
 :class:`GoalConditionedEnv` wraps a debris-gym env with one target and no return to the dock
-(``DebrisGym/Rendezvous2D-Easy-v1``, ``…3D-Easy-v1``, or any env made with ``n_targets=1,
-return_to_dock=False``) and gives it the interface SB3's ``HerReplayBuffer`` needs: a ``Dict``
-observation with ``observation`` / ``achieved_goal`` / ``desired_goal`` and a vectorised
-:meth:`GoalConditionedEnv.compute_reward`. Physics, rules, termination and truncation are the
-env's own; only the observation and the reward change.
+(``DebrisGym/Rendezvous2D-Easy-v2``, ``…3D-Easy-v2``, their v1 forms, or any env made with
+``n_targets=1, return_to_dock=False``) and gives it the interface SB3's ``HerReplayBuffer``
+needs: a ``Dict`` observation with ``observation`` / ``achieved_goal`` / ``desired_goal`` and a
+vectorised :meth:`GoalConditionedEnv.compute_reward`. Physics, rules, termination and
+truncation are the env's own; only the observation and the reward change.
 
 Design
 ------
@@ -25,13 +25,15 @@ of the goal, that is ``|p_a − p_d| ≤ r_d + chaser_radius + capture_radius`` 
 ``|v_a − v_d| ≤ capture_speed`` (m/s) — exactly the env's per-step capture condition (surface gap
 ≤ ``capture_radius``, velocity relative to the target ≤ ``capture_speed``) when the goal is the
 real target; ``−1`` otherwise. A capture needs the condition held over ``capture_hold`` (4 step
-ends in v1); the env still judges and terminates on it, so a successful episode ends with a run
-of 0 rewards. A step that ends in a **collision or out of bounds** is worth ``−crash_penalty``
-whatever the goal: the penalty is read from ``info["collision"]`` / ``info["out_of_bounds"]``,
-which HER passes back to ``compute_reward`` with ``copy_info_dict=True``, so it survives
-relabelling (otherwise a relabelled crash, a terminal transition, would look better than flying
-on at −1 a step). The default penalty, 100, is twice the value of never reaching a goal
-(−1 / (1 − γ) = −50 at γ = 0.98).
+ends; in v2 also within ``capture_drift`` of where the hold began, untouched); the env still
+judges and terminates on it, so a successful episode ends with a run of 0 rewards. A step that
+ends in a **collision, out of bounds or with the Δv budget spent** (a failure) is worth
+``−crash_penalty`` whatever the goal: the penalty is read from ``info["collision"]``,
+``info["out_of_bounds"]`` and ``info["budget_spent"]``, which HER passes back to
+``compute_reward`` with ``copy_info_dict=True``, so it survives relabelling (otherwise a
+relabelled crash, a terminal transition, would look better than flying on at −1 a step). The
+default penalty, 100, is twice the value of never reaching a goal (−1 / (1 − γ) = −50 at
+γ = 0.98).
 
 **Relabelled goals.** The target moves (natural CWH motion), so the real goal changes at every
 step: ``desired_goal`` is the target's state *now*. HER's ``future`` strategy replaces it by
@@ -58,10 +60,14 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-__all__ = ["DEFAULT_CRASH_PENALTY", "GoalConditionedEnv", "GoalLayout"]
+__all__ = ["DEFAULT_CRASH_PENALTY", "FAILURE_KEYS", "GoalConditionedEnv", "GoalLayout", "failed"]
 
 DEFAULT_CRASH_PENALTY = 100.0
-"""Reward of a step that ends in a collision or out of bounds is ``-DEFAULT_CRASH_PENALTY``."""
+"""Reward of a step that ends in a failure (:data:`FAILURE_KEYS`) is ``-DEFAULT_CRASH_PENALTY``."""
+
+FAILURE_KEYS = ("collision", "out_of_bounds", "budget_spent")
+"""The info flags of a step that ends the episode failed: a collision, leaving the bounds, the
+Δv budget spent."""
 
 
 class GoalLayout:
@@ -142,8 +148,13 @@ class GoalLayout:
         }
 
 
+def failed(info: Mapping[str, Any]) -> bool:
+    """Whether a step's info says the episode ended failed (any of :data:`FAILURE_KEYS`)."""
+    return any(bool(info.get(key, False)) for key in FAILURE_KEYS)
+
+
 def _crash_flags(info: Any, batch_shape: tuple[int, ...]) -> np.ndarray:
-    """Boolean array of ``batch_shape``: the step ended in a collision or out of bounds."""
+    """Boolean array of ``batch_shape``: the step ended failed (:func:`failed`)."""
     if info is None:
         return np.zeros(batch_shape, dtype=bool)
     if isinstance(info, Mapping):
@@ -151,7 +162,7 @@ def _crash_flags(info: Any, batch_shape: tuple[int, ...]) -> np.ndarray:
             raise ValueError(
                 f"info: one dict goes with one goal pair, got goals of batch shape {batch_shape}"
             )
-        return np.array(bool(info.get("collision", False) or info.get("out_of_bounds", False)))
+        return np.array(failed(info))
     if isinstance(info, (Sequence, np.ndarray)) and not isinstance(info, (str, bytes)):
         infos = np.asarray(info, dtype=object).reshape(-1)
         size = int(np.prod(batch_shape)) if batch_shape else 1
@@ -164,7 +175,7 @@ def _crash_flags(info: Any, batch_shape: tuple[int, ...]) -> np.ndarray:
         for i, item in enumerate(infos):
             if not isinstance(item, Mapping):
                 raise ValueError(f"info[{i}]: a dict needed, got {type(item).__name__}")
-            flags[i] = bool(item.get("collision", False) or item.get("out_of_bounds", False))
+            flags[i] = failed(item)
         return flags.reshape(batch_shape)
     raise ValueError(f"info: a dict, a sequence of dicts or None needed, got {type(info).__name__}")
 
@@ -174,8 +185,8 @@ class GoalConditionedEnv(gym.Wrapper[dict[str, np.ndarray], np.ndarray, np.ndarr
 
     Args:
         env: a debris-gym env with one target, no return, ``observation="kinematics"``.
-        crash_penalty: a step ending in a collision or out of bounds is worth ``-crash_penalty``
-            (> 1, finite; default 100).
+        crash_penalty: a step ending failed (a collision, out of bounds, the Δv budget spent)
+            is worth ``-crash_penalty`` (> 1, finite; default 100).
     """
 
     # gymnasium's Wrapper types the wrapped env with the wrapper's own observation type
@@ -230,7 +241,7 @@ class GoalConditionedEnv(gym.Wrapper[dict[str, np.ndarray], np.ndarray, np.ndarr
             desired_goal: the same shape.
             info: the step's info dict (goals of shape (goal_size,)), a sequence / array of info
                 dicts, one per goal pair (SB3's HER passes them with ``copy_info_dict=True``),
-                or None (no crash penalty). Only ``collision`` and ``out_of_bounds`` are read.
+                or None (no crash penalty). Only the :data:`FAILURE_KEYS` are read.
 
         Returns:
             float32 array of the goals' batch shape (0-d for one pair): 0 in the goal's capture

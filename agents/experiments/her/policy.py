@@ -11,14 +11,14 @@ Two ways in:
 
 * from Python, :func:`load_policy(path) <load_policy>` returns a factory ``f(env) -> policy``::
 
-      evaluate_agents("DebrisGym/Rendezvous2D-Easy-v1", {"her": load_policy("runs/her/model.zip")},
+      evaluate_agents("DebrisGym/Rendezvous2D-Easy-v2", {"her": load_policy("runs/her/model.zip")},
                       episodes=30, seed=0)
 
 * from ``evaluate.py``, the factory :func:`policy` reads the model path from the environment
   variable ``DEBRIS_HER_MODEL``::
 
       DEBRIS_HER_MODEL=runs/her/model.zip python evaluate.py \\
-          --env DebrisGym/Rendezvous2D-Easy-v1 --agents her=agents.experiments.her.policy:policy
+          --env DebrisGym/Rendezvous2D-Easy-v2 --agents her=agents.experiments.her.policy:policy
 """
 
 from __future__ import annotations

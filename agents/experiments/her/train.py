@@ -7,7 +7,8 @@ writes, in ``out``:
 ``model.zip``       the final SAC model (written atomically); fly it with
                     :mod:`agents.experiments.her.policy`
 ``curve.csv``       held-out evaluation every ``eval_freq`` env steps and at the end: steps,
-                    wall seconds, success rate, captures, collisions, mean return (env reward)
+                    wall seconds, success rate, captures, collisions, mean return (env reward),
+                    Δv budget spent
 ``train_log.json``  options, wall time, env-steps/s (end to end, and without the evaluations)
 ==================  ===========================================================================
 
@@ -35,7 +36,11 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.monitor import Monitor
 
 import debris_gym  # noqa: F401  (registers the envs)
-from agents.experiments.her.goal_env import DEFAULT_CRASH_PENALTY, GoalConditionedEnv
+from agents.experiments.her.goal_env import (
+    DEFAULT_CRASH_PENALTY,
+    FAILURE_KEYS,
+    GoalConditionedEnv,
+)
 from agents.experiments.her.policy import GoalPolicy
 from agents.experiments.training.config import EVAL_SEED
 from debris_gym.files import save_atomic, write_atomic
@@ -56,10 +61,11 @@ CURVE_COLUMNS = (
     "captures_mean",
     "collisions",
     "return_mean",
+    "budget_spent",
 )
 """Columns of ``curve.csv``: env steps so far, wall seconds since the start, held-out episodes,
 their success rate (0-1), mean targets captured, collisions + out of bounds (count), mean env
-return."""
+return, episodes that ran out of Δv (count; a failure too)."""
 
 
 @dataclass(frozen=True)
@@ -102,9 +108,10 @@ def evaluate_policy_on_env(
     """Fly ``policy`` (SB3 ``predict`` over flat observations) deterministically on ``env``.
 
     Episode ``i`` is reset with seed ``seed + i``. Returns success_rate (0-1), captures_mean,
-    collisions (count, collisions + out of bounds) and return_mean (the env's reward).
+    collisions (count, collisions + out of bounds), budget_spent (count, episodes that ran out
+    of Δv) and return_mean (the env's reward).
     """
-    successes, captures, crashes, returns = 0, 0, 0, []
+    successes, captures, crashes, spent, returns = 0, 0, 0, 0, []
     for i in range(episodes):
         obs, info = env.reset(seed=seed + i)
         total, done = 0.0, False
@@ -116,19 +123,21 @@ def evaluate_policy_on_env(
         successes += bool(info.get("is_success", False))
         captures += int(info.get("targets_captured", 0))
         crashes += bool(info.get("collision", False) or info.get("out_of_bounds", False))
+        spent += bool(info.get("budget_spent", False))
         returns.append(total)
     return {
         "episodes": float(episodes),
         "success_rate": successes / episodes,
         "captures_mean": captures / episodes,
         "collisions": float(crashes),
+        "budget_spent": float(spent),
         "return_mean": float(np.mean(returns)),
     }
 
 
 class CrashFlagHerReplayBuffer(HerReplayBuffer):
     """SB3's HER buffer that keeps, of each step's info, only what
-    :meth:`GoalConditionedEnv.compute_reward` reads (``collision``, ``out_of_bounds``) and what
+    :meth:`GoalConditionedEnv.compute_reward` reads (the failure flags, ``FAILURE_KEYS``) and what
     the buffer itself reads (``TimeLimit.truncated``): ``copy_info_dict=True`` deep-copies the
     stored infos of every relabelled sample, and the env's full infos made that markedly slower
     (docs/benchmarks.md, "Measured design choices")."""
@@ -148,7 +157,7 @@ class CrashFlagHerReplayBuffer(HerReplayBuffer):
         super().add(obs, next_obs, action, reward, done, slim)
 
 
-_KEPT_INFO = ("collision", "out_of_bounds", "TimeLimit.truncated")
+_KEPT_INFO = (*FAILURE_KEYS, "TimeLimit.truncated")
 
 
 class _CurveCallback(BaseCallback):
@@ -190,7 +199,8 @@ class _CurveCallback(BaseCallback):
         print(
             f"eval @ {self.num_timesteps:,} steps ({row['seconds']:.0f} s): success "
             f"{100 * row['success_rate']:.0f} %, captures {row['captures_mean']:.2f}, "
-            f"collisions {int(row['collisions'])} of {self.episodes}",
+            f"collisions {int(row['collisions'])} of {self.episodes}, Δv budget spent "
+            f"{int(row['budget_spent'])}",
             flush=True,
         )
 
@@ -210,7 +220,7 @@ def train_sac(
     timesteps: int,
     seed: int = 0,
     her: bool = True,
-    env_id: str = "DebrisGym/Rendezvous2D-Easy-v1",
+    env_id: str = "DebrisGym/Rendezvous2D-Easy-v2",
     env_kwargs: dict[str, Any] | None = None,
     options: SacOptions | None = None,
     eval_freq: int = 25_000,

@@ -69,7 +69,7 @@ class ImitationConfig:
         seed: base seed (fields, network initialisation, minibatch order).
     """
 
-    env_id: str = "DebrisGym/Rendezvous2D-v1"
+    env_id: str = "DebrisGym/Rendezvous2D-v2"
     env_kwargs: dict[str, Any] = field(
         default_factory=lambda: {"obs_goal": True, "obs_targets": 1, "obs_other_targets": True}
     )

@@ -31,7 +31,7 @@ def add_recipe_options(
         dest="env_id",
         metavar="ID",
         help="environment ID; picks the checked-in recipe with --algo (default: "
-        "DebrisGym/Rendezvous2D-v1)",
+        "DebrisGym/Rendezvous2D-v2)",
     )
     parser.add_argument("--algo", choices=ALGOS, help="algorithm (default: ppo)")
     cli.add_config_options(

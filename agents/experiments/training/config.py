@@ -50,7 +50,7 @@ MAX_ENVS = 16_384
 MAX_EVAL_EPISODES = 100_000
 """Most episodes of one periodic evaluation."""
 
-DEFAULT_ENV = "DebrisGym/Rendezvous2D-v1"
+DEFAULT_ENV = "DebrisGym/Rendezvous2D-v2"
 """Env of a ``train.py`` run that names neither ``--env`` nor ``--config``."""
 
 
