@@ -574,7 +574,7 @@ def test_shielded_frames_show_the_shield_and_its_interventions():
     class Agent:
         stats = Stats()
 
-    env = ShieldFrames(gym.make("DebrisGym/Rendezvous2D-Easy-v1", render_mode="rgb_array"))
+    env = ShieldFrames(gym.make("DebrisGym/Rendezvous2D-Easy-v2", render_mode="rgb_array"))
     env.agent = Agent()
     env.reset(seed=0)
     plain = env.env.render()

@@ -15,7 +15,7 @@ from agents.experiments.evaluation.records import scenario_fingerprint
 from debris_gym.suites import load_suite
 from tests.helpers import load_script
 
-SUITE = "standard-2d-v1"
+SUITE = "standard-2d-v2"
 QUICK = ["--max-steps", "4", "--plots", "0", "--no-progress", "--workers", "1"]
 
 
@@ -69,7 +69,7 @@ def test_suite_flies_its_first_n_missions_and_records_name_and_hash(cli, tmp_pat
 @pytest.mark.parametrize(
     ("extra", "flag", "text"),
     [
-        (["--env", "DebrisGym/Rendezvous3D-v1"], "--env", "not allowed with --suite"),
+        (["--env", "DebrisGym/Rendezvous3D-v2"], "--env", "not allowed with --suite"),
         (["--seed", "5"], "--seed", "not allowed with --suite"),
         (["--env-kwargs", '{"n_obstacles": 4}'], "--env-kwargs", "not allowed with --suite"),
         (["--paper"], "--paper", "not allowed with --suite"),

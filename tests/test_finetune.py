@@ -31,7 +31,7 @@ from agents.experiments.training.finetune import REFERENCE_MODEL
 from agents.experiments.training.run import TrainOptions, resolve_config, train
 from tests.helpers import load_script
 
-ENV_ID = "DebrisGym/Rendezvous2D-v1"
+ENV_ID = "DebrisGym/Rendezvous2D-v2"
 RECIPE = CONFIG_DIR / "rendezvous2d_finetune.yaml"
 INIT_OPTIONS = {"obs_goal": True, "obs_targets": 1, "obs_other_targets": True}
 TINY_IMITATION = {
@@ -301,7 +301,7 @@ def test_mismatched_options_are_refused(init_run):
     with pytest.raises(ConfigError, match=r"'policy_kwargs.net_arch' is \[32, 32\]"):
         resolve(init_run, "policy_kwargs.net_arch=[32, 32]")
     with pytest.raises(ConfigError, match=r"observation space .* differs"):
-        resolve(init_run, "env_id=DebrisGym/Rendezvous3D-v1")
+        resolve(init_run, "env_id=DebrisGym/Rendezvous3D-v2")
 
 
 @pytest.mark.parametrize(

@@ -28,7 +28,7 @@ from agents.experiments.her import (
 from agents.experiments.her.__main__ import main
 from agents.experiments.her.train import CURVE_COLUMNS, SacOptions, train_sac
 
-EASY = "DebrisGym/Rendezvous2D-Easy-v1"
+EASY = "DebrisGym/Rendezvous2D-Easy-v2"
 SMALL = float(np.float32(0.01))  # hypothesis wants float32 bounds exactly representable
 
 
@@ -54,7 +54,7 @@ def fly(env: GoalConditionedEnv, act, seed: int):
     return np.array(rewards, np.float32), np.array(achieved), np.array(desired), infos
 
 
-@pytest.mark.parametrize("env_id, size", [(EASY, 5), ("DebrisGym/Rendezvous3D-Easy-v1", 7)])
+@pytest.mark.parametrize("env_id, size", [(EASY, 5), ("DebrisGym/Rendezvous3D-Easy-v2", 7)])
 def test_spaces(env_id, size):
     env = GoalConditionedEnv(gym.make(env_id))
     assert isinstance(env.observation_space, gym.spaces.Dict)
@@ -179,7 +179,7 @@ def test_bad_input(goal_env):
         with pytest.raises(ValueError, match="crash_penalty"):
             GoalConditionedEnv(gym.make(EASY), crash_penalty=penalty)
     with pytest.raises(ValueError, match="env: one target and no return"):
-        GoalConditionedEnv(gym.make("DebrisGym/Rendezvous2D-Medium-v1"))
+        GoalConditionedEnv(gym.make("DebrisGym/Rendezvous2D-Medium-v2"))
     with pytest.raises(ValueError, match="env: a debris-gym env"):
         GoalConditionedEnv(gym.make("Pendulum-v1"))
     with pytest.raises(ValueError, match="obs: last axis"):

@@ -34,7 +34,7 @@ from debris_gym.envs import DebrisFieldEnv
 from tests.helpers import flies_old_ids, load_script
 
 ROOT = Path(__file__).resolve().parents[1]
-ENV_ID = "DebrisGym/Rendezvous2D-v1"
+ENV_ID = "DebrisGym/Rendezvous2D-v2"
 TINY = {
     "bc_episodes": 2,
     "dagger_rounds": 1,
@@ -200,8 +200,8 @@ def test_checked_in_recipe_loads():
     config = load_imitation_config(ENV_ID)
     assert config.expert == "apf-mpc" and config.expert_kwargs["ordering"] == "nearest"
     assert config.env_kwargs["obs_goal"] is True
-    three_d = load_imitation_config("DebrisGym/Rendezvous3D-v1")  # the 3D policy's start
-    assert three_d.env_id == "DebrisGym/Rendezvous3D-v1" and three_d.expert == "apf-mpc"
+    three_d = load_imitation_config("DebrisGym/Rendezvous3D-v2")  # the 3D policy's start
+    assert three_d.env_id == "DebrisGym/Rendezvous3D-v2" and three_d.expert == "apf-mpc"
     with pytest.raises(FileNotFoundError, match="no imitation config"):
         load_imitation_config("DebrisGym/PaperField2D-v0")
 

@@ -285,13 +285,13 @@ DEPARTURES = Path(__file__).parent / "data" / "v1_astar_departures.json"
 
 @pytest.mark.parametrize("seed", ["7", "12"])
 def test_astar_leaves_a_captured_target_without_touching_it(seed):
-    """Rendezvous2D-v1's fields of reset seeds 7 and 12, pinned: just after its second capture
-    the chaser sits ~2 m from that target's surface, which is now an obstacle, and a new path
-    leads past it. A cold-started MPC once linearised the keep-out around that path's leading
-    reference points, which made the chaser's own neighbourhood infeasible; the slack then
-    bought a cut straight through the target (a collision at 0.5 m/s). Truth: the env's own
-    swept-contact judgement over the whole mission."""
-    env = gym.make("DebrisGym/Rendezvous2D-v1")
+    """Rendezvous2D-v1's fields of reset seeds 7 and 12, pinned, flown in v2: just after its
+    second capture the chaser sits ~2 m from that target's surface, which is now an obstacle,
+    and a new path leads past it. A cold-started MPC once linearised the keep-out around that
+    path's leading reference points, which made the chaser's own neighbourhood infeasible; the
+    slack then bought a cut straight through the target (a collision at 0.5 m/s). Truth: the
+    env's own swept-contact judgement over the whole mission."""
+    env = gym.make("DebrisGym/Rendezvous2D-v2")
     field = Scenario.from_dict(json.loads(DEPARTURES.read_text())[seed])
     obs, info = env.reset(seed=int(seed), options={"scenario": field})
     agent = make_agent("astar", env.unwrapped)

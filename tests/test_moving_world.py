@@ -237,7 +237,7 @@ def test_a_pinned_field_must_move_as_the_env_does():
 
 
 @flies_old_ids
-@pytest.mark.parametrize("env_id", ["DebrisGym/Rendezvous3D-v0", "DebrisGym/Rendezvous3D-v1"])
+@pytest.mark.parametrize("env_id", ["DebrisGym/Rendezvous3D-v0", "DebrisGym/Rendezvous3D-v2"])
 def test_the_3d_vector_env_lists_its_fields(env_id):
     """Regression: ``scenarios[i]`` of a 3D vector env raised IndexError (no polygon slots)."""
     import gymnasium as gym
@@ -249,7 +249,7 @@ def test_the_3d_vector_env_lists_its_fields(env_id):
     assert venv.unwrapped.scenarios[1] == env.unwrapped.scenario
 
 
-@pytest.mark.parametrize("env_id", ["DebrisGym/Rendezvous2D-v1", "DebrisGym/Rendezvous3D-v1"])
+@pytest.mark.parametrize("env_id", ["DebrisGym/Rendezvous2D-v2", "DebrisGym/Rendezvous3D-v2"])
 def test_the_vector_env_gives_the_drawn_field_after_its_bodies_moved(env_id):
     import gymnasium as gym
 

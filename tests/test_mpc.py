@@ -293,7 +293,7 @@ def test_predict_single_and_batched():
 def test_a_tracking_agent_names_its_missing_tracker_before_it_first_acts(name):
     """The tracker is built by the episode's first predict(): before it, asking for it raises
     a RuntimeError that says so; after it, the tracker is there."""
-    env = gym.make("DebrisGym/Rendezvous2D-v1")
+    env = gym.make("DebrisGym/Rendezvous2D-v2")
     agent = make_agent(name, env)
     with pytest.raises(RuntimeError, match="no tracker before it first acts"):
         _ = agent.tracker

@@ -25,9 +25,9 @@ from debris_gym.horizon_checks import first_motion_fault
 from debris_gym.scenario import Scenario
 from debris_gym.scenario_checks import max_body_speed
 
-N = EnvConfig().n  # rad/s, the v1 IDs' mean motion
-IDS = {2: "DebrisGym/Rendezvous2D-v1", 3: "DebrisGym/Rendezvous3D-v1"}
-EPISODE = 1000  # steps: the v1 IDs' registered time limit
+N = EnvConfig().n  # rad/s, the default IDs' mean motion
+IDS = {2: "DebrisGym/Rendezvous2D-v2", 3: "DebrisGym/Rendezvous3D-v2"}
+EPISODE = 1000  # steps: the default IDs' registered time limit
 
 
 def cw_positions(states: np.ndarray, n: float, t: np.ndarray) -> np.ndarray:

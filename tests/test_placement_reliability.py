@@ -18,17 +18,17 @@ from debris_gym.integrations.sb3 import NativeVecEnv
 from debris_gym.orbit_fields import orbit_drawer
 from debris_gym.registration import ENV_SPECS
 
-V1 = {2: "DebrisGym/Rendezvous2D-v1", 3: "DebrisGym/Rendezvous3D-v1"}
+V2 = {2: "DebrisGym/Rendezvous2D-v2", 3: "DebrisGym/Rendezvous3D-v2"}
 V0 = {2: "DebrisGym/Rendezvous2D-v0", 3: "DebrisGym/Rendezvous3D-v0"}
 
 
 def test_the_documented_lidar_example_places_every_seed():
-    env = gym.make(V1[2], n_obstacles=50, observation="lidar")
+    env = gym.make(V2[2], n_obstacles=50, observation="lidar")
     for seed in range(40):
         obs, _ = env.reset(seed=seed)
         assert env.observation_space.contains(obs)
     vector = gym.make_vec(
-        V1[2], num_envs=16, vectorization_mode="vector_entry_point", n_obstacles=50,
+        V2[2], num_envs=16, vectorization_mode="vector_entry_point", n_obstacles=50,
         observation="lidar",
     )  # fmt: skip
     obs, _ = vector.reset(seed=0)
@@ -36,7 +36,7 @@ def test_the_documented_lidar_example_places_every_seed():
 
 
 def _crowded_drawer(wide_tries: int):
-    cfg = EnvConfig.from_kwargs(**{**ENV_SPECS[V1[2]]["kwargs"], "n_obstacles": 50})
+    cfg = EnvConfig.from_kwargs(**{**ENV_SPECS[V2[2]]["kwargs"], "n_obstacles": 50})
     return orbit_drawer(field_spec(cfg), cfg.capture_radius, wide_tries=wide_tries)
 
 
@@ -54,8 +54,8 @@ def test_wide_tries_place_what_the_narrow_ones_miss_and_change_nothing_else():
 @pytest.mark.parametrize(("dim", "count"), [(2, 80), (3, 2000)])
 def test_a_crowd_the_generator_cannot_place_is_refused_when_made_or_set(dim, count):
     with pytest.raises(ValueError, match=rf"cannot place.*n_obstacles={count}.*reliably"):
-        gym.make(V1[dim], n_obstacles=count)
-    env = gym.make(V1[dim])
+        gym.make(V2[dim], n_obstacles=count)
+    env = gym.make(V2[dim])
     env.reset(seed=3)
     before = env.unwrapped.scenario
     with pytest.raises(ValueError, match="reliably"):
@@ -66,7 +66,7 @@ def test_a_crowd_the_generator_cannot_place_is_refused_when_made_or_set(dim, cou
 
 MISSIONS = st.tuples(
     st.sampled_from([2, 3]),
-    st.sampled_from(["v0", "v1"]),
+    st.sampled_from(["v0", "v2"]),
     st.integers(1, 20),
     st.one_of(st.integers(0, 150), st.integers(0, 2000)),
 )
@@ -76,7 +76,7 @@ MISSIONS = st.tuples(
 @given(mission=MISSIONS)
 def test_a_mission_size_the_env_accepts_resets_on_every_seed(mission):
     dim, version, n_targets, n_obstacles = mission
-    env_id = (V1 if version == "v1" else V0)[dim]
+    env_id = (V2 if version == "v2" else V0)[dim]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)  # the v0 IDs say they are old
         try:
@@ -90,7 +90,7 @@ def test_a_mission_size_the_env_accepts_resets_on_every_seed(mission):
 
 
 def test_set_mission_refuses_a_crowd_now_and_takes_one_that_places():
-    venv = NativeVecEnv(V1[2], 4)
+    venv = NativeVecEnv(V2[2], 4)
     venv.reset()
     with pytest.raises(ValueError, match="reliably"):
         venv.set_mission({"n_obstacles": 80})

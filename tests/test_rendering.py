@@ -203,7 +203,7 @@ from debris_gym.envs.rendering import NoDisplayWarning
 
 with warnings.catch_warnings(record=True) as record:
     warnings.simplefilter("always")
-    env = gym.make("DebrisGym/Rendezvous2D-v1", render_mode="human")
+    env = gym.make("DebrisGym/Rendezvous2D-v2", render_mode="human")
     check_env(env.unwrapped)
     env.reset(seed=0)
     assert env.render() is None  # human mode shows, it does not return

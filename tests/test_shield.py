@@ -194,10 +194,10 @@ def test_the_shield_dodges_a_body_on_its_predicted_orbit():
 @pytest.mark.parametrize(
     ("env_id", "seed"),
     [
-        ("DebrisGym/Rendezvous2D-v1", 0),
-        ("DebrisGym/Rendezvous2D-v1", 1),
-        ("DebrisGym/Rendezvous2D-v1", 2),
-        ("DebrisGym/Rendezvous3D-v1", 0),
+        ("DebrisGym/Rendezvous2D-v2", 0),
+        ("DebrisGym/Rendezvous2D-v2", 1),
+        ("DebrisGym/Rendezvous2D-v2", 2),
+        ("DebrisGym/Rendezvous3D-v2", 0),
         ("DebrisGym/Rendezvous2D-v0", 0),
         # a 20-unit world with a 0.1-unit chaser: the default margin scales with it
         ("DebrisGym/PaperField2D-v0", 0),
@@ -311,7 +311,7 @@ def test_sb3_trains_a_few_steps_behind_the_shield():
     from stable_baselines3.common.vec_env import DummyVecEnv
 
     def make() -> gym.Env:
-        return ShieldWrapper(gym.make("DebrisGym/Rendezvous2D-v1", max_episode_steps=20))
+        return ShieldWrapper(gym.make("DebrisGym/Rendezvous2D-v2", max_episode_steps=20))
 
     venv = DummyVecEnv([make])
     model = PPO("MlpPolicy", venv, n_steps=32, batch_size=32, n_epochs=1, seed=0, device="cpu")
@@ -342,7 +342,7 @@ def test_evaluate_with_the_shield_counts_interventions_in_every_output(tmp_path)
 
     def run(shield):
         return evaluate_agents(
-            "DebrisGym/Rendezvous2D-v1", {"charge": ChargeNearestDebris}, episodes=2, seed=2,
+            "DebrisGym/Rendezvous2D-v2", {"charge": ChargeNearestDebris}, episodes=2, seed=2,
             progress=False, max_episode_steps=60, shield=shield,
         )  # fmt: skip
 

@@ -295,7 +295,7 @@ def test_bad_field_and_agent_arguments_raise_value_errors_naming_them():
     with pytest.raises(ValueError, match="max_accel"):
         smooth_in_tube(build_tube(SpaceTimeField(motion, 0.0, 100.0), [0.0, 10.0],
                                   [[0.0, 0.0], [1.0, 0.0]]), np.zeros(2), 0.0)  # fmt: skip
-    env = gym.make("DebrisGym/Rendezvous2D-v1")
+    env = gym.make("DebrisGym/Rendezvous2D-v2")
     for kwargs, name in (
         ({"seed": -1}, "seed"),
         ({"stall_steps": 0}, "stall_steps"),
@@ -309,8 +309,8 @@ def test_bad_field_and_agent_arguments_raise_value_errors_naming_them():
 # --- the agent ----------------------------------------------------------------------------------
 
 
-def test_the_agent_flies_a_v1_mission_to_success_without_contact_and_repeats_it():
-    env = gym.make("DebrisGym/Rendezvous2D-v1")
+def test_the_agent_flies_a_default_mission_to_success_without_contact_and_repeats_it():
+    env = gym.make("DebrisGym/Rendezvous2D-v2")
     outcomes = []
     for _ in range(2):
         agent = make_agent("st-rrt", env)

@@ -33,9 +33,12 @@ def _fresh_caches():
 
 
 def test_standard_suites_ship_and_load():
+    """The v2 suites (the default's) and the v1 ones, kept as they were for reproduction."""
     names = suites.list_suites()
-    assert {"standard-2d-v1", "standard-3d-v1"} <= set(names)
+    assert {"standard-2d-v2", "standard-3d-v2", "standard-2d-v1", "standard-3d-v1"} <= set(names)
     for name, env_id, dim in (
+        ("standard-2d-v2", "DebrisGym/Rendezvous2D-v2", 2),
+        ("standard-3d-v2", "DebrisGym/Rendezvous3D-v2", 3),
         ("standard-2d-v1", "DebrisGym/Rendezvous2D-v1", 2),
         ("standard-3d-v1", "DebrisGym/Rendezvous3D-v1", 3),
     ):
@@ -45,7 +48,7 @@ def test_standard_suites_ship_and_load():
         assert set(suite.provenance) == {"command", "git"}
         assert all(isinstance(m.scenario, Scenario) for m in suite.missions)
         assert all(m.scenario.dim == dim for m in suite.missions)
-        assert all(m.scenario.motion == "cwh" for m in suite.missions)  # the v1 world
+        assert all(m.scenario.motion == "cwh" for m in suite.missions)  # the moving world
         assert len(set(suite.seeds)) == 100
         assert len({scenario_fingerprint(m.scenario) for m in suite.missions}) == 100
 
@@ -64,7 +67,7 @@ def test_suite_file_has_exactly_the_documented_format():
 
 
 def test_a_mission_fixes_the_start_whatever_env_instance_flies_it():
-    suite = suites.load_suite("standard-3d-v1")
+    suite = suites.load_suite("standard-3d-v2")
     first = gym.make(suite.env_id, **suite.env_kwargs)
     second = gym.make(suite.env_id, **suite.env_kwargs)
     for mission in suite.missions[:3]:
@@ -85,10 +88,10 @@ def test_a_mission_fixes_the_start_whatever_env_instance_flies_it():
 
 def test_builder_draws_the_env_fields_and_writes_a_file_that_reads_back(tmp_path):
     recipe = StandardSuite(
-        env_id="DebrisGym/Rendezvous2D-v1", first_seed=950_000_000, count=2, description="t"
+        env_id="DebrisGym/Rendezvous2D-v2", first_seed=950_000_000, count=2, description="t"
     )
     suite = build_suite("tiny", recipe, "test")
-    env = gym.make("DebrisGym/Rendezvous2D-v1")
+    env = gym.make("DebrisGym/Rendezvous2D-v2")
     for mission in suite.missions:
         env.reset(seed=mission.seed)  # the field a plain reset draws from that seed
         assert scenario_fingerprint(env.unwrapped.scenario) == scenario_fingerprint(
@@ -102,7 +105,7 @@ def test_builder_draws_the_env_fields_and_writes_a_file_that_reads_back(tmp_path
     suites.write_suite(again, tmp_path / "again.json.gz")  # deterministic bytes (no mtime)
     assert (tmp_path / "again.json.gz").read_bytes() == path.read_bytes()
     with pytest.raises(ValueError, match="reserved range"):
-        StandardSuite("DebrisGym/Rendezvous2D-v1", 5, 2, "outside")
+        StandardSuite("DebrisGym/Rendezvous2D-v2", 5, 2, "outside")
 
 
 def test_content_hash_covers_what_is_flown_only():
@@ -149,7 +152,7 @@ def _default_training_seeds() -> list[range]:
 
 
 def test_suite_seeds_are_disjoint_from_default_training_and_evaluation_seeds():
-    imitation = load_imitation_config("DebrisGym/Rendezvous2D-v1")
+    imitation = load_imitation_config("DebrisGym/Rendezvous2D-v2")
     held_out = [range(10_000_000, 10_001_000), range(20_000_000, 20_001_000)]  # the docs'
     for seeds in [*_default_training_seeds(), imitation.field_seeds, *held_out]:
         assert suites.seeds_in_suites(seeds) == {}, seeds
@@ -176,14 +179,14 @@ def test_training_refuses_seeds_that_are_a_suites(monkeypatch, tmp_path):
 def test_imitation_refuses_seeds_that_are_a_suites():
     # fields are seeded 5 000 000 + 100 000 · seed + k: seed 8950 lands on 900 000 000
     with pytest.raises(ValueError, match=r"imitation .*standard-2d-v1.*evaluation-only"):
-        load_imitation_config("DebrisGym/Rendezvous2D-v1", seed=8950)
-    load_imitation_config("DebrisGym/Rendezvous2D-v1", seed=1)
+        load_imitation_config("DebrisGym/Rendezvous2D-v2", seed=8950)
+    load_imitation_config("DebrisGym/Rendezvous2D-v2", seed=1)
 
 
 @pytest.mark.parametrize("script", ["train.py", "imitate.py"])
 def test_scripts_refuse_a_suite_option(script, capsys):
     cli = load_script(script)
     with pytest.raises(SystemExit) as exc:
-        cli.main(["--suite", "standard-2d-v1", "--out", "/nonexistent/never-written"])
+        cli.main(["--suite", "standard-2d-v2", "--out", "/nonexistent/never-written"])
     assert exc.value.code == 2
     assert "argument --suite: suites are evaluation-only" in capsys.readouterr().err

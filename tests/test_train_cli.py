@@ -476,11 +476,11 @@ def test_the_evaluate_command_train_py_prints_flies_the_model_on_its_own_env(
     default task."""
     out = tmp_path / "run"
     assert (
-        train_cli.main([*TINY, "--env", "DebrisGym/Rendezvous2D-Easy-v1", "--out", str(out)]) == 0
+        train_cli.main([*TINY, "--env", "DebrisGym/Rendezvous2D-Easy-v2", "--out", str(out)]) == 0
     )
     printed = capsys.readouterr().out.splitlines()[-1]
     assert printed == (
-        "evaluate with: python evaluate.py --env DebrisGym/Rendezvous2D-Easy-v1 --agents "
+        "evaluate with: python evaluate.py --env DebrisGym/Rendezvous2D-Easy-v2 --agents "
         f"apf,ppo={out / 'model.zip'}"
     )
 
@@ -499,7 +499,7 @@ def test_every_algorithm_the_readme_offers_for_an_env_has_a_recipe():
         if found:
             words = re.findall(r"[a-z_0-9]+", found[3])
             offered += [(found[1], a) for a in [found[2], *(w for w in words if w in ALGOS)]]
-    assert ("DebrisGym/Rendezvous2D-v1", "ppo") in offered and len(offered) >= 4
+    assert ("DebrisGym/Rendezvous2D-v2", "ppo") in offered and len(offered) >= 4
     for env_id, algo in offered:
         config, _ = resolve_config(TrainOptions(env_id=env_id, algo=algo))
         assert (config.env_id, config.algo) == (env_id, algo)

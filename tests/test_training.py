@@ -48,7 +48,7 @@ from tests.helpers import flies_old_ids, load_script
 ROOT = Path(__file__).resolve().parents[1]
 TRAIN = ROOT / "train.py"
 EVALUATE = ROOT / "evaluate.py"
-ENV_ID = "DebrisGym/Rendezvous2D-v1"
+ENV_ID = "DebrisGym/Rendezvous2D-v2"
 
 TINY = [
     "--no-progress", "--n-envs", "2", "--timesteps", "256",
@@ -513,6 +513,7 @@ def test_the_shipped_pretrained_policy_flies_its_env():
         agents.load_agent("pretrained", gym.make(medium))
 
 
+@flies_old_ids
 def test_the_pretrained_easy_policy_is_the_one_made_for_the_easy_rung():
     """`pretrained` picks the policy made for the env being evaluated: on the Easy rung the
     recipe's PPO policy (no observation options: the registered env as it is), which captures
@@ -535,6 +536,7 @@ def test_the_pretrained_easy_policy_is_the_one_made_for_the_easy_rung():
     env.close()
 
 
+@flies_old_ids
 @pytest.mark.parametrize(
     "env_id, name",
     [

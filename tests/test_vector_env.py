@@ -111,10 +111,11 @@ def compare_run(
         ("DebrisGym/Rendezvous3D-v0", {"observation": "lidar", "lidar_rays": 16}, 0.3),
         ("DebrisGym/PaperField2D-v0", {"max_episode_steps": 60}, 0.1),
         ("DebrisGym/Rendezvous2D-v1", {}, 0.3),
-        ("DebrisGym/Rendezvous2D-v1", {"observation": "lidar", "spin_max": 0.05}, 0.3),
-        ("DebrisGym/Rendezvous2D-v1", {"action": "discrete", "obs_goal": True}, 1.0),
-        ("DebrisGym/Rendezvous2D-v1", {"debris_motion": "drifting", "target_order": "queued"}, 0.3),
-        ("DebrisGym/Rendezvous3D-v1", {}, 0.3),
+        ("DebrisGym/Rendezvous2D-v2", {}, 0.3),
+        ("DebrisGym/Rendezvous2D-v2", {"observation": "lidar", "spin_max": 0.05}, 0.3),
+        ("DebrisGym/Rendezvous2D-v2", {"action": "discrete", "obs_goal": True}, 1.0),
+        ("DebrisGym/Rendezvous2D-v2", {"debris_motion": "drifting", "target_order": "queued"}, 0.3),
+        ("DebrisGym/Rendezvous3D-v2", {}, 0.3),
     ],
 )
 def test_native_vector_env_equals_sync_vector_env(env_id, kwargs, scale):
@@ -466,8 +467,8 @@ def test_fields_drawn_ahead_are_the_fields_drawn_at_reset_time():
     field a draw at its reset gives: the same observations, rewards and fields as with
     ``draw_ahead=False``, across autoresets, a failed reset, a mission change and reseeding."""
     n, rng = 16, np.random.default_rng(5)
-    v1 = debris_gym.ENV_SPECS["DebrisGym/Rendezvous2D-v1"]["kwargs"]
-    kwargs = dict(num_envs=n, max_episode_steps=25, **v1)
+    default = debris_gym.ENV_SPECS["DebrisGym/Rendezvous2D-v2"]["kwargs"]
+    kwargs = dict(num_envs=n, max_episode_steps=25, **default)
     ahead = DebrisFieldVectorEnv(**kwargs, draw_ahead=True)
     plain = DebrisFieldVectorEnv(**kwargs, draw_ahead=False)
     easy = {"n_targets": 1, "n_obstacles": 5, "return_to_dock": False}

@@ -49,7 +49,7 @@ class DebrisFieldEnv(ShellView, gym.Env):
     and targets — flies its own unforced relative orbit (bounded, drift-free), 2D polygons keep
     an inertially fixed attitude (turning at −n in LVLH), every body is solid, and contacts are
     found continuously along the path relative to each moving body. The registered default,
-    ``DebrisGym/Rendezvous2D-v1``: a 1 km square at 400 km altitude (n ≈ 1.131e-3 rad/s), 3
+    ``DebrisGym/Rendezvous2D-v2``: a 1 km square at 400 km altitude (n ≈ 1.131e-3 rad/s), 3
     targets of 3–10 m and 20 other debris of 2–25 m (circles and convex polygons),
     ``dt`` = 10 s, ``max_accel`` = 0.05 m/s², a Δv budget of 100 m/s, 1000 steps.
 
@@ -65,7 +65,8 @@ class DebrisFieldEnv(ShellView, gym.Env):
 
     ## Observation Space
 
-    ``Box(-10, 10, (74,), float32)`` for ``Rendezvous2D-v1`` (99 elements in 3D): positions
+    ``Box(-10, 10, (77,), float32)`` for ``Rendezvous2D-v2`` (102 elements in 3D; 74 and 99 in
+    v1, which does not observe the hold): positions
     divided by L = half the world size (500 m), velocities by V = sqrt(max_accel·L) (5 m/s),
     every element clipped to ±10. :meth:`observation_names` names each element;
     docs/environments.md lists them one by one.
