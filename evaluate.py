@@ -7,10 +7,13 @@ standard-3d-v2, hard-v2, and the v1 ones, ...): episode i pins mission i's field
 --episodes N flies the first N.
 Outputs in --out DIR:
 
-  episodes.csv              one row per agent x episode
+  episodes.csv              one row per agent x episode; outcome is success, collision,
+                            out_of_bounds, delta_v_budget (the Δv budget ran out: a failure,
+                            also flagged in budget_spent) or time_limit
   summary.json              per agent: success_rate, targets_captured_mean, delta_v_mean,
-                            time_mean, path_length_mean, collision_rate, min_clearance_min,
-                            decision_ms_p50/p95, with 95 % confidence intervals inside
+                            time_mean, path_length_mean, collision_rate, budget_spent_rate,
+                            min_clearance_min, decision_ms_p50/p95, with 95 %
+                            confidence intervals inside
                             each metric's range (Wilson for rates, seeded percentile
                             bootstrap for means) and constant_columns; paired_success:
                             each agent against apf-mpc (or the first agent, or

@@ -179,6 +179,44 @@ def test_a_journal_written_before_the_budget_column_reads_its_outcome():
     assert [r.budget_spent for r in results.records] == [True, False]
 
 
+@pytest.mark.filterwarnings("ignore:.*no VecNormalize statistics:UserWarning")  # a bare model
+def test_the_default_run_flies_v2_and_takes_a_pretrained_policy_once_one_ships(
+    monkeypatch, tmp_path
+):
+    """A plain ``python evaluate.py`` flies the v2 default with every baseline. Without a policy
+    shipped for it, 'pretrained' is left out with the reason; an entry in PRETRAINED_POLICIES
+    naming a file that fits the env is all it takes for the default run to fly it."""
+    from stable_baselines3 import PPO
+
+    from agents.experiments.evaluation.plan import EvaluateOptions
+    from agents.experiments.evaluation.resolve import fresh_plan
+    from agents.policies import learned
+
+    plan = fresh_plan(EvaluateOptions(out=tmp_path / "eval"))
+    assert plan.env_id == "DebrisGym/Rendezvous2D-v2" and plan.episodes == 20
+    labels = [label for _, label in plan.agents]
+    assert labels[: len(agents.BASELINES)] == list(agents.BASELINES)
+    if plan.env_id not in learned.PRETRAINED_POLICIES:
+        assert "pretrained" not in labels
+        assert plan.skipped["pretrained"].startswith(
+            "no pretrained policy for DebrisGym/Rendezvous2D-v2"
+        )
+    env = gym.make(plan.env_id)
+    PPO("MlpPolicy", env, n_steps=8, batch_size=8, device="cpu").save(tmp_path / "v2.zip")
+    env.close()
+    monkeypatch.setattr(learned, "PRETRAINED_DIR", tmp_path)
+    monkeypatch.setitem(learned.PRETRAINED_POLICIES, plan.env_id, ("ppo", "v2.zip"))
+    shipped = fresh_plan(EvaluateOptions(out=tmp_path / "eval"))
+    assert [label for _, label in shipped.agents] == [*agents.BASELINES, "pretrained"]
+    assert shipped.skipped == {}
+
+
+def test_the_table_names_the_agents_left_out_and_why(results):
+    summary = {**ev.summarize(results), "skipped": {"pretrained": "no policy | for this env"}}
+    md = ev.summary_markdown(summary)
+    assert md.splitlines()[-1] == "Not evaluated — pretrained: no policy | for this env"
+
+
 def test_script_rejects_an_unknown_agent_by_name(tmp_path):
     proc = subprocess.run(
         [sys.executable, str(SCRIPT), "--agents", "zero,warp-drive", "--out", str(tmp_path)],

@@ -181,7 +181,8 @@ def _shield_table(summary: dict[str, Any]) -> list[str]:
 
 def summary_markdown(summary: dict[str, Any]) -> str:
     """The summary as Markdown: one row per agent with 95 % intervals in brackets, then the
-    paired comparisons with the reference agent."""
+    paired comparisons with the reference agent, the agents' warnings and the agents left out
+    (``skipped``: a default agent that cannot fly this env, with the reason)."""
     n = summary["episodes"]
     lines = [
         _title(summary),
@@ -227,6 +228,8 @@ def summary_markdown(summary: dict[str, Any]) -> str:
     lines += _paired_tables(summary, n)
     for label, message in (summary.get("warnings") or {}).items():
         lines += ["", f"Warning — {label}: {message}"]
+    for label, reason in (summary.get("skipped") or {}).items():
+        lines += ["", f"Not evaluated — {markdown_cell(label)}: {reason}"]
     return "\n".join(lines) + "\n"
 
 
