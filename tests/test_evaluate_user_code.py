@@ -282,7 +282,7 @@ def test_labels_with_control_characters_are_refused_and_pipes_escaped():
     )  # fmt: skip
     table = ev.summary_markdown(ev.summarize(res)).split("\n\n")[1]
     for row in [line for line in table.splitlines() if line.startswith("| ")]:
-        assert row.replace("\\|", "").count("|") == 11, row  # ten cells in every row
+        assert row.replace("\\|", "").count("|") == 12, row  # eleven cells in every row
     assert "| a\\|b |" in table
 
 

@@ -80,17 +80,20 @@ def test_spaces(env_id, size):
 
 
 def test_reward_is_the_capture_rule_on_real_steps(goal_env):
-    """APF flies to captures: the step reward is 0 exactly on the 4 held step ends before the
-    capture (capture_hold 30 s at dt 10 s), -1 before; compute_reward over the whole episode at
-    once gives the same rewards."""
+    """APF flies to captures: the step reward is 0 exactly on the step ends the env counts
+    toward a hold (``info["hold"]`` ≥ 1: in capture range and speed; v2 starts the count again
+    when the chaser drifts from where the hold began), -1 elsewhere, and the episode ends with
+    the capture's 4 held step ends (capture_hold 30 s at dt 10 s); compute_reward over the whole
+    episode at once gives the same rewards."""
     for seed in range(3):
         agent = build_agent("apf", goal_env.env)
         rewards, achieved, desired, infos = fly(
             goal_env, lambda o, a=agent: a.predict(o["observation"], deterministic=True)[0], seed
         )
         assert infos[-1]["is_success"]
-        expected = -np.ones(len(rewards), np.float32)
-        expected[-4:] = 0.0
+        held = np.array([info["hold"][0] for info in infos])
+        assert list(held[-4:]) == [1, 2, 3, 4]
+        expected = np.where(held >= 1, 0.0, -1.0).astype(np.float32)
         np.testing.assert_array_equal(rewards, expected)
         batch = goal_env.compute_reward(achieved, desired, infos)
         assert batch.shape == rewards.shape and batch.dtype == np.float32

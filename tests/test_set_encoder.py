@@ -130,8 +130,8 @@ TINY = [
 def _tiny_run(config: Path, out: Path) -> Path:
     result = train(
         TrainOptions(
-            out=out, config=config, overrides=TINY, timesteps=128, n_envs=2, seed=1,
-            progress=False, argv=["test"],
+            out=out, config=config, env_id=EASY, overrides=TINY, timesteps=128, n_envs=2,
+            seed=1, progress=False, argv=["test"],
         )
     )  # fmt: skip
     assert result.status == "completed"

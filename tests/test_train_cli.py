@@ -447,7 +447,7 @@ def test_a_replay_buffer_larger_than_the_memory_is_refused(
     monkeypatch.setattr(models, "machine_memory_bytes", lambda: 2**30)
     argv = [*SAC, "--set", "algo_kwargs.buffer_size=10_000_000", "--out", str(tmp_path / "r")]
     err = refused(train_cli, argv, capsys)
-    assert "config key 'algo_kwargs.buffer_size' asks for a replay buffer of 5.7 GiB" in err
+    assert "config key 'algo_kwargs.buffer_size' asks for a replay buffer of 5.9 GiB" in err
     assert "this machine has 1.0 GiB of memory" in err
     assert not (tmp_path / "r").exists()
 
