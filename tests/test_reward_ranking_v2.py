@@ -7,8 +7,9 @@ field. The strategies are scripted here, most of them on top of the APF-MPC plan
 (so they reach the targets the way a learner that has half-learned the task would):
 
 =========================  =====================================================================
-rush-capture               fly the mission until the first capture, then coast
-rush-capture-crash         ... then thrust into the captured target
+rush-capture               straight at the nearest target at up to 3 m/s, braking at 30 % of
+                           full thrust into a hold 2.5 m off its surface; after the capture, coast
+rush-capture-crash         ... after the capture, thrust into the captured target
 partial-hold               fly the mission, but break every hold one step end short of a capture
 hover                      fly to the first target, then station-keep 10 m off its capture zone
 timed budget burn-out      wait at the dock, then burn the whole Δv budget — the best of six
@@ -116,6 +117,33 @@ class Planned:
         return self.planner.predict(obs, episode_start=np.array([first]))[0]
 
 
+class Rush:
+    """Straight for a hold point 2.5 m off the nearest target's surface (on the chaser's side):
+    the relative velocity steered to √(2·a·d) toward it (d its distance, a 30 % of full thrust;
+    at most 3 m/s, and at most 30 % of d per step), which brakes into the hold; once a target is
+    captured, ``after`` flies."""
+
+    def __init__(self, n_targets: int, chaser_radius: float, after):
+        self.n_targets, self.chaser_radius, self.after = n_targets, chaser_radius, after
+        self.target = None
+
+    def __call__(self, env, obs, info, first):
+        if first:
+            self.target = nearest(env, 0, self.n_targets)
+        if info["targets_captured"] >= 1:
+            return self.after(env, info)
+        rel, rel_v = relative_to(env, self.target)
+        base = env.unwrapped
+        stand_off = base.scenario.targets[self.target].radius + self.chaser_radius + 2.5
+        to_hold = rel - stand_off * rel / np.linalg.norm(rel)  # chaser → hold point
+        d = float(np.linalg.norm(to_hold))
+        max_accel, dt = base.config.max_accel, base.config.dt
+        speed = min(3.0, float(np.sqrt(2.0 * 0.3 * max_accel * d)), 0.3 * d / dt)
+        wanted = speed * to_hold / d if d > 0.0 else np.zeros_like(to_hold)
+        accel = (wanted - (-rel_v)) / dt  # chaser velocity relative to the target is −rel_v
+        return np.clip(accel / max_accel, -1.0, 1.0).astype(np.float32)
+
+
 def coast(env, info):
     return np.zeros(dim_of(env), dtype=np.float32)
 
@@ -210,11 +238,11 @@ def strategies(env: gym.Env, planner) -> dict[str, tuple[Policy, Callable[[dict]
     one_goal = cfg.n_targets == 1 and not cfg.return_to_dock
     rush = {
         "rush-capture": (
-            Planned(planner, lambda e, info: captured_one(info), coast),
+            Rush(len(env.unwrapped.scenario.targets), cfg.chaser_radius, coast),
             lambda info: captured_one(info) and not info["is_success"],
         ),
         "rush-capture-crash": (
-            Planned(planner, lambda e, info: captured_one(info), into_captured_target),
+            Rush(len(env.unwrapped.scenario.targets), cfg.chaser_radius, into_captured_target),
             lambda info: captured_one(info) and info["collision"],
         ),
     }
