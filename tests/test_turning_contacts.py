@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 
+import gymnasium as gym
 import numpy as np
 import pymunk
 import pytest
@@ -73,12 +74,10 @@ def env_for(mode: str, dt: float, substeps: int) -> DebrisFieldEnv:
     return _ENVS[key]
 
 
-def flagged_step(
-    mode: str, vertices, spin: float, dt: float, substeps: int, rel0, actions
-) -> tuple[int | None, int]:
-    """Fly the chaser from the relative state ``rel0`` (to the polygon) with ``actions``: the
-    step (0-based) the env flags a collision in (None if none), and the steps flown."""
-    env = env_for(mode, dt, substeps)
+def flagged_step(env, vertices, spin: float, dt: float, rel0, actions) -> tuple[int | None, int]:
+    """Fly the chaser from the relative state ``rel0`` (to the polygon) with ``actions`` in
+    ``env`` (its step ``dt``): the step (0-based) the env flags a collision in (None if none),
+    and the steps flown."""
     chaser = np.concatenate([CENTRE + np.asarray(rel0[:2]), np.asarray(rel0[2:])])
     env.reset(
         options={"scenario": scenario(np.asarray(vertices), spin, dt), "chaser_state": chaser}
@@ -93,11 +92,11 @@ def flagged_step(
 
 
 def verdict(truth: list[StepTruth], flagged: int | None, flown: int) -> str:
-    """ "ok", or what is wrong with the env's answer against the dense check: "late" (flagged
-    after the first step with a contact, or never), "false" (flagged in a step the check clears,
-    with no contact before). A step whose smallest gap is within the band of the chaser's radius
-    counts either way (band: the turn tolerance, the chord error every swept check has, the
-    check's sampling error)."""
+    """The env's answer (collision flagged in step ``flagged`` of ``flown``) against the dense
+    check: "ok"; "late" (flagged after the first step with a contact, or never); "false"
+    (flagged in a step the check clears, with no contact before). A step whose smallest gap is
+    within the band of the chaser's radius counts either way (band: the turn tolerance, the
+    chord error every swept check has, the check's sampling error)."""
     first_contact = None
     clear = []
     for k, step in enumerate(truth[:flown]):
@@ -117,7 +116,8 @@ def check_flight(
 ) -> tuple[str, bool]:
     """:func:`verdict` of one flight, and whether the dense check finds a contact in it."""
     vertices = np.asarray(vertices, dtype=float)
-    flagged, flown = flagged_step(mode, vertices, spin, dt, substeps, rel0, actions)
+    env = env_for(mode, dt, substeps)
+    flagged, flown = flagged_step(env, vertices, spin, dt, rel0, actions)
     accels = MAX_ACCEL * np.asarray(actions, dtype=float)
     truth = flight_truth(
         np.asarray(rel0, dtype=float), accels[:flown], spin - N, vertices, N, dt, substeps
@@ -135,7 +135,7 @@ def aimed(radius: float, angle: float, miss: float, speed: float, start: float) 
     return [*p, *(speed * heading)]
 
 
-def beside(radius: float, corner: float, lead: float, distance: float) -> list[float]:
+def beside(corner: float, lead: float, distance: float) -> list[float]:
     """A relative state at rest ``distance`` m from the centre, ``lead`` rad clockwise of the
     corner at angle ``corner``: a polygon turning clockwise (at −n, or faster) sweeps into it."""
     angle = corner - lead
@@ -157,7 +157,7 @@ def fixed_flights(spin: float, dt: float) -> list[tuple]:
     steps_beside = max(3, math.ceil(60.0 / dt))
     for distance in (25.3, 25.9, 26.3):
         for lead in (0.01, 0.025, 0.045):
-            rel0 = beside(25.0, -math.pi / 2, lead, distance)
+            rel0 = beside(-math.pi / 2, lead, distance)
             if clear_start(rel0, verts):
                 out.append((verts, rel0, np.zeros((steps_beside, 2))))
     while len(out) < 24:
@@ -166,6 +166,7 @@ def fixed_flights(spin: float, dt: float) -> list[tuple]:
         angle, speed = rng.uniform(0.0, 2 * math.pi), rng.uniform(0.1, 1.0)
         rel0 = aimed(25.0, angle, miss, speed, rng.uniform(0.5, 8.0))
         steps = min(30, math.ceil(70.0 / speed / dt) + 1)
+        # every other pass thrusts (|action| < 1: the ball thrust model applies it unclipped)
         actions = rng.uniform(-0.7, 0.7, (steps, 2)) * (len(out) % 2)
         if clear_start(rel0, verts):
             out.append((verts, rel0, actions))
@@ -228,29 +229,34 @@ def test_the_polygon_distance_matches_pymunk(sides, seed, point):
 # --- the swept check against the dense check ---------------------------------------------------
 
 
+def test_a_25_m_square_turning_beside_the_chaser_is_flagged_in_the_step_it_touches():
+    """A 25 m square and the chaser both at rest on the V-bar (so neither centre moves), a corner
+    turning at −n toward the chaser: the corner's sweep (≈ 0.28 m a step) is the only motion.
+    Flown with the registered default env and the option."""
+    verts = square(25.0, -math.pi / 2 + 0.06)  # a corner 0.06 rad (5 steps) short of the chaser
+    rel0 = [0.0, -25.6, 0.0, 0.0]
+    coast = np.zeros((12, 2))
+    flags = {}
+    for mode in ("swept", "sampled"):
+        env = gym.make("DebrisGym/Rendezvous2D-v1", polygon_turns=mode, mean_motion=N)
+        assert env.unwrapped.config.dt == 10.0
+        flags[mode], _ = flagged_step(env, verts, 0.0, 10.0, rel0, coast)
+    gaps = [step.gap for step in flight_truth(np.asarray(rel0), coast, -N, verts, N, 10.0, 8)]
+    first = next(k for k, g in enumerate(gaps) if g <= CHASER_RADIUS)
+    band = TURN_TOLERANCE + SAMPLING_ERROR
+    assert first > 0
+    assert gaps[first] < CHASER_RADIUS - band < CHASER_RADIUS + band < gaps[first - 1]
+    assert flags["swept"] == first
+    assert flags["sampled"] == first + 1  # the v1 check: a step late
+
+
 def first_flag_and_truth(mode, verts, spin, dt, substeps, rel0, steps):
     """The step the env flags (0-based, or None) and the dense check of each step, for a chaser
     coasting ``steps`` steps from ``rel0``."""
     actions = np.zeros((steps, 2))
-    flagged, flown = flagged_step(mode, verts, spin, dt, substeps, rel0, actions)
+    flagged, _ = flagged_step(env_for(mode, dt, substeps), verts, spin, dt, rel0, actions)
     truth = flight_truth(np.asarray(rel0), actions, spin - N, verts, N, dt, substeps)
     return flagged, truth
-
-
-def test_a_25_m_square_turning_beside_the_chaser_is_flagged_in_the_step_it_touches():
-    """A 25 m square and the chaser both at rest on the V-bar (so neither centre moves), a corner
-    turning at −n toward the chaser: the corner's sweep (≈ 0.28 m a step) is the only motion."""
-    verts = square(25.0, -math.pi / 2 + 0.06)  # a corner 0.06 rad (5 steps) short of the chaser
-    rel0 = [0.0, -25.6, 0.0, 0.0]
-    swept, truth = first_flag_and_truth("swept", verts, 0.0, 10.0, 8, rel0, 12)
-    gaps = [s.gap for s in truth]
-    touching = [k for k, g in enumerate(gaps) if g <= CHASER_RADIUS]
-    first = touching[0]
-    band = TURN_TOLERANCE + SAMPLING_ERROR
-    assert gaps[first] < CHASER_RADIUS - band < CHASER_RADIUS + band < gaps[first - 1]
-    assert swept == first
-    sampled, _ = first_flag_and_truth("sampled", verts, 0.0, 10.0, 8, rel0, 12)
-    assert sampled == first + 1  # the v1 check: a step late
 
 
 def test_a_polygon_turning_a_whole_turn_per_step_is_still_checked():
@@ -307,7 +313,7 @@ def flights(draw):
         draw(st.floats(CHASER_RADIUS + 0.1, 10.0)),
     )  # fmt: skip
     steps = min(30, math.ceil((2 * radius + 12.0) / speed / dt) + 1)
-    thrust = draw(st.sampled_from((0.0, 0.7)))
+    thrust = draw(st.sampled_from((0.0, 0.7)))  # |action| < 1: applied unclipped
     actions = rng.uniform(-thrust, thrust, (steps, 2))
     return verts, spin, dt, substeps, rel0, actions
 
