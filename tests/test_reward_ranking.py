@@ -13,6 +13,9 @@ import numpy as np
 
 import agents
 import debris_gym  # noqa: F401  (registers the IDs)
+from tests.helpers import flies_old_ids
+
+pytestmark = flies_old_ids  # the v1 weights on purpose
 
 GAMMAS = (0.9, 0.95, 0.99, 0.995, 0.999, 1.0)
 ENV_ID = "DebrisGym/Rendezvous2D-v1"

@@ -238,7 +238,7 @@ def test_a_25_m_square_turning_beside_the_chaser_is_flagged_in_the_step_it_touch
     coast = np.zeros((12, 2))
     flags = {}
     for mode in ("swept", "sampled"):
-        env = gym.make("DebrisGym/Rendezvous2D-v1", polygon_turns=mode, mean_motion=N)
+        env = gym.make("DebrisGym/Rendezvous2D-v2", polygon_turns=mode, mean_motion=N)
         assert env.unwrapped.config.dt == 10.0
         flags[mode], _ = flagged_step(env, verts, 0.0, 10.0, rel0, coast)
     gaps = [step.gap for step in flight_truth(np.asarray(rel0), coast, -N, verts, N, 10.0, 8)]
