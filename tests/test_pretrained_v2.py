@@ -106,3 +106,28 @@ def test_the_v2_recipes_start_from_the_shipped_v1_policies(dim, tmp_path):
     assert config.env_id == f"DebrisGym/Rendezvous{dim.upper()}-v2"
     assert {k: config.env_kwargs[k] for k in V2_OPTIONS} == V2_OPTIONS
     assert config.init.path == str(init.resolve())
+
+
+def test_a_v2_policy_fine_tuned_on_a_v1_id_keeps_its_hold_element(tmp_path):
+    """The other way round: the v2 policy observed the hold because its env's registration
+    turns obs_hold on (its config need not say so); fine-tuned on the v1 ID, whose default is
+    off, the run takes the init's value instead of refusing the v1 ID's default."""
+    import shutil
+
+    import yaml
+
+    from agents.experiments.config_files import CONFIG_DIR
+    from agents.experiments.training.run import TrainOptions, resolve_config
+
+    init = tmp_path / "v2_2d"
+    init.mkdir()
+    stem = PRETRAINED_DIR / "rendezvous2d_v2"
+    shutil.copy(stem.with_suffix(".zip"), init / "model.zip")
+    shutil.copy(f"{stem}_vecnormalize.pkl", init / "vecnormalize.pkl")
+    data = yaml.safe_load(stem.with_suffix(".yaml").read_text())
+    del data["env_kwargs"]["obs_hold"]  # left to DebrisGym/Rendezvous2D-v2's registration
+    (init / "config.yaml").write_text(yaml.safe_dump(data))
+    recipe = CONFIG_DIR / "rendezvous2d_finetune.yaml"  # the v1 recipe: DebrisGym/Rendezvous2D-v1
+    config, _ = resolve_config(TrainOptions(config=recipe, init=init, n_envs=2))
+    assert config.env_id == "DebrisGym/Rendezvous2D-v1"
+    assert {k: config.env_kwargs[k] for k in V2_OPTIONS} == V2_OPTIONS

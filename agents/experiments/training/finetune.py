@@ -133,12 +133,16 @@ def adopt_init_options(
 
     ``init`` (``--init DIR``, may be None) becomes ``init.path`` (absolute, so a resume from
     elsewhere finds it). With an ``init.path``, every observation option the init run set is
-    copied into ``env_kwargs`` unless the config sets it; a config value that differs from the
-    init run's (its value or, if it left the key out, its env's default) is refused.
+    copied into ``env_kwargs`` unless the config sets it, and so is one the config leaves out
+    whose default differs in the run's env (the init trained on another version's ID). A value
+    that differs from the init run's (its value or, if it left the key out, its env's) is
+    allowed only if it adds observation elements (the init policy is widened to them); any
+    other is refused.
 
     Raises:
-        ConfigError: ``init.path`` is not an init run directory, or an observation option
-            differs (the message names the key and both values).
+        ConfigError: ``init.path`` is not an init run directory, an observation option differs
+            without only adding elements (the message names the key and both values), or the
+            init's elements are not all in the run's observation, in their order (named).
     """
     section = data.get("init")
     if init is not None:
@@ -179,14 +183,18 @@ def adopt_init_options(
         ours = getattr(cfg, key)
         if ours == theirs[key]:
             continue
-        if not _adds_elements(init_cfg, key, ours):
+        if _adds_elements(init_cfg, key, ours):
+            added[key] = ours
+        elif key not in env_kwargs:  # the env's default differs (another version's ID)
+            env_kwargs[key] = copied[key] = theirs[key]
+        else:
             raise ConfigError(
                 f"{source}: config key 'env_kwargs.{key}' is {ours!r} but the initial policy "
                 f"({config_file}) was trained with {key}={theirs[key]!r}; a policy needs the "
                 "observation it was trained on (a fine-tune may only add elements to it): "
                 "drop the key to take the init run's value"
             )
-        added[key] = ours
+    cfg = _env_config(str(data.get("env_id", "")), env_kwargs)
     try:
         observation_columns(_observation_names(init_cfg), _observation_names(cfg))
     except ValueError as exc:
