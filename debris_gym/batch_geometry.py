@@ -415,9 +415,10 @@ def _load_fields(
 @kernel
 def polygon_turns(rows, spins, n, step, sub, out):
     """cos, sin of each polygon's turn (rate spin − n, rad/s) over ``step`` and ``sub`` (s) in
-    ``rows`` of ``out`` (N, P, 4). Scalar ``math.cos`` / ``sin``, bit for bit the values Python's
-    give (numpy's vectorised ones may round differently with the array's length, and a field
-    must turn the same in every env that flies it)."""
+    ``rows`` of ``out`` (N, P, 6), then the two angles themselves (rad: cos and sin lose a turn's
+    size beyond π, which the swept contact check needs). Scalar ``math.cos`` / ``sin``, bit for
+    bit the values Python's give (numpy's vectorised ones may round differently with the array's
+    length, and a field must turn the same in every env that flies it)."""
     for k in range(rows.shape[0]):
         i = rows[k]
         for j in range(spins.shape[1]):
@@ -426,6 +427,8 @@ def polygon_turns(rows, spins, n, step, sub, out):
             out[i, j, 1] = math.sin(rate * step)
             out[i, j, 2] = math.cos(rate * sub)
             out[i, j, 3] = math.sin(rate * sub)
+            out[i, j, 4] = rate * step
+            out[i, j, 5] = rate * sub
 
 
 @inlined

@@ -191,6 +191,12 @@ OPTIONS: dict[str, Option] = {
     "collision_substeps": Option(
         "", 1, 256, doc="sub-samples per step swept for continuous collision checking"
     ),
+    "polygon_turns": Option(
+        choices=("sampled", "swept"),
+        doc="how contacts with turning 2D polygons are checked: 'sampled' (the polygon turned "
+        "to each sub-step only, chords between: v0/v1), 'swept' (its surface's sweep in the "
+        "broad phase, chords cut to short turns: every contact in its step, within 1 cm)",
+    ),
     "obs_targets": Option("", 1, 20, doc="target slots K in the observation"),
     "obs_obstacles": Option("", 0, 64, doc="nearest-obstacle slots in 'kinematics' observations"),
     "lidar_rays": Option("", 4, 1024, doc="rays in 'lidar' observations"),
@@ -315,6 +321,7 @@ class EnvConfig:
     delta_v_budget: float | None = 100.0
     chaser_radius: float = 1.0
     collision_substeps: int = 8
+    polygon_turns: str = "sampled"
     obs_targets: int = 3
     obs_obstacles: int = 8
     lidar_rays: int = 32

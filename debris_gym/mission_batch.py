@@ -177,8 +177,9 @@ class MissionBatch:
         self.high = np.zeros((n, d))
         self.length_scale = np.ones(n)
         self.speed_scale = np.ones(n)
-        self.turns = np.zeros((n, self.field.spins.shape[1], 4))
-        """(N, P, 4) cos, sin of each polygon's turn over one step, then one sub-step."""
+        self.turns = np.zeros((n, self.field.spins.shape[1], 6))
+        """(N, P, 6) cos, sin of each polygon's turn over one step, then one sub-step, then the
+        two angles (rad)."""
         self.turns[:, :, 0] = self.turns[:, :, 2] = 1.0
         self._outputs: StepOutputs = new_step_outputs(n)
         self._field_view: Field | None = None

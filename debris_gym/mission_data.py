@@ -67,6 +67,9 @@ class Rules(NamedTuple):
     ``reach_velocity`` it bounds how far a free body moves in a step (broad phase)."""
     reach_velocity: float
     """Largest 2-norm of the position-from-velocity block of Φ(t) over the sub-steps (s)."""
+    swept_turns: bool
+    """``polygon_turns == "swept"``: contacts with turning polygons cover their surface's sweep
+    (see :func:`~debris_gym.swept_contacts.moving_path_touches`)."""
     n_targets: int
     """Targets per field T (the first T bodies)."""
     queued: bool
@@ -167,8 +170,8 @@ class Field(NamedTuple):
     attitude: np.ndarray
     """(N, P, 2) cos, sin of the angle each polygon has turned through (see FieldBatch)."""
     turns: np.ndarray
-    """(N, P, 4) cos, sin of the angle a polygon turns through in one step, then in one
-    collision sub-step."""
+    """(N, P, 6) cos, sin of the angle a polygon turns through in one step, then in one
+    collision sub-step, then those two angles (rad; signed, not reduced modulo 2π)."""
     dock: np.ndarray
     """(N, dim) dock position (m)."""
     low: np.ndarray
@@ -256,6 +259,7 @@ def make_rules(
         body_matrix_t=body_matrix_t,
         reach_position=float(reach[0]),
         reach_velocity=float(reach[1]),
+        swept_turns=cfg.polygon_turns == "swept",
         n_targets=int(n_targets),
         queued=cfg.target_order == "queued",
         return_to_dock=bool(cfg.return_to_dock),

@@ -560,7 +560,7 @@ def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out, scrat
             moving_path_touches(
                 path, matrix_t, rules.reach_position, rules.reach_velocity, gaps[i],
                 rules.chaser_radius, i, centers, velocities, radii, polygon_start, n_vertices,
-                vertices, attitude, turns, rel, touched,
+                vertices, attitude, turns, rules.swept_turns, rel, touched,
             )  # fmt: skip
             move_bodies(i, body_matrix_t, centers, velocities, attitude, turns)
         else:

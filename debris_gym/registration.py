@@ -55,12 +55,14 @@ HOLD_RULES: dict[str, object] = {
     "capture_drift": 1.0,
     "reward_budget": 50.0,
     "obs_hold": True,
+    "polygon_turns": "swept",
 }
 """The rules v2 adds to the v1 world (docs/environments.md, "What v2 changes"): a capture is a
 hold of 30 s within 1 m of where it began, at ≤ 0.1 m/s relative to the target, untouched; a
 step that collides captures nothing; running out of Δv is a failure penalised like leaving the
-world; the hold's progress is observed. The figures are those of real proximity operations
-([IDSS] contact speeds, the [HTV] capture box; docs/references.md)."""
+world; the hold's progress is observed; the contact check follows a turning polygon's surface
+through its turn. The figures are of the order of real proximity operations ([Fehse03]:
+docking contact speeds, berthing capture boxes)."""
 
 V2_WORLD: dict[str, object] = {**PHYSICAL_WORLD, **HOLD_RULES}
 """Every option of the v2 world: the v1 world with :data:`HOLD_RULES`."""

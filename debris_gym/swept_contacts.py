@@ -3,12 +3,13 @@
 The chaser's step is sampled at the collision sub-steps and the chords between the samples are
 swept against every body, inflated by the chaser's radius: :func:`path_touches` for bodies at
 rest (the v0 world), :func:`moving_path_touches` for bodies on CWH motion (in relative
-coordinates, each body's own motion subtracted sub-step by sub-step). Both take the arrays of
-:class:`~debris_gym.batch_geometry.FieldBatch` and are inlined into the compiled step
-(:mod:`debris_gym.mission_step`); :meth:`FieldBatch.touched
-<debris_gym.batch_geometry.FieldBatch.touched>` runs the first over a batch. Polygon vertices are
-stored as :class:`~debris_gym.batch_geometry.FieldBatch` describes (relative vertex, edge vector).
-No gymnasium import.
+coordinates, each body's own motion subtracted sub-step by sub-step; on request a turning
+polygon's turn is followed in pieces short enough to stay within :data:`TURN_TOLERANCE`). Both
+take the arrays of :class:`~debris_gym.batch_geometry.FieldBatch` and are inlined into the
+compiled step (:mod:`debris_gym.mission_step`); :meth:`FieldBatch.touched
+<debris_gym.batch_geometry.FieldBatch.touched>` runs the first over a batch. Polygon vertices
+are stored as :class:`~debris_gym.batch_geometry.FieldBatch` describes (relative vertex, edge
+vector). No gymnasium import.
 """
 
 from __future__ import annotations
@@ -164,10 +165,72 @@ def _origin_segment_distance(rel, k, dim):
     return math.sqrt(s)
 
 
+TURN_TOLERANCE = 0.01
+"""How far (m) the chords of the swept turn check may stray from the path they stand for in a
+turning polygon's frame: the order of the sampled path's own chord error at the default step
+(``docs/environments.md``, "Collisions are continuous"), a hundredth of the default chaser."""
+
+
+@inlined
+def turn_pieces(angle, far, length, tolerance):
+    """Pieces to cut one sub-step into so that, in a frame turning by ``angle`` (rad) over it,
+    the chords between the pieces' ends stay within ``tolerance`` (m) of the turned path.
+
+    The path is a segment of ``length`` (m) within ``far`` (m) of the turn's centre; seen from
+    the turning frame it is q(t) = R(−ωt)·p(t), whose second derivative is at most
+    ω²·far + 2·|ω|·|ṗ|, and a chord strays from a curve by at most h²/8 times that over a piece
+    of duration h: α²·far/8 + α·(length / pieces)/4 for a piece turning by α = angle / pieces,
+    so pieces ≥ √(|angle|·(|angle|·far/8 + length/4) / tolerance).
+    """
+    a = abs(angle)
+    need = math.sqrt(a * (a * far / 8.0 + length / 4.0) / tolerance)
+    return max(1, math.ceil(need))
+
+
+@inlined
+def _turning_chords_touch_polygon(rel, c, s, ch, sh, angle, verts, m, radius, inflate):
+    """Does the relative path ``rel`` (K+1, 2; LVLH, polygon centre at the origin) come within
+    ``inflate`` of the convex polygon ``verts`` (``m`` vertices, bounding radius ``radius``) while
+    the polygon turns (attitude ``c, s`` at ``rel[0]``; ``ch, sh`` and ``angle`` (rad) the turn of
+    one sub-step)?
+
+    Between sub-steps the relative position moves along the chord (as for every body) while the
+    polygon keeps turning: each chord is cut into :func:`turn_pieces` pieces whose ends are turned
+    by the polygon's attitude at their instant, so that the pieces stay within
+    :data:`TURN_TOLERANCE` of the turned chord. A chord farther than ``radius + inflate`` from the
+    origin is skipped whole (distances to the centre do not change with the turn).
+    """
+    reach = radius + inflate
+    for k in range(rel.shape[0] - 1):
+        cn = c * ch - s * sh  # the attitude at the chord's end
+        sn = s * ch + c * sh
+        if _origin_segment_distance(rel, k, 2) <= reach:
+            x0, y0 = rel[k, 0], rel[k, 1]
+            dx, dy = rel[k + 1, 0] - x0, rel[k + 1, 1] - y0
+            far = max(math.hypot(x0, y0), math.hypot(x0 + dx, y0 + dy))
+            pieces = turn_pieces(angle, far, math.hypot(dx, dy), TURN_TOLERANCE)
+            cp, sp = math.cos(angle / pieces), math.sin(angle / pieces)
+            ax, ay = c * x0 + s * y0, c * y0 - s * x0
+            cq, sq = c, s
+            for p in range(1, pieces + 1):
+                if p == pieces:
+                    cq, sq = cn, sn
+                else:
+                    cq, sq = cq * cp - sq * sp, sq * cp + cq * sp
+                f = p / pieces
+                x, y = x0 + f * dx, y0 + f * dy
+                bx, by = cq * x + sq * y, cq * y - sq * x
+                if _segment_touches_polygon(ax, ay, bx, by, 0.0, 0.0, verts, m, inflate):
+                    return True
+                ax, ay = bx, by
+        c, s = cn, sn
+    return False
+
+
 @inlined
 def moving_path_touches(
     path, matrix_t, reach_position, reach_velocity, start_gaps, inflate, i, centers, velocities,
-    radii, polygon_start, n_vertices, vertices, attitude, turns, rel, out,
+    radii, polygon_start, n_vertices, vertices, attitude, turns, swept_turns, rel, out,
 ):  # fmt: skip
     """Which moving bodies of field ``i`` the chaser touches during a step, into ``out`` (B,).
 
@@ -177,16 +240,21 @@ def moving_path_touches(
     (its first 2·dim rows, see :attr:`~debris_gym.mission_data.Rules.step_matrix_t`) applied to
     the body's state at the step's start (``centers``, ``velocities``). Consecutive relative
     positions are swept as chords against the body at the origin: a circle / sphere of its
-    radius, or a polygon in its own frame (the relative positions turned back by the angle the
-    polygon turns through by each sub-step: ``attitude`` at the start, ``turns[i, j, 2:4]`` the
-    cos and sin of one sub-step's turn). Bodies are inflated by ``inflate`` (m).
+    radius, or a polygon in its own frame (``attitude`` at the start; ``turns[i, j]`` the turn
+    of a step and of a sub-step, see :class:`~debris_gym.mission_data.Field`). With
+    ``swept_turns`` False the relative positions are turned back by the polygon's attitude at
+    each sub-step only and joined by straight chords (the v0 / v1 check); with it True each
+    chord is followed through the polygon's turn in pieces
+    (:func:`_turning_chords_touch_polygon`). Bodies are inflated by ``inflate`` (m).
 
     Broad phase: the relative path stays within ``reach(chaser) + reach(body)`` of its start,
     where a body's reach over the step is at most ``reach_position`` · |position| +
     ``reach_velocity`` · |velocity| (the largest 2-norms of the position blocks of Φ(t) − I and
     Φ(t) at the sub-steps; the vectors' 1-norms, which are no smaller, stand in for theirs);
-    bodies whose gap at the start (``start_gaps``) is larger are skipped. ``rel`` is (K+1, dim)
-    scratch.
+    with ``swept_turns`` a polygon's surface also moves by at most r·min(|Δθ|, 2) as it turns
+    by Δθ over the step (r its bounding radius: a point at r from the centre moves a chord of
+    2r·sin(|Δθ|/2)); bodies whose gap at the start (``start_gaps``) is larger are skipped.
+    ``rel`` is (K+1, dim) scratch.
     """
     n_points, dim = path.shape
     reach = path_reach(path) + inflate
@@ -199,6 +267,10 @@ def moving_path_touches(
             pos1 += abs(centers[i, b, a])
             vel1 += abs(velocities[i, b, a])
         bound = reach_position * pos1 + reach_velocity * vel1
+        j = b - polygon_start
+        m = n_vertices[i, j] if dim == 2 and j >= 0 else 0
+        if swept_turns and m:
+            bound += radii[i, b] * min(abs(turns[i, j, 4]), 2.0)
         if not start_gaps[b] <= reach + bound:  # broad phase
             continue
         for a in range(dim):
@@ -211,9 +283,12 @@ def moving_path_touches(
                     p += centers[i, b, q] * matrix_t[q, col]
                     p += velocities[i, b, q] * matrix_t[dim + q, col]
                 rel[k, a] = path[k, a] - p
-        j = b - polygon_start
-        m = n_vertices[i, j] if dim == 2 and j >= 0 else 0
-        if m:
+        if m and swept_turns:
+            out[b] = _turning_chords_touch_polygon(
+                rel, attitude[i, j, 0], attitude[i, j, 1], turns[i, j, 2], turns[i, j, 3],
+                turns[i, j, 5], vertices[i, j], m, radii[i, b], inflate,
+            )  # fmt: skip
+        elif m:
             # turn every relative position back into the polygon's loaded frame
             c, s = attitude[i, j, 0], attitude[i, j, 1]
             ch, sh = turns[i, j, 2], turns[i, j, 3]

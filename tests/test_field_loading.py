@@ -131,7 +131,7 @@ def test_the_single_env_turns_its_polygons_at_spin_minus_n():
             sub = cfg.dt / cfg.collision_substeps
             expected = [
                 math.cos(rate * cfg.dt), math.sin(rate * cfg.dt),
-                math.cos(rate * sub), math.sin(rate * sub),
+                math.cos(rate * sub), math.sin(rate * sub), rate * cfg.dt, rate * sub,
             ]  # fmt: skip
             assert turns[j].tolist() == expected  # bit for bit: every env turns a field alike
         assert any(b.spin != 0.0 for b in spins)
