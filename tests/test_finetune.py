@@ -31,10 +31,11 @@ from agents.experiments.training.finetune import REFERENCE_MODEL
 from agents.experiments.training.run import TrainOptions, resolve_config, train
 from tests.helpers import load_script
 
-ENV_ID = "DebrisGym/Rendezvous2D-v2"
+ENV_ID = "DebrisGym/Rendezvous2D-v1"  # the init and its recipe (the v2 fine-tunes widen it)
 RECIPE = CONFIG_DIR / "rendezvous2d_finetune.yaml"
 INIT_OPTIONS = {"obs_goal": True, "obs_targets": 1, "obs_other_targets": True}
 TINY_IMITATION = {
+    "env_id": ENV_ID,  # an init without the hold element: widened for v2
     "env_kwargs": INIT_OPTIONS,
     "bc_episodes": 2,
     "dagger_rounds": 0,
