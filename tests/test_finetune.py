@@ -291,17 +291,17 @@ def test_bad_init_directories_are_refused(init_run, tmp_path):
 
 
 def test_mismatched_options_are_refused(init_run):
-    with pytest.raises(ConfigError, match=r"'env_kwargs.obs_targets' is 3 .*obs_targets=1"):
-        resolve(init_run, "env_kwargs.obs_targets=3")
+    with pytest.raises(ConfigError, match=r"'env_kwargs.obs_goal' is False .*obs_goal=True"):
+        resolve(init_run, "env_kwargs.obs_goal=false")  # removes elements
     with pytest.raises(ConfigError, match=r"'env_kwargs.obs_obstacles' is 4 .*obs_obstacles=8"):
         resolve(init_run, "env_kwargs.obs_obstacles=4")  # the init left it at the default
+    with pytest.raises(ConfigError, match=r"'env_kwargs.obs_other_targets' is False"):
+        resolve(init_run, "env_kwargs.obs_other_targets=false")  # same names, other meaning
     resolve(init_run, "env_kwargs.obs_obstacles=8")  # the default, spelled out: the same
     with pytest.raises(ConfigError, match=r"'normalize.epsilon' is 1e-08 .*set normalize.epsilon"):
         resolve(init_run, "normalize.epsilon=1e-8")
     with pytest.raises(ConfigError, match=r"'policy_kwargs.net_arch' is \[32, 32\]"):
         resolve(init_run, "policy_kwargs.net_arch=[32, 32]")
-    with pytest.raises(ConfigError, match=r"observation space .* differs"):
-        resolve(init_run, "env_id=DebrisGym/Rendezvous3D-v2")
 
 
 @pytest.mark.parametrize(
@@ -344,6 +344,136 @@ def test_the_checked_in_recipe_needs_an_init():
 def test_init_and_resume_do_not_mix(tmp_path):
     with pytest.raises(ValueError, match="--init cannot be combined with --resume"):
         train(TrainOptions(resume=tmp_path, init=tmp_path))
+
+
+# --- widening to an observation with more elements -------------------------------------------
+
+V2_ID = "DebrisGym/Rendezvous2D-v2"
+WIDEN = ["env_id=DebrisGym/Rendezvous2D-v2", "env_kwargs.obs_hold=true"]
+"""The v2 env, whose observation adds the hold's progress (target0_hold) to the init's."""
+
+
+def wide_and_narrow_observations(n: int = 64) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Raw observations of the v2 env with the hold observed (hold values set at random, as a
+    policy may meet any), the same without the new element, and the columns of the init's."""
+    env = gym.make(V2_ID, **INIT_OPTIONS)
+    names = env.unwrapped.observation_names()
+    new = [i for i, name in enumerate(names) if name.endswith("_hold")]
+    columns = np.array([i for i in range(len(names)) if i not in new])
+    rng = np.random.default_rng(3)
+    wide = []
+    for seed in range(n // 4):
+        obs, _ = env.reset(seed=700 + seed)
+        for _ in range(4):
+            wide.append(obs)
+            obs, *_ = env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
+    env.close()
+    raw = np.asarray(wide, dtype=np.float32)
+    raw[:, new] = rng.uniform(0.0, 1.0, (len(raw), len(new)))
+    assert new == [names.index("target0_hold")]
+    return raw, raw[:, columns], columns
+
+
+def test_a_wider_observation_starts_from_the_init_policy(init_run, tmp_path):
+    """A fine-tune on the v2 env (the init saw no hold element) widens the init: inside the
+    warm-up its policy and value function give, bit for bit on a batch, what the init's give on
+    the init's observation, whatever the hold element holds; the first layers have zero weights
+    for it, its statistics are mean 0 / variance 1, the init's are unchanged; evaluate.py's
+    loader flies it on the v2 env."""
+    out = finetune(init_run, tmp_path / "ft", 128, *WIDEN, "init.critic_warmup=256")
+    config = yaml.safe_load((out / "config.yaml").read_text())
+    assert config["env_id"] == V2_ID and config["env_kwargs"]["obs_hold"] is True
+    raw, narrow, columns = wide_and_narrow_observations()
+    init, model = ppo(init_run / "model.zip"), ppo(out / "model.zip")
+    assert model.observation_space.shape == (len(columns) + 1,)
+
+    with open(out / "vecnormalize.pkl", "rb") as fh:
+        stats = pickle.load(fh)
+    with open(init_run / "vecnormalize.pkl", "rb") as fh:
+        init_stats = pickle.load(fh)
+    (new,) = sorted(set(range(len(columns) + 1)) - set(columns.tolist()))
+    assert (stats.obs_rms.mean[new], stats.obs_rms.var[new]) == (0.0, 1.0)
+    np.testing.assert_array_equal(stats.obs_rms.mean[columns], init_stats.obs_rms.mean)
+    np.testing.assert_array_equal(stats.obs_rms.var[columns], init_stats.obs_rms.var)
+
+    obs, init_obs = normalised(out / "model.zip", raw), normalised(init_run / "model.zip", narrow)
+    np.testing.assert_array_equal(obs[:, columns], init_obs)
+    assert np.ptp(obs[:, new]) > 0.5  # the hold element varies: the equalities below mean it
+    for name in ("mlp_extractor.policy_net.0.weight", "mlp_extractor.value_net.0.weight"):
+        assert torch.count_nonzero(model.policy.state_dict()[name][:, new]) == 0
+    assert np.array_equal(mean_actions(model, obs), mean_actions(init, init_obs))
+    with torch.no_grad():
+        values = model.policy.predict_values(torch.as_tensor(obs))
+        init_values = init.policy.predict_values(torch.as_tensor(init_obs))
+    assert not torch.equal(values, init_values)  # the warm-up trained the critic
+    assert torch.equal(model.policy.log_std, init.policy.log_std)
+
+    env = gym.make(V2_ID, **INIT_OPTIONS)
+    agent = agents.load_agent(f"ppo:{out / 'model.zip'}", env)
+    np.testing.assert_allclose(
+        agent.predict(raw)[0], np.clip(mean_actions(init, init_obs), -1, 1), rtol=0, atol=0
+    )
+    env.close()
+    assert agents.observation_options(f"ppo:{out / 'model.zip'}", V2_ID)["obs_hold"] is True
+
+
+def test_the_widened_reference_anchors_and_survives_a_resume(init_run, tmp_path):
+    """The anchor's μ₀ on the wide observation is the init's on the narrow one (the anchor loss
+    is 0 before the policy moves), in the fresh run and after a resume."""
+    out = finetune(init_run, tmp_path / "ft", 64, *WIDEN, "init.critic_warmup=128",
+                   "init.anchor_coef=1.0", "init.anchor_decay=1000")  # fmt: skip
+    raw, narrow, _ = wide_and_narrow_observations(16)
+    obs, init_obs = normalised(out / "model.zip", raw), normalised(init_run / "model.zip", narrow)
+    expected = mean_actions(ppo(init_run / "model.zip"), init_obs)
+    captured = {}
+    original = AnchoredPPO.learn
+
+    def spy(self, *args, **kwargs):
+        captured["model"] = self
+        return original(self, *args, **kwargs)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(AnchoredPPO, "learn", spy)
+        result = train(TrainOptions(resume=out, timesteps=64, progress=False, argv=["test"]))
+    assert result.status == "completed"
+    reference = captured["model"].reference_policy
+    with torch.no_grad():
+        mu0 = reference.get_distribution(torch.as_tensor(obs)).mode().numpy()
+    assert np.array_equal(mu0, expected)
+
+
+def tiny_lidar_init(out: Path, rays: int) -> Path:
+    """An untrained PPO policy with statistics and config, observing ``rays`` lidar rays."""
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from debris_gym.integrations.sb3 import NativeVecEnv
+
+    options = {"observation": "lidar", "lidar_rays": rays}
+    venv = VecNormalize(NativeVecEnv(ENV_ID, 1, **options), clip_obs=10.0, epsilon=0.01)
+    out.mkdir()
+    PPO("MlpPolicy", venv, n_steps=8, batch_size=8, device="cpu").save(out / "model.zip")
+    venv.save(str(out / "vecnormalize.pkl"))
+    (out / "config.yaml").write_text(yaml.safe_dump({"env_id": ENV_ID, "env_kwargs": options}))
+    venv.close()
+    return out
+
+
+def test_a_widening_whose_shared_names_mean_other_values_is_refused(tmp_path):
+    """8 → 16 lidar rays keeps the names lidar0..lidar7 but points rays 1..7 elsewhere: the
+    values are compared on a test mission and the widening refused, naming the elements; the
+    same rays, spelled out, are accepted."""
+    init = tiny_lidar_init(tmp_path / "lidar8", 8)
+    with pytest.raises(ConfigError, match=r"elements (lidar[1-7](, )?)+ take other values"):
+        resolve(init, "env_kwargs.lidar_rays=16")
+    resolve(init, "env_kwargs.lidar_rays=8")
+
+
+def test_another_dimension_is_not_a_widening(init_run):
+    """The 3D observation holds every 2D element name (x, y among x, y, z) but is not the 2D
+    one widened by an option: refused."""
+    with pytest.raises(ConfigError, match=r"observation space \(\d+ elements.*differs"):
+        resolve(init_run, "env_id=DebrisGym/Rendezvous3D-v1")
 
 
 # --- resume -------------------------------------------------------------------------------------

@@ -59,7 +59,7 @@ __all__ = [
 
 OBSERVATION_KEYS = (
     "observation", "obs_targets", "obs_obstacles", "lidar_rays", "lidar_range", "obs_goal",
-    "obs_other_targets",
+    "obs_other_targets", "obs_hold",
 )  # fmt: skip
 """Env options that shape the observation (and nothing else): a learned policy needs the ones
 it was trained with."""
@@ -74,6 +74,8 @@ PRETRAINED_POLICIES: dict[str, tuple[str, str]] = {
     "DebrisGym/Rendezvous2D-Easy-v1": ("ppo", "rendezvous2d-easy_ppo.zip"),
     "DebrisGym/Rendezvous2D-v1": ("ppo", "rendezvous2d_finetuned.zip"),
     "DebrisGym/Rendezvous3D-v1": ("ppo", "rendezvous3d_finetuned.zip"),
+    "DebrisGym/Rendezvous2D-v2": ("ppo", "rendezvous2d_v2.zip"),
+    "DebrisGym/Rendezvous3D-v2": ("ppo", "rendezvous3d_v2.zip"),
 }
 """Env ID → (algorithm, file in :data:`PRETRAINED_DIR`)."""
 
@@ -449,7 +451,10 @@ def run_config_path(model_path: Path) -> Path | None:
 
 def observation_options(spec: str, env_id: str) -> dict[str, Any]:
     """The observation options (:data:`OBSERVATION_KEYS`) the policy behind ``spec`` was
-    trained with, from its run's config (empty if none is found or none were set).
+    trained with, to fly it on env ``env_id``: those its run's config set, those the
+    registration of the run's env set, and, for an option ``env_id``'s registration sets that
+    neither did, the run's env's value (so a policy of a v1 ID, trained without the hold's
+    progress, flies a v2 ID with ``obs_hold: False``). Empty if none is found.
 
     ``evaluate.py`` makes a learned agent's env with them: same fields, dynamics and rules as
     every other agent's, observed the way the policy was trained to see them.
@@ -460,20 +465,41 @@ def observation_options(spec: str, env_id: str) -> dict[str, Any]:
     assert path is not None
     if path.is_dir():
         path, _ = find_model_file(path)
-    return _run_observation_options(path)
+    return _run_observation_options(path, env_id)
 
 
-def _run_observation_options(path: Path) -> dict[str, Any]:
-    """The :data:`OBSERVATION_KEYS` set in the config of the run that wrote model ``path``.
+def _registered_observation_options(env_id: Any) -> dict[str, Any]:
+    """The :data:`OBSERVATION_KEYS` the registration of ``env_id`` sets (none: unregistered)."""
+    import gymnasium as gym
+
+    import debris_gym  # noqa: F401  (registers the IDs)
+
+    env_id = str(env_id).rpartition(":")[2]
+    kwargs = gym.registry[env_id].kwargs if env_id in gym.registry else {}
+    return {k: kwargs[k] for k in OBSERVATION_KEYS if k in kwargs}
+
+
+def _run_observation_options(path: Path, env_id: str | None = None) -> dict[str, Any]:
+    """The :data:`OBSERVATION_KEYS` of the run that wrote model ``path``, flown on ``env_id``
+    (:func:`observation_options`; without ``env_id``, those its config and env's registration
+    set).
 
     Raises:
         ValueError: a damaged run config (the message names it).
     """
+    from debris_gym.config import EnvConfig
+
     data = _checked_run_config(path)
     if data is None:
         return {}
     env_kwargs = data.get("env_kwargs") or {}
-    return {k: env_kwargs[k] for k in OBSERVATION_KEYS if k in env_kwargs}
+    run_env = _registered_observation_options(data.get("env_id"))
+    options = {**run_env, **{k: env_kwargs[k] for k in OBSERVATION_KEYS if k in env_kwargs}}
+    if env_id is not None:
+        for key in _registered_observation_options(env_id):
+            if key not in options:  # the run's env left it at the default
+                options[key] = EnvConfig.__dataclass_fields__[key].default
+    return options
 
 
 def pretrained_path(env: Any) -> tuple[str, Path]:
@@ -487,8 +513,9 @@ def pretrained_path(env: Any) -> tuple[str, Path]:
     if env_id not in PRETRAINED_POLICIES:
         known = ", ".join(PRETRAINED_POLICIES)
         why = ""
-        if env_id and env_id.endswith("-v1"):
-            why = ": no policy trained for this v1 ID ships yet"
+        version = (env_id or "").rpartition("-")[2]
+        if version in ("v1", "v2"):
+            why = f": no policy trained for this {version} ID ships yet"
         raise ValueError(
             f"no pretrained policy for {env_id or 'this env'}{why} (there is one for {known})"
         )

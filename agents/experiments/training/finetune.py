@@ -3,8 +3,11 @@
 The init run (``imitate.py`` or ``train.py`` output) gives the fine-tune run
 
 * its **observation options** (:data:`~agents.policies.learned.OBSERVATION_KEYS` of its
-  ``config.yaml``): copied into the run's ``env_kwargs`` when the config leaves them out, a
-  different value is refused (:func:`adopt_init_options`);
+  ``config.yaml``): copied into the run's ``env_kwargs`` when the config leaves them out; a
+  different value is refused (:func:`adopt_init_options`) unless it only *adds* observation
+  elements (``obs_hold: true`` where the init run had none, say): then the init policy is
+  **widened** (:mod:`~agents.experiments.training.widen`) — zero weights and statistics of
+  mean 0, variance 1 for the new elements, so it starts acting exactly as the init run did;
 * its **policy weights** (actor, ``log_std`` and value head; the value head of a DAgger run is
   untrained, hence the critic warm-up) and network shape (:func:`build_finetune_model`);
 * its **observation statistics**, kept frozen for the whole run (:class:`FrozenObsVecNormalize`):
@@ -19,6 +22,7 @@ The init run (``imitate.py`` or ``train.py`` output) gives the fine-tune run
 
 from __future__ import annotations
 
+import copy
 import functools
 import shutil
 import sys
@@ -33,6 +37,11 @@ from agents.experiments.config_files import ConfigError, load_config_file
 from agents.experiments.training.anchored import AnchoredPPO
 from agents.experiments.training.config import TrainConfig
 from agents.experiments.training.sb3_kwargs import algo_kwargs, policy_kwargs
+from agents.experiments.training.widen import (
+    observation_columns,
+    widen_running_stats,
+    widen_state_dict,
+)
 from agents.policies.learned import OBSERVATION_KEYS, read_vecnormalize
 from agents.policies.model_files import FINAL_MODEL, sidecar_path
 from debris_gym.files import save_atomic
@@ -44,6 +53,7 @@ __all__ = [
     "build_finetune_model",
     "check_init_run",
     "finetune_train_env",
+    "init_columns",
     "reference_path",
     "restore_reference",
     "save_reference",
@@ -75,8 +85,8 @@ def _init_files(path: Path, source: str) -> tuple[Path, Path, Path]:
     return files
 
 
-def _effective(env_id: str, env_kwargs: dict[str, Any], key: str) -> Any:
-    """The value of observation option ``key`` in env ``env_id`` with ``env_kwargs``."""
+def _env_config(env_id: str, env_kwargs: dict[str, Any]) -> Any:
+    """The :class:`~debris_gym.config.EnvConfig` of env ``env_id`` made with ``env_kwargs``."""
     import gymnasium as gym
 
     import debris_gym  # noqa: F401  (registers the IDs)
@@ -84,7 +94,36 @@ def _effective(env_id: str, env_kwargs: dict[str, Any], key: str) -> Any:
 
     spec_kwargs = gym.registry[env_id].kwargs if env_id in gym.registry else {}
     options = {k: v for k, v in env_kwargs.items() if k != "max_episode_steps"}
-    return getattr(EnvConfig.from_kwargs(**{**spec_kwargs, **options}), key)
+    return EnvConfig.from_kwargs(**{**spec_kwargs, **options})
+
+
+def _observation_names(cfg: Any) -> list[str]:
+    from debris_gym.observation import observation_names
+
+    return observation_names(cfg)
+
+
+def _init_observation(init_data: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
+    """The init run's env config and its observation options (every key, effective values)."""
+    init_env = init_data.get("env_kwargs") or {}
+    cfg = _env_config(str(init_data.get("env_id", "")), init_env)
+    return cfg, {key: getattr(cfg, key) for key in OBSERVATION_KEYS}
+
+
+def _adds_elements(init_cfg: Any, key: str, value: Any) -> bool:
+    """Whether setting observation option ``key`` to ``value`` on the init's env config only
+    adds observation elements (the init's stay, in order, under the same names)."""
+    from debris_gym.config import EnvConfig
+
+    widened = EnvConfig.from_kwargs(**{**init_cfg.to_dict(), key: value})
+    names, init_names = _observation_names(widened), _observation_names(init_cfg)
+    if len(names) <= len(init_names):
+        return False
+    try:
+        observation_columns(init_names, names)
+    except ValueError:
+        return False
+    return True
 
 
 def adopt_init_options(
@@ -94,12 +133,16 @@ def adopt_init_options(
 
     ``init`` (``--init DIR``, may be None) becomes ``init.path`` (absolute, so a resume from
     elsewhere finds it). With an ``init.path``, every observation option the init run set is
-    copied into ``env_kwargs`` unless the config sets it; a config value that differs from the
-    init run's (its value or, if it left the key out, its env's default) is refused.
+    copied into ``env_kwargs`` unless the config sets it, and so is one the config leaves out
+    whose default differs in the run's env (the init trained on another version's ID). A value
+    that differs from the init run's (its value or, if it left the key out, its env's) is
+    allowed only if it adds observation elements (the init policy is widened to them); any
+    other is refused.
 
     Raises:
-        ConfigError: ``init.path`` is not an init run directory, or an observation option
-            differs (the message names the key and both values).
+        ConfigError: ``init.path`` is not an init run directory, an observation option differs
+            without only adding elements (the message names the key and both values), or the
+            init's elements are not all in the run's observation, in their order (named).
     """
     section = data.get("init")
     if init is not None:
@@ -126,28 +169,85 @@ def adopt_init_options(
     env_kwargs = data.get("env_kwargs") or {}
     if not isinstance(init_env, dict) or not isinstance(env_kwargs, dict):
         return data  # from_dict (or load_agent on the init run) names the problem
-    init_id, env_id = str(init_data.get("env_id", "")), str(data.get("env_id", ""))
     env_kwargs = dict(env_kwargs)
-    copied = {}
+    copied = {key: init_env[key] for key in OBSERVATION_KEYS if key in init_env}
+    copied = {key: value for key, value in copied.items() if key not in env_kwargs}
+    env_kwargs.update(copied)
+    try:
+        init_cfg, theirs = _init_observation(init_data)
+        cfg = _env_config(str(data.get("env_id", "")), env_kwargs)
+    except (TypeError, ValueError):
+        return {**data, "env_kwargs": env_kwargs}  # an invalid option: from_dict names it
+    added = {}
     for key in OBSERVATION_KEYS:
-        if key not in env_kwargs:
-            if key in init_env:
-                env_kwargs[key] = copied[key] = init_env[key]
+        ours = getattr(cfg, key)
+        if ours == theirs[key]:
             continue
-        try:
-            theirs = _effective(init_id, init_env, key)
-            ours = _effective(env_id, env_kwargs, key)
-        except (TypeError, ValueError):
-            continue  # an invalid option: from_dict names it
-        if theirs != ours:
+        if _adds_elements(init_cfg, key, ours):
+            added[key] = ours
+        elif key not in env_kwargs:  # the env's default differs (another version's ID)
+            env_kwargs[key] = copied[key] = theirs[key]
+        else:
             raise ConfigError(
                 f"{source}: config key 'env_kwargs.{key}' is {ours!r} but the initial policy "
-                f"({config_file}) was trained with {key}={theirs!r}; a policy needs the "
-                "observation it was trained on: drop the key to take the init run's value"
+                f"({config_file}) was trained with {key}={theirs[key]!r}; a policy needs the "
+                "observation it was trained on (a fine-tune may only add elements to it): "
+                "drop the key to take the init run's value"
             )
+    cfg = _env_config(str(data.get("env_id", "")), env_kwargs)
+    try:
+        observation_columns(_observation_names(init_cfg), _observation_names(cfg))
+    except ValueError as exc:
+        raise ConfigError(f"{source}: with the initial policy of {config_file}, {exc}") from None
     if copied:
         print(f"note: observation options {copied} taken from {config_file}", file=sys.stderr)
+    if added:
+        print(
+            f"note: the initial policy is widened to the observation elements that {added} "
+            "adds (zero weights: it starts acting as it did)",
+            file=sys.stderr,
+        )
     return {**data, "env_kwargs": env_kwargs}
+
+
+def _read_init_config(init_config: Path) -> dict[str, Any]:
+    try:
+        data, _ = load_config_file(init_config)
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise ValueError(
+            f"{init_config}: the initial policy's config is unreadable ({exc})"
+        ) from None
+    return data
+
+
+def init_columns(config: TrainConfig, init_config: Path) -> np.ndarray | None:
+    """Where the init policy's observation elements sit in the run's observation (None: the
+    observations are the same), the init run described by its config file ``init_config``.
+
+    Only observation options may add elements: the run's env observed with the init's options
+    must give the init's elements.
+
+    Raises:
+        ValueError: ``init_config`` is unreadable, the run's env observed with the init's
+            options is not the init's observation (another dimension or world), or the init's
+            elements are not all in the run's observation in their order
+            (:func:`~agents.experiments.training.widen.observation_columns`).
+    """
+    init_data = _read_init_config(init_config)
+    init_cfg, init_options = _init_observation(init_data)
+    init_names = _observation_names(init_cfg)
+    names = _observation_names(_env_config(config.env_id, config.env_kwargs))
+    if init_names == names:
+        return None
+    seen = _observation_names(_env_config(config.env_id, {**config.env_kwargs, **init_options}))
+    if seen != init_names:
+        raise ValueError(
+            f"the initial policy's observation space ({len(init_names)} elements, "
+            f"{init_data.get('env_id')}) differs from this env's observed with the same "
+            f"options ({len(seen)} elements, {config.env_id}): only observation options may "
+            "add elements"
+        )
+    return observation_columns(init_names, names)
 
 
 def _load_init_model(path: Path, source: str) -> Any:
@@ -173,7 +273,7 @@ def check_init_run(config: TrainConfig, source: str) -> None:
         return
     from debris_gym.integrations.sb3 import NativeVecEnv
 
-    model_file, stats_file, _ = _init_files(Path(config.init.path), source)
+    model_file, stats_file, config_file = _init_files(Path(config.init.path), source)
     try:
         stats = read_vecnormalize(stats_file)
     except ValueError as exc:
@@ -190,11 +290,16 @@ def check_init_run(config: TrainConfig, source: str) -> None:
                 f"statistics ({stats_file}) use {theirs}; set normalize.{key}: {theirs}"
             )
     model = _load_init_model(model_file, source)
+    try:
+        columns = init_columns(config, config_file)
+    except ValueError as exc:
+        raise _init_error(source, f"names a run that does not fit this one: {exc}") from None
     env = NativeVecEnv(config.env_id, 1, **config.env_kwargs)
     try:
         for what in ("observation_space", "action_space"):
             ours, theirs = getattr(env, what), getattr(model, what)
-            if ours.shape != theirs.shape or type(ours) is not type(theirs):
+            shape = ours.shape if columns is None or what == "action_space" else (len(columns),)
+            if shape != theirs.shape or type(ours) is not type(theirs):
                 raise _init_error(
                     source,
                     f"names a model whose {what.replace('_', ' ')} {theirs} differs from the "
@@ -202,7 +307,58 @@ def check_init_run(config: TrainConfig, source: str) -> None:
                 )
     finally:
         env.close()
+    if stats.obs_rms.mean.shape != model.observation_space.shape:
+        raise _init_error(
+            source,
+            f"names a run whose {stats_file.name} (shape {stats.obs_rms.mean.shape}) does not "
+            f"fit its model's observation {model.observation_space.shape}",
+        )
+    if columns is not None:
+        _check_widened_values(config, config_file, columns, source)
     _policy_kwargs(config, model, source)  # the network shapes agree
+
+
+_VALUE_CHECK_STEPS = 20
+"""Steps (random thrust, two missions) over which a widened observation is compared with the
+init's."""
+
+
+def _check_widened_values(
+    config: TrainConfig, init_config: Path, columns: np.ndarray, source: str
+) -> None:
+    """Refuse a widening whose shared element names do not carry the same values: the run's
+    env and the same env observed with the init's options fly the same seeded missions, and
+    the init's elements must be equal, bit for bit, in both (a name alone does not say, e.g.,
+    which direction a lidar ray points in)."""
+    from debris_gym.integrations.sb3 import NativeVecEnv
+
+    _, init_options = _init_observation(_read_init_config(init_config))
+    wide = NativeVecEnv(config.env_id, 2, **config.env_kwargs)
+    narrow = NativeVecEnv(config.env_id, 2, **{**config.env_kwargs, **init_options})
+    try:
+        for env in (wide, narrow):
+            env.seed(0)
+        obs_wide, obs_narrow = np.asarray(wide.reset()), np.asarray(narrow.reset())
+        wide.action_space.seed(0)
+        for step in range(_VALUE_CHECK_STEPS + 1):
+            differ = np.flatnonzero(np.any(obs_wide[:, columns] != obs_narrow, axis=0))
+            if len(differ):
+                cfg = _env_config(config.env_id, config.env_kwargs)
+                names = [_observation_names(cfg)[columns[i]] for i in differ]
+                raise _init_error(
+                    source,
+                    f"names a policy whose observation elements {', '.join(names)} take other "
+                    f"values in this env (step {step} of a test mission): the same names, not "
+                    "the same meaning; keep the init run's observation options",
+                )
+            action = np.stack([wide.action_space.sample() for _ in range(2)])
+            obs_wide, obs_narrow = (
+                np.asarray(wide.step(action)[0]),
+                np.asarray(narrow.step(action)[0]),
+            )
+    finally:
+        wide.close()
+        narrow.close()
 
 
 class FrozenObsVecNormalize(VecNormalize):
@@ -271,11 +427,18 @@ def _array_observations(obs: Any) -> np.ndarray | dict[str, np.ndarray]:
 
 def finetune_train_env(venv: Any, config: TrainConfig, stats: Path | None) -> FrozenObsVecNormalize:
     """``venv`` normalised for fine-tuning: observation statistics from ``stats`` (a resumed
-    checkpoint's) or, for a fresh run, from the init run's ``vecnormalize.pkl``."""
+    checkpoint's) or, for a fresh run, from the init run's ``vecnormalize.pkl`` (widened to
+    the run's observation: mean 0, variance 1 for the elements the init run did not see)."""
     assert config.init.path is not None
-    if stats is None:
-        stats = sidecar_path(Path(config.init.path) / FINAL_MODEL, "vecnormalize")
-    return FrozenObsVecNormalize.from_stats(read_vecnormalize(stats), venv, config)
+    if stats is not None:
+        return FrozenObsVecNormalize.from_stats(read_vecnormalize(stats), venv, config)
+    init = Path(config.init.path)
+    normalizer = read_vecnormalize(sidecar_path(init / FINAL_MODEL, "vecnormalize"))
+    columns = init_columns(config, init / "config.yaml")
+    if columns is not None:
+        size = int(np.prod(venv.observation_space.shape))
+        normalizer.obs_rms = widen_running_stats(normalizer.obs_rms, columns, size)
+    return FrozenObsVecNormalize.from_stats(normalizer, venv, config)
 
 
 def _policy_kwargs(config: TrainConfig, init_model: Any, source: str) -> dict[str, Any]:
@@ -327,11 +490,25 @@ def build_finetune_model(
         raise ConfigError(
             f"{source}: SB3 PPO rejects config keys 'algo_kwargs' / 'policy_kwargs': {exc}"
         ) from None
-    model.policy.load_state_dict(init_model.policy.state_dict())
+    init_config = Path(config.init.path) / "config.yaml"
+    reference = _widened(init_model.policy, model.policy, init_columns(config, init_config))
+    model.policy.load_state_dict(reference.state_dict())
     if "log_std_init" in config.policy_kwargs:
         model.policy.log_std.data.fill_(float(config.policy_kwargs["log_std_init"]))
-    model.set_reference(init_model.policy)
+    model.set_reference(reference)
     return model
+
+
+def _widened(init_policy: Any, policy: Any, columns: np.ndarray | None) -> Any:
+    """``init_policy`` as a network of ``policy``'s shape reading the run's observation (itself
+    when the observations are the same; :func:`~agents.experiments.training.widen.
+    widen_state_dict` otherwise)."""
+    if columns is None:
+        return init_policy
+    widened = copy.deepcopy(policy)
+    state = widen_state_dict(init_policy.state_dict(), policy.state_dict(), columns)
+    widened.load_state_dict(state)
+    return widened
 
 
 def configure_resumed(model: AnchoredPPO, config: TrainConfig, out: Path) -> None:
@@ -377,4 +554,13 @@ def reference_path(config: TrainConfig, out: Path) -> Path:
 def restore_reference(model: AnchoredPPO, config: TrainConfig, out: Path) -> None:
     """Anchor a resumed ``model`` to :func:`reference_path`'s policy."""
     path = reference_path(config, out)
-    model.set_reference(_load_init_model(path, str(out / "config.yaml")).policy)
+    # the run's copy keeps the init's config beside it (save_reference), an init run in it
+    init_config = path.with_suffix(".yaml") if path.name == REFERENCE_MODEL else None
+    init_config = init_config or path.parent / "config.yaml"
+    if not init_config.is_file():
+        raise FileNotFoundError(
+            f"--resume {out}: the config of the anchor's reference {path} is gone; copy the "
+            f"initial run's config.yaml to {init_config}"
+        )
+    init_policy = _load_init_model(path, str(out / "config.yaml")).policy
+    model.set_reference(_widened(init_policy, model.policy, init_columns(config, init_config)))
