@@ -494,3 +494,22 @@ def test_fields_drawn_ahead_are_the_fields_drawn_at_reset_time():
     assert ahead.shell.supply.moving  # the fields were drawn ahead
     ahead.close()
     plain.close()
+
+
+def test_a_vector_env_refused_at_construction_is_collected_quietly():
+    """A constructor that refuses its options leaves a half-built env, which gymnasium's
+    ``VectorEnv.__del__`` (gymnasium < 1.3) closes when it is collected: that close must not
+    raise (it did, for want of a shell)."""
+    import gc
+    import sys
+
+    DebrisFieldVectorEnv.__new__(DebrisFieldVectorEnv).close_extras()  # no shell: nothing to close
+    seen = []
+    hook, sys.unraisablehook = sys.unraisablehook, seen.append
+    try:
+        with pytest.raises(ValueError, match="num_threads"):
+            DebrisFieldVectorEnv(num_envs=2, num_threads=0)
+        gc.collect()
+    finally:
+        sys.unraisablehook = hook
+    assert not seen, [str(s.exc_value) for s in seen]

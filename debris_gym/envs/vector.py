@@ -194,7 +194,9 @@ class DebrisFieldVectorEnv(ShellView, VectorEnv):
         return shell.observe(), result.reward, result.terminated, result.truncated, info
 
     def close_extras(self, **kwargs: Any) -> None:
-        self._shell.close()
+        shell = getattr(self, "_shell", None)  # None when the constructor refused its options
+        if shell is not None:
+            shell.close()
 
     # --- step hooks ---------------------------------------------------------------------------
 
