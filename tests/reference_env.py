@@ -355,7 +355,14 @@ class ReferenceDebrisFieldEnv(gym.Env):
             delta_v=dv,
             collision=self._collision,
             out_of_bounds=self._out_of_bounds,
+            budget_spent=self._budget_failure(),
         )
+
+    def _budget_failure(self) -> bool:
+        """The Δv budget ran out in a step that neither succeeded, collided nor left the
+        bounds: the mission failed for want of Δv."""
+        failed_otherwise = self._success or self._collision or self._out_of_bounds
+        return self._budget_spent() and not failed_otherwise
 
     def _observe(self) -> np.ndarray:
         cfg, d = self.config, self.dim
@@ -433,6 +440,9 @@ class ReferenceDebrisFieldEnv(gym.Env):
             "min_clearance": self._min_clearance - self.config.chaser_radius,
             "collision": self._collision,
             "out_of_bounds": self._out_of_bounds,
+            "budget_spent": self._budget_failure(),
+            # one step end captures in this rule set, so a target's count is 1 once captured
+            "hold": self._captured.astype(np.int64),
             "is_success": self._success,
             "reward_terms": terms,
         }
@@ -460,13 +470,14 @@ def reward_terms(
     delta_v: Any,
     collision: Any,
     out_of_bounds: Any,
+    budget_spent: Any = False,
 ) -> dict[str, Any]:
     """The weighted reward terms of one step, for one env (scalars) or a batch (arrays).
 
     Args:
         cfg: weights ``reward_<term>``.
         new_captures: targets captured this step.
-        success, collision, out_of_bounds: this step's flags.
+        success, collision, out_of_bounds, budget_spent: this step's flags.
         progress: γΦ(s′) − Φ(s) (before the terminal correction).
         delta_v: Δv spent this step (m/s).
     """
@@ -479,4 +490,5 @@ def reward_terms(
         "collision": -cfg.reward_collision * collision,
         "out_of_bounds": -cfg.reward_out_of_bounds * out_of_bounds,
         "time": time,
+        "budget": -cfg.reward_budget * budget_spent,
     }

@@ -29,17 +29,13 @@ from agents.experiments.training.anchored import (
 from agents.experiments.training.config import TrainConfig
 from agents.experiments.training.finetune import REFERENCE_MODEL
 from agents.experiments.training.run import TrainOptions, resolve_config, train
-from tests.helpers import flies_old_ids, load_script
+from tests.helpers import load_script
 
-pytestmark = flies_old_ids  # the init and its fine-tunes fly v1 on purpose (below)
-
-ENV_ID = "DebrisGym/Rendezvous2D-v1"
-"""The init's env and the fine-tunes' (the 2D recipe flown on its v1 ID): an observation
-without the hold element, so that a fine-tune on v2 (``WIDEN``) widens it."""
+ENV_ID = "DebrisGym/Rendezvous2D-v1"  # the init and its recipe (the v2 fine-tunes widen it)
 RECIPE = CONFIG_DIR / "rendezvous2d_finetune.yaml"
 INIT_OPTIONS = {"obs_goal": True, "obs_targets": 1, "obs_other_targets": True}
 TINY_IMITATION = {
-    "env_id": ENV_ID,
+    "env_id": ENV_ID,  # an init without the hold element: widened for v2
     "env_kwargs": INIT_OPTIONS,
     "bc_episodes": 2,
     "dagger_rounds": 0,
@@ -81,8 +77,8 @@ def finetune(init: Path, out: Path, steps: int, *sets: str, **options) -> Path:
     """A tiny fine-tune run of the checked-in recipe from ``init`` into ``out``."""
     result = train(
         TrainOptions(
-            out=out, config=RECIPE, env_id=ENV_ID, init=init, overrides=[*TINY, *sets],
-            timesteps=steps, n_envs=2, seed=5, progress=False, argv=["test"], **options,
+            out=out, config=RECIPE, init=init, overrides=[*TINY, *sets], timesteps=steps,
+            n_envs=2, seed=5, progress=False, argv=["test"], **options,
         )
     )  # fmt: skip
     assert result.status == "completed"
@@ -255,9 +251,7 @@ def test_the_training_env_normalises_with_the_init_statistics(init_run):
     ones, unchanged however many steps it takes (frozen); rewards scaled by a learned std."""
     from agents.experiments.training.models import make_train_env
 
-    config, _ = resolve_config(
-        TrainOptions(config=RECIPE, env_id=ENV_ID, init=init_run, overrides=TINY, n_envs=2)
-    )
+    config, _ = resolve_config(TrainOptions(config=RECIPE, init=init_run, overrides=TINY, n_envs=2))
     venv = make_train_env(config, seed=0)
     mean0 = venv.obs_rms.mean.copy()
     obs = venv.reset()
@@ -275,9 +269,7 @@ def test_the_training_env_normalises_with_the_init_statistics(init_run):
 
 
 def resolve(init, *sets: str) -> None:
-    resolve_config(
-        TrainOptions(config=RECIPE, env_id=ENV_ID, init=init, overrides=[*TINY, *sets], n_envs=2)
-    )
+    resolve_config(TrainOptions(config=RECIPE, init=init, overrides=[*TINY, *sets], n_envs=2))
 
 
 def test_bad_init_directories_are_refused(init_run, tmp_path):

@@ -34,7 +34,7 @@ pytestmark = [
 ]
 
 INFO_KEYS = ["chaser_state", "time", "delta_v", "targets_captured", "min_clearance", "collision"]
-INFO_KEYS += ["out_of_bounds", "is_success", "captured", "n_targets"]
+INFO_KEYS += ["out_of_bounds", "is_success", "captured", "n_targets", "budget_spent", "hold"]
 
 HORIZON = {"DebrisGym/PaperField2D-v0": 2000}
 

@@ -13,7 +13,6 @@ import torch
 
 import agents
 from agents.policies.learned import PRETRAINED_DIR, PRETRAINED_POLICIES, pretrained_path
-from tests.helpers import flies_old_ids
 
 V1_OPTIONS = {"obs_targets": 1, "obs_goal": True, "obs_other_targets": True}
 V2_OPTIONS = {**V1_OPTIONS, "obs_hold": True}
@@ -109,7 +108,6 @@ def test_the_v2_recipes_start_from_the_shipped_v1_policies(dim, tmp_path):
     assert config.init.path == str(init.resolve())
 
 
-@flies_old_ids
 def test_a_v2_policy_fine_tuned_on_a_v1_id_keeps_its_hold_element(tmp_path):
     """The other way round: the v2 policy observed the hold because its env's registration
     turns obs_hold on (its config need not say so); fine-tuned on the v1 ID, whose default is
@@ -129,8 +127,7 @@ def test_a_v2_policy_fine_tuned_on_a_v1_id_keeps_its_hold_element(tmp_path):
     data = yaml.safe_load(stem.with_suffix(".yaml").read_text())
     del data["env_kwargs"]["obs_hold"]  # left to DebrisGym/Rendezvous2D-v2's registration
     (init / "config.yaml").write_text(yaml.safe_dump(data))
-    recipe = CONFIG_DIR / "rendezvous2d_finetune.yaml"  # the 2D recipe, flown on its v1 ID
-    options = TrainOptions(config=recipe, env_id="DebrisGym/Rendezvous2D-v1", init=init, n_envs=2)
-    config, _ = resolve_config(options)
+    recipe = CONFIG_DIR / "rendezvous2d_finetune.yaml"  # the v1 recipe: DebrisGym/Rendezvous2D-v1
+    config, _ = resolve_config(TrainOptions(config=recipe, init=init, n_envs=2))
     assert config.env_id == "DebrisGym/Rendezvous2D-v1"
     assert {k: config.env_kwargs[k] for k in V2_OPTIONS} == V2_OPTIONS
