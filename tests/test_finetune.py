@@ -29,7 +29,9 @@ from agents.experiments.training.anchored import (
 from agents.experiments.training.config import TrainConfig
 from agents.experiments.training.finetune import REFERENCE_MODEL
 from agents.experiments.training.run import TrainOptions, resolve_config, train
-from tests.helpers import load_script
+from tests.helpers import flies_old_ids, load_script
+
+pytestmark = flies_old_ids  # the init and its recipe fly v1 on purpose
 
 ENV_ID = "DebrisGym/Rendezvous2D-v1"  # the init and its recipe (the v2 fine-tunes widen it)
 RECIPE = CONFIG_DIR / "rendezvous2d_finetune.yaml"

@@ -13,6 +13,7 @@ import torch
 
 import agents
 from agents.policies.learned import PRETRAINED_DIR, PRETRAINED_POLICIES, pretrained_path
+from tests.helpers import flies_old_ids
 
 V1_OPTIONS = {"obs_targets": 1, "obs_goal": True, "obs_other_targets": True}
 V2_OPTIONS = {**V1_OPTIONS, "obs_hold": True}
@@ -108,6 +109,7 @@ def test_the_v2_recipes_start_from_the_shipped_v1_policies(dim, tmp_path):
     assert config.init.path == str(init.resolve())
 
 
+@flies_old_ids
 def test_a_v2_policy_fine_tuned_on_a_v1_id_keeps_its_hold_element(tmp_path):
     """The other way round: the v2 policy observed the hold because its env's registration
     turns obs_hold on (its config need not say so); fine-tuned on the v1 ID, whose default is
