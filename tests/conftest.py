@@ -50,3 +50,16 @@ def display():
         del os.environ["DISPLAY"]
         proc.terminate()
         proc.wait(timeout=10)
+
+
+@pytest.fixture
+def one_torch_thread():
+    """One torch thread for the test, as training and imitation use: under ``pytest -n 2``
+    more threads only contend. Modules that train ask for it with
+    ``pytest.mark.usefixtures("one_torch_thread")``."""
+    import torch  # here, not at the top: most tests never load torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)

@@ -31,7 +31,10 @@ from agents.experiments.training.finetune import REFERENCE_MODEL
 from agents.experiments.training.run import TrainOptions, resolve_config, train
 from tests.helpers import flies_old_ids, load_script
 
-pytestmark = flies_old_ids  # the init and its recipe fly v1 on purpose
+pytestmark = [
+    flies_old_ids,  # the init and its recipe fly v1 on purpose
+    pytest.mark.usefixtures("one_torch_thread"),
+]
 
 ENV_ID = "DebrisGym/Rendezvous2D-v1"  # the init and its recipe (the v2 fine-tunes widen it)
 RECIPE = CONFIG_DIR / "rendezvous2d_finetune.yaml"
@@ -57,14 +60,6 @@ TINY = [
     "env_kwargs.max_episode_steps=40",
     "env_kwargs.n_obstacles=5",
 ]
-
-
-@pytest.fixture(autouse=True)
-def one_torch_thread():
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
 
 
 @pytest.fixture(scope="module")

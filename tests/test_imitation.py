@@ -33,6 +33,8 @@ from agents.planners.mission import MissionPlan
 from debris_gym.envs import DebrisFieldEnv
 from tests.helpers import flies_old_ids, load_script
 
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
+
 ROOT = Path(__file__).resolve().parents[1]
 ENV_ID = "DebrisGym/Rendezvous2D-v2"
 TINY = {
@@ -45,17 +47,6 @@ TINY = {
     "max_episode_steps": 25,
     "net_arch": (16, 16),
 }
-
-
-@pytest.fixture(autouse=True)
-def one_torch_thread():
-    """One torch thread, as imitate() uses: under pytest -n 2 more threads only contend."""
-    import torch
-
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

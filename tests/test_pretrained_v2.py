@@ -9,22 +9,15 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-import torch
 
 import agents
 from agents.policies.learned import PRETRAINED_DIR, PRETRAINED_POLICIES, pretrained_path
 from tests.helpers import flies_old_ids
 
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
+
 V1_OPTIONS = {"obs_targets": 1, "obs_goal": True, "obs_other_targets": True}
 V2_OPTIONS = {**V1_OPTIONS, "obs_hold": True}
-
-
-@pytest.fixture(autouse=True)
-def one_torch_thread():
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
 
 
 def fly(env: gym.Env, agent, seed: int) -> dict:
