@@ -88,3 +88,22 @@ def cw_closed_form(state0: np.ndarray, t: float, n: float = LEO_MEAN_MOTION) -> 
         return np.array([x, y, vx, vy])
     z0, vz0 = state0[2], state0[5]
     return np.array([x, y, c * z0 + s / n * vz0, vx, vy, -n * s * z0 + c * vz0])
+
+
+def discounted(rewards: list[float], gamma: float) -> float:
+    """The discounted return Σ γᵏ r_k of a list of rewards."""
+    return float(sum(r * gamma**k for k, r in enumerate(rewards)))
+
+
+def fly_policy(env, seed: int, policy) -> tuple[list[float], dict]:
+    """One episode from ``env.reset(seed=seed)`` under ``policy(env, obs, info, first)``:
+    its rewards and its last info."""
+    obs, info = env.reset(seed=seed)
+    rewards, done, first = [], False, True
+    while not done:
+        action = policy(env, obs, info, first)
+        first = False
+        obs, reward, terminated, truncated, info = env.step(action)
+        rewards.append(float(reward))
+        done = terminated or truncated
+    return rewards, info

@@ -13,30 +13,12 @@ import numpy as np
 
 import agents
 import debris_gym  # noqa: F401  (registers the IDs)
-from tests.helpers import flies_old_ids
+from tests.helpers import discounted, flies_old_ids, fly_policy
 
 pytestmark = flies_old_ids  # the v1 weights on purpose
 
 GAMMAS = (0.9, 0.95, 0.99, 0.995, 0.999, 1.0)
 ENV_ID = "DebrisGym/Rendezvous2D-v1"
-
-
-def discounted(rewards: list[float], gamma: float) -> float:
-    return float(sum(r * gamma**k for k, r in enumerate(rewards)))
-
-
-def fly(env: gym.Env, seed: int, policy) -> tuple[list[float], dict]:
-    obs, info = env.reset(seed=seed)
-    rewards = []
-    done = False
-    first = True
-    while not done:
-        action = policy(env, obs, info, first)
-        first = False
-        obs, reward, terminated, truncated, info = env.step(action)
-        rewards.append(float(reward))
-        done = terminated or truncated
-    return rewards, info
 
 
 def idle(env, obs, info, first):
@@ -83,14 +65,14 @@ def test_success_outranks_idling_crashing_fleeing_and_burning_for_every_discount
     for seed in range(40):
         if compared >= 10:
             break
-        rewards, info = fly(
+        rewards, info = fly_policy(
             env, seed, lambda e, o, i, first: planner.predict(o, episode_start=np.array([first]))[0]
         )
         if not info["is_success"]:
             continue
         failures = {}
         for name, (policy, happened) in FAILURES.items():
-            fail_rewards, fail_info = fly(env, seed, policy)
+            fail_rewards, fail_info = fly_policy(env, seed, policy)
             assert not fail_info["is_success"], (name, seed)
             hits[name] += happened(fail_info)
             failures[name] = fail_rewards

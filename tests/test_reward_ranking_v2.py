@@ -37,6 +37,7 @@ import pytest
 
 import agents
 import debris_gym  # noqa: F401  (registers the IDs)
+from tests.helpers import discounted, fly_policy
 
 GAMMAS = (0.999, 0.9995, 1.0)
 """The discounts the claim covers: effective horizon 1 / (1 − γ) ≥ the 1 000-step limit."""
@@ -53,22 +54,6 @@ BURN_STARTS = (0, 150, 300, 450, 600, 750)
 """Steps waited at the dock before the budget burn-out (the burn takes 200 steps)."""
 
 Policy = Callable[[gym.Env, np.ndarray, dict, bool], np.ndarray]
-
-
-def discounted(rewards: list[float], gamma: float) -> float:
-    return float(sum(r * gamma**k for k, r in enumerate(rewards)))
-
-
-def fly(env: gym.Env, seed: int, policy: Policy) -> tuple[list[float], dict]:
-    obs, info = env.reset(seed=seed)
-    rewards, done, first = [], False, True
-    while not done:
-        action = policy(env, obs, info, first)
-        first = False
-        obs, reward, terminated, truncated, info = env.step(action)
-        rewards.append(float(reward))
-        done = terminated or truncated
-    return rewards, info
 
 
 def dim_of(env: gym.Env) -> int:
@@ -281,14 +266,14 @@ def test_success_outranks_every_other_strategy(env_id):
     for seed in range(12):
         if compared == FIELDS_PER_RUNG:
             break
-        good_rewards, good_info = fly(
+        good_rewards, good_info = fly_policy(
             env, seed, lambda e, o, i, first: planner.predict(o, episode_start=np.array([first]))[0]
         )
         if not good_info["is_success"]:
             continue
         compared += 1
         for name, (policy, aimed) in tried.items():
-            rewards, info = fly(env, seed, policy)
+            rewards, info = fly_policy(env, seed, policy)
             assert not info["is_success"], (env_id, seed, name)
             hits[name] += bool(aimed(info))
             for gamma in GAMMAS:
