@@ -4,6 +4,7 @@ schedule, the files evaluate.py flies, the refusals, and resume."""
 
 from __future__ import annotations
 
+import contextlib
 import pickle
 import shutil
 from pathlib import Path
@@ -423,7 +424,19 @@ def test_the_widened_reference_anchors_and_survives_a_resume(init_run, tmp_path)
     raw, narrow, _ = wide_and_narrow_observations(16)
     obs, init_obs = normalised(out / "model.zip", raw), normalised(init_run / "model.zip", narrow)
     expected = mean_actions(ppo(init_run / "model.zip"), init_obs)
-    captured = {}
+    with models_that_learn() as captured:
+        result = train(TrainOptions(resume=out, timesteps=64, progress=False, argv=["test"]))
+    assert result.status == "completed"
+    reference = captured["model"].reference_policy
+    with torch.no_grad():
+        mu0 = reference.get_distribution(torch.as_tensor(obs)).mode().numpy()
+    assert np.array_equal(mu0, expected)
+
+
+@contextlib.contextmanager
+def models_that_learn():
+    """Within the block, ``captured["model"]`` is the last AnchoredPPO model that learned."""
+    captured: dict = {}
     original = AnchoredPPO.learn
 
     def spy(self, *args, **kwargs):
@@ -432,12 +445,7 @@ def test_the_widened_reference_anchors_and_survives_a_resume(init_run, tmp_path)
 
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(AnchoredPPO, "learn", spy)
-        result = train(TrainOptions(resume=out, timesteps=64, progress=False, argv=["test"]))
-    assert result.status == "completed"
-    reference = captured["model"].reference_policy
-    with torch.no_grad():
-        mu0 = reference.get_distribution(torch.as_tensor(obs)).mode().numpy()
-    assert np.array_equal(mu0, expected)
+        yield captured
 
 
 def tiny_lidar_init(out: Path, rays: int) -> Path:
@@ -485,15 +493,7 @@ def test_resume_continues_with_the_reference_restored(init_run, tmp_path):
                    "init.anchor_coef=2.0", "init.anchor_decay=500")  # fmt: skip
     init_state = ppo(init_run / "model.zip").policy.state_dict()
 
-    captured = {}
-    original = AnchoredPPO.learn
-
-    def spy(self, *args, **kwargs):
-        captured["model"] = self
-        return original(self, *args, **kwargs)
-
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(AnchoredPPO, "learn", spy)
+    with models_that_learn() as captured:
         result = train(TrainOptions(resume=out, timesteps=128, progress=False, argv=["test"]))
         assert result.status == "completed" and result.num_timesteps == 256
         model = captured["model"]
