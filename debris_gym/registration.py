@@ -74,49 +74,24 @@ capture)."""
 MEDIUM_MISSION: dict[str, object] = {"n_targets": 2, "n_obstacles": 10, "return_to_dock": True}
 """The Medium rung of v1: two targets among ten other debris, then back to the dock."""
 
+
+def _rungs(version: str, world: dict[str, object]) -> dict[str, dict]:
+    """The default ID of ``version`` in 2D and 3D and its Easy and Medium rungs, each flying
+    ``world`` for 1 000 steps (the order of the docs' ID table)."""
+    missions = {"": {}, "-Easy": EASY_MISSION, "-Medium": MEDIUM_MISSION}
+    order = [(2, ""), (3, ""), (2, "-Easy"), (2, "-Medium"), (3, "-Easy"), (3, "-Medium")]
+    return {
+        f"DebrisGym/Rendezvous{dim}D{rung}-{version}": {
+            "max_episode_steps": 1000,
+            "kwargs": {"dim": dim, **world, **missions[rung]},
+        }
+        for dim, rung in order
+    }
+
+
 ENV_SPECS: dict[str, dict] = {
-    "DebrisGym/Rendezvous2D-v2": {"max_episode_steps": 1000, "kwargs": {"dim": 2, **V2_WORLD}},
-    "DebrisGym/Rendezvous3D-v2": {"max_episode_steps": 1000, "kwargs": {"dim": 3, **V2_WORLD}},
-    "DebrisGym/Rendezvous2D-Easy-v2": {
-        "max_episode_steps": 1000,
-        "kwargs": {"dim": 2, **V2_WORLD, **EASY_MISSION},
-    },
-    "DebrisGym/Rendezvous2D-Medium-v2": {
-        "max_episode_steps": 1000,
-        "kwargs": {"dim": 2, **V2_WORLD, **MEDIUM_MISSION},
-    },
-    "DebrisGym/Rendezvous3D-Easy-v2": {
-        "max_episode_steps": 1000,
-        "kwargs": {"dim": 3, **V2_WORLD, **EASY_MISSION},
-    },
-    "DebrisGym/Rendezvous3D-Medium-v2": {
-        "max_episode_steps": 1000,
-        "kwargs": {"dim": 3, **V2_WORLD, **MEDIUM_MISSION},
-    },
-    "DebrisGym/Rendezvous2D-v1": {
-        "max_episode_steps": 1000,
-        "kwargs": {"dim": 2, **PHYSICAL_WORLD},
-    },
-    "DebrisGym/Rendezvous3D-v1": {
-        "max_episode_steps": 1000,
-        "kwargs": {"dim": 3, **PHYSICAL_WORLD},
-    },
-    "DebrisGym/Rendezvous2D-Easy-v1": {
-        "max_episode_steps": 1000,
-        "kwargs": {"dim": 2, **PHYSICAL_WORLD, **EASY_MISSION},
-    },
-    "DebrisGym/Rendezvous2D-Medium-v1": {
-        "max_episode_steps": 1000,
-        "kwargs": {"dim": 2, **PHYSICAL_WORLD, **MEDIUM_MISSION},
-    },
-    "DebrisGym/Rendezvous3D-Easy-v1": {
-        "max_episode_steps": 1000,
-        "kwargs": {"dim": 3, **PHYSICAL_WORLD, **EASY_MISSION},
-    },
-    "DebrisGym/Rendezvous3D-Medium-v1": {
-        "max_episode_steps": 1000,
-        "kwargs": {"dim": 3, **PHYSICAL_WORLD, **MEDIUM_MISSION},
-    },
+    **_rungs("v2", V2_WORLD),
+    **_rungs("v1", PHYSICAL_WORLD),
     "DebrisGym/Rendezvous2D-v0": {"max_episode_steps": 1000, "kwargs": {"dim": 2}},
     "DebrisGym/Rendezvous3D-v0": {"max_episode_steps": 1000, "kwargs": {"dim": 3}},
     "DebrisGym/PaperField2D-v0": {
