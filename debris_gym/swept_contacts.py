@@ -268,11 +268,12 @@ def moving_path_touches(
             vel1 += abs(velocities[i, b, a])
         bound = reach_position * pos1 + reach_velocity * vel1
         j = b - polygon_start
-        m = n_vertices[i, j] if dim == 2 and j >= 0 else 0
-        if swept_turns and m:
+        polygon = dim == 2 and j >= 0
+        if swept_turns and polygon and n_vertices[i, j]:
             bound += radii[i, b] * min(abs(turns[i, j, 4]), 2.0)
         if not start_gaps[b] <= reach + bound:  # broad phase
             continue
+        m = n_vertices[i, j] if polygon else 0  # read past the broad phase: most bodies stop there
         for a in range(dim):
             rel[0, a] = path[0, a] - centers[i, b, a]
         for k in range(1, n_points):
