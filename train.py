@@ -96,13 +96,19 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 130
+    from debris_gym.swarm import SWARM_SPECS
+
+    evaluate = (
+        "the held-out evaluations are in train_log.json (evaluate.py does not fly swarm IDs yet)"
+        if result.env_id in SWARM_SPECS
+        else "evaluate with: "
+        + cli.evaluate_command(result.env_id, f"apf,{result.algo}={result.model_path}")
+    )
     print(
         f"done: {result.num_timesteps:,} steps in {result.wall_time_s:.1f} s "
         f"({result.env_steps_per_s:,.0f} env-steps/s)\n"
         f"  {result.model_path}\n  {out / 'config.yaml'}\n  {out / 'learning_curve.png'}\n"
-        f"  {out / 'train_log.json'}\n"
-        "evaluate with: "
-        + cli.evaluate_command(result.env_id, f"apf,{result.algo}={result.model_path}")
+        f"  {out / 'train_log.json'}\n" + evaluate
     )
     return 0
 

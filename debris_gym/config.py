@@ -270,6 +270,13 @@ OPTIONS: dict[str, Option] = {
         doc="the nearest-obstacle slots hold the nearest bodies other than the current goal, "
         "targets included (captured ones too: they are still bodies to avoid)",
     ),
+    "obs_teammates": Option(
+        low=0,
+        high=255,
+        doc="teammate slots of a swarm's observation (the nearest other chasers still flying: "
+        "relative position / L, velocity / V, where each heads / L, flying flag); 0 outside "
+        "swarms",
+    ),
     "obs_hold": Option(
         choices=(False, True),
         doc="append each target slot's hold progress: step ends held / the step ends a capture "
@@ -279,6 +286,11 @@ OPTIONS: dict[str, Option] = {
         choices=(False, True),
         doc="append the current goal at a 10× finer scale: relative position / (L/10), "
         "relative velocity / (V/10), gap / (L/10)",
+    ),
+    "obs_near": Option(
+        choices=(False, True),
+        doc="append the current goal's near field: gap / capture_radius and closing speed / "
+        "capture_speed (positive when approaching), each saturated at ±4",
     ),
 }
 
@@ -344,8 +356,10 @@ class EnvConfig:
     shaping_closing: float = 0.0
     shaping_closing_distance: float = 20.0
     obs_goal: bool = False
+    obs_near: bool = False
     obs_hold: bool = False
     obs_other_targets: bool = False
+    obs_teammates: int = 0
 
     def __post_init__(self) -> None:
         # each key alone (stored normalised: whole numbers as int, reals as float, flags as

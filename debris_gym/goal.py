@@ -82,53 +82,57 @@ beyond, it follows the nearest-neighbour order."""
 
 
 @inlined
-def _leg(i, a, b, centers, radii):
-    """Surface-to-surface distance (m, at least 0) between targets ``a`` and ``b`` of row ``i``."""
+def _leg(f, a, b, centers, radii):
+    """Surface-to-surface distance (m, at least 0) between targets ``a`` and ``b`` of field
+    ``f``."""
     s = 0.0
     for k in range(centers.shape[2]):
-        d = centers[i, a, k] - centers[i, b, k]
+        d = centers[f, a, k] - centers[f, b, k]
         s += d * d
-    return max(math.sqrt(s) - radii[i, a] - radii[i, b], 0.0)
+    return max(math.sqrt(s) - radii[f, a] - radii[f, b], 0.0)
 
 
 @inlined
-def _home(i, j, centers, radii, dock):
-    """Distance (m, at least 0) from target ``j``'s surface to the dock."""
+def _home(i, f, j, centers, radii, dock):
+    """Distance (m, at least 0) from target ``j``'s surface (field ``f``) to row ``i``'s
+    dock."""
     s = 0.0
     for k in range(centers.shape[2]):
-        d = centers[i, j, k] - dock[i, k]
+        d = centers[f, j, k] - dock[i, k]
         s += d * d
-    return max(math.sqrt(s) - radii[i, j], 0.0)
+    return max(math.sqrt(s) - radii[f, j], 0.0)
 
 
 @inlined
-def _order_length(i, order, m, start, return_to_dock, gaps, chaser_radius, centers, radii, dock):
+def _order_length(
+    i, f, order, m, start, return_to_dock, gaps, chaser_radius, centers, radii, dock
+):  # fmt: skip
     """Length (m) of the tour chaser → targets ``order[:m]`` in turn (→ dock)."""
     total = max(gaps[i, order[0]] - chaser_radius, 0.0) if start else 0.0
     for k in range(1, m):
-        total += _leg(i, order[k - 1], order[k], centers, radii)
+        total += _leg(f, order[k - 1], order[k], centers, radii)
     if return_to_dock:
-        total += _home(i, order[m - 1], centers, radii, dock)
+        total += _home(i, f, order[m - 1], centers, radii, dock)
     return total
 
 
 @inlined
-def _tabulate_legs(i, order, m, return_to_dock, centers, radii, dock, legs, homes):
-    """legs[a, b] = :func:`_leg` (i, a, b) for the targets a ≠ b in ``order[:m]`` (one square
-    root per pair), homes[a] = :func:`_home` (i, a) when the mission returns to the dock."""
+def _tabulate_legs(i, f, order, m, return_to_dock, centers, radii, dock, legs, homes):
+    """legs[a, b] = :func:`_leg` (f, a, b) for the targets a ≠ b in ``order[:m]`` (one square
+    root per pair), homes[a] = :func:`_home` (i, f, a) when the mission returns to the dock."""
     for p in range(m):
         a = order[p]
         for q in range(p + 1, m):
             b = order[q]
             s = 0.0
             for k in range(centers.shape[2]):
-                d = centers[i, a, k] - centers[i, b, k]
+                d = centers[f, a, k] - centers[f, b, k]
                 s += d * d
             root = math.sqrt(s)
-            legs[a, b] = max(root - radii[i, a] - radii[i, b], 0.0)
-            legs[b, a] = max(root - radii[i, b] - radii[i, a], 0.0)
+            legs[a, b] = max(root - radii[f, a] - radii[f, b], 0.0)
+            legs[b, a] = max(root - radii[f, b] - radii[f, a], 0.0)
         if return_to_dock:
-            homes[a] = _home(i, a, centers, radii, dock)
+            homes[a] = _home(i, f, a, centers, radii, dock)
 
 
 @inlined
@@ -145,10 +149,11 @@ def _tabulated_length(i, order, m, return_to_dock, gaps, chaser_radius, legs, ho
 
 @inlined
 def remaining_tour(
-    i, gaps, captured, queued, return_to_dock, chaser_radius, centers, radii, dock, state, order,
+    i, f, gaps, captured, queued, return_to_dock, chaser_radius, centers, radii, dock, state, order,
     counters, legs, homes,
 ):  # fmt: skip
-    """Length (m) of the shortest remaining mission of row ``i`` as it stands now: from the
+    """Length (m) of the shortest remaining mission of row ``i`` (in field ``f``) as it stands
+    now: from the
     chaser's surface through every uncaptured target (surface to surface) and, if a return is
     required, on to the dock — in the queue's order for ``queued``, else in the best order
     (every order for up to :data:`EXACT_TOUR_TARGETS` targets, nearest-neighbour beyond). With
@@ -175,7 +180,7 @@ def remaining_tour(
         return math.sqrt(s)
     if queued:
         return _order_length(
-            i, order, m, True, return_to_dock, gaps, chaser_radius, centers, radii, dock
+            i, f, order, m, True, return_to_dock, gaps, chaser_radius, centers, radii, dock
         )
     if m > EXACT_TOUR_TARGETS:  # nearest neighbour from the chaser, then from each target
         for k in range(m):
@@ -184,17 +189,17 @@ def remaining_tour(
                 if k == 0:
                     closer = gaps[i, order[q]] < gaps[i, order[best]]
                 else:
-                    closer = _leg(i, order[k - 1], order[q], centers, radii) < _leg(
-                        i, order[k - 1], order[best], centers, radii
+                    closer = _leg(f, order[k - 1], order[q], centers, radii) < _leg(
+                        f, order[k - 1], order[best], centers, radii
                     )
                 if closer:
                     best = q
             order[k], order[best] = order[best], order[k]
         return _order_length(
-            i, order, m, True, return_to_dock, gaps, chaser_radius, centers, radii, dock
+            i, f, order, m, True, return_to_dock, gaps, chaser_radius, centers, radii, dock
         )
     # every order, by Heap's algorithm (iterative), over the legs tabulated once
-    _tabulate_legs(i, order, m, return_to_dock, centers, radii, dock, legs, homes)
+    _tabulate_legs(i, f, order, m, return_to_dock, centers, radii, dock, legs, homes)
     best = _tabulated_length(i, order, m, return_to_dock, gaps, chaser_radius, legs, homes)
     for k in range(m):
         counters[k] = 0

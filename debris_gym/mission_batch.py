@@ -121,6 +121,12 @@ class MissionBatch:
             gymnasium's ``TimeLimit``).
         threads: threads that step and observe the missions (row ranges in parallel; 1 = the
             calling thread only). The results do not depend on it.
+        chasers: chasers per field K: missions f·K … f·K + K − 1 fly in field f (a swarm;
+            ``num`` must be a multiple of K).
+        chaser_separation: centre-to-centre distance (m) at which two chasers of a field
+            collide (default: twice the chaser radius).
+        field_loop: step field by field (:func:`~debris_gym.mission_step.step_fields`) even
+            with one chaser per field (always with several).
 
     Per-mission arrays (row i = mission i; SI units): ``state`` (N, 2·dim) LVLH position and
     velocity, ``time`` (N,) s, ``steps`` (N,), ``delta_v`` (N,) m/s spent, ``captured`` (N, T),
@@ -128,8 +134,9 @@ class MissionBatch:
     the chaser's centre to every body (m), ``nearest`` (N, O) the obstacles by gap, nearest
     first (kinematics observations only), ``min_clearance`` (N,) smallest obstacle gap so far
     (m, chaser radius not subtracted), ``potential`` (N,) Φ, ``accel`` (N, dim) last commanded
-    acceleration (m/s²); per field: ``dock``, ``low``, ``high`` (N, dim) m, ``length_scale``
-    (N,) m and ``speed_scale`` (N,) m/s (the observation's L and V).
+    acceleration (m/s²); ``dock`` (N, dim) m, each mission's; per field (F = N / K rows):
+    ``low``, ``high`` (F, dim) m, ``length_scale`` (F,) m and ``speed_scale`` (F,) m/s (the
+    observation's L and V).
     """
 
     def __init__(
@@ -143,15 +150,22 @@ class MissionBatch:
         polygon_start: int | None = None,
         max_episode_steps: int | None = None,
         threads: int = 1,
+        chasers: int = 1,
+        chaser_separation: float | None = None,
+        field_loop: bool = False,
     ) -> None:
         n, d, t = num, cfg.dim, n_targets
+        if chasers < 1 or num % chasers:
+            raise ValueError(f"chasers={chasers} must be at least 1 and divide num={num}")
+        self.chasers = int(chasers)
+        self.n_fields = fields = num // chasers
         self.threads = check_threads(threads)
         self.config = cfg
         self.num, self.dim, self.n_targets = n, d, t
         self.physics = physics = Physics(*map(float, physics))
         mean_motion, dt, max_accel = physics
         start = t if polygon_start is None else polygon_start
-        self.field = FieldBatch(n, n_bodies, d, MAX_POLYGON_VERTICES, polygon_start=start)
+        self.field = FieldBatch(fields, n_bodies, d, MAX_POLYGON_VERTICES, polygon_start=start)
         model = discretize(mean_motion, dt, d)
         sub = substep_position_matrix(mean_motion, dt, d, cfg.collision_substeps)
         # one matrix maps [x₀, u] to the sub-step positions (the last is the end position)
@@ -161,7 +175,8 @@ class MissionBatch:
         self.rules = make_rules(
             cfg, t, step_matrix_t, dt=dt, max_accel=max_accel, max_episode_steps=max_episode_steps,
             body_matrix_t=np.ascontiguousarray(check_transition(model.ad).T),
-            reach=body_reach(sub, d),
+            reach=body_reach(sub, d), n_chasers=chasers, chaser_separation=chaser_separation,
+            field_loop=field_loop,
         )  # fmt: skip
         self._turn_angles = (dt, dt / cfg.collision_substeps)
         self.shaping = make_shaping(cfg)
@@ -171,13 +186,13 @@ class MissionBatch:
         # every obstacle ranked by gap when the observation shows obstacles
         ranked = cfg.observation == "kinematics" and cfg.obs_obstacles > 0
         self.missions: Missions = new_missions(n, d, t, n_bodies, n_bodies - t if ranked else 0)
-        # per field, beside the bodies of self.field
+        # per field, beside the bodies of self.field (the dock: per mission, each chaser's own)
         self.dock = np.zeros((n, d))
-        self.low = np.zeros((n, d))
-        self.high = np.zeros((n, d))
-        self.length_scale = np.ones(n)
-        self.speed_scale = np.ones(n)
-        self.turns = np.zeros((n, self.field.spins.shape[1], 6))
+        self.low = np.zeros((fields, d))
+        self.high = np.zeros((fields, d))
+        self.length_scale = np.ones(fields)
+        self.speed_scale = np.ones(fields)
+        self.turns = np.zeros((fields, self.field.spins.shape[1], 6))
         """(N, P, 6) cos, sin of each polygon's turn over one step, then one sub-step, then the
         two angles (rad)."""
         self.turns[:, :, 0] = self.turns[:, :, 2] = 1.0
@@ -259,8 +274,17 @@ class MissionBatch:
         )  # fmt: skip
 
     def set_world(self, rows: np.ndarray, dock, low, high, length_scale: float) -> None:
-        """Dock position, bounds (m) and length scale L of the fields in ``rows``."""
-        self.dock[rows] = dock
+        """Dock position, bounds (m) and length scale L of the fields in ``rows`` (the dock of
+        every chaser of those fields; :attr:`dock` rows may be set one by one after)."""
+        k = self.chasers
+        if k == 1:
+            self.dock[rows] = dock
+        else:
+            rows = np.atleast_1d(np.asarray(rows, dtype=np.int64))
+            docks = np.asarray(dock, dtype=float)
+            if docks.ndim == 2:  # one dock per field: every chaser of the field starts at it
+                docks = np.repeat(docks, k, axis=0)
+            self.dock[(rows[:, None] * k + np.arange(k)).ravel()] = docks
         self.low[rows] = low
         self.high[rows] = high
         self.length_scale[rows] = length_scale

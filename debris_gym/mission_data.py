@@ -78,6 +78,14 @@ class Rules(NamedTuple):
     """Success needs the chaser back at the dock, slow."""
     max_steps: int
     """Truncation limit (steps); −1 for none."""
+    n_chasers: int
+    """Chasers per field K (rows f·K … f·K + K − 1 fly in field f; 1 for the single-agent
+    envs, whose row i flies in field i)."""
+    chaser_separation: float
+    """Centre-to-centre distance (m) at or below which two chasers of a field collide."""
+    field_loop: bool
+    """Step field by field (:func:`~debris_gym.mission_step.step_fields`, the swarms' loop),
+    not row by row (the single-agent loop, one chaser per field)."""
     gamma: float
     """Discount of the potential-based shaping."""
     tour_potential: bool
@@ -148,10 +156,17 @@ class Missions(NamedTuple):
     its current hold (``capture_rule="hold"``)."""
     budget_spent: np.ndarray
     """(N,) bool: the mission ended failed because the Δv budget ran out."""
+    teammate_collision: np.ndarray
+    """(N,) bool: the chaser touched another chaser of its field (a collision)."""
+    separation: np.ndarray
+    """(N,) closest approach (m, centre to centre) to another chaser of the field so far (inf
+    with one chaser per field)."""
 
 
 class Field(NamedTuple):
-    """Per-field arrays, row i = the field of mission i."""
+    """Per-field arrays: row f = field f (the field of missions f·K … f·K + K − 1, K =
+    :attr:`Rules.n_chasers`), except ``dock``, one row per mission (each chaser's own dock
+    slot)."""
 
     centers: np.ndarray
     """(N, B, dim) body centres (m)."""
@@ -173,7 +188,7 @@ class Field(NamedTuple):
     """(N, P, 6) cos, sin of the angle a polygon turns through in one step, then in one
     collision sub-step, then those two angles (rad; signed, not reduced modulo 2π)."""
     dock: np.ndarray
-    """(N, dim) dock position (m)."""
+    """(N, dim) each mission's dock position (m)."""
     low: np.ndarray
     """(N, dim) lower bounds (m)."""
     high: np.ndarray
@@ -203,16 +218,16 @@ class StepScratch(NamedTuple):
     :func:`debris_gym.mission_step.step_rows`)."""
 
     path: np.ndarray
-    """(K + 1, dim) the chaser's position at the step's start and at each of its K sub-steps
-    (m)."""
+    """(C, S + 1, dim) each chaser's position at the step's start and at each of its S sub-steps
+    (m), C = :attr:`Rules.n_chasers`."""
     start: np.ndarray
-    """(2·dim,) the chaser's state before the step."""
+    """(C, 2·dim) each chaser's state before the step."""
     accel: np.ndarray
     """(dim,) the acceleration the step applies (m/s²)."""
     touched: np.ndarray
-    """(B,) bool: the bodies the path touched."""
+    """(C, B) bool: the bodies each chaser's path touched."""
     relative_path: np.ndarray
-    """(K + 1, dim) the path relative to one moving body (m)."""
+    """(S + 1, dim) a path relative to one moving body (m)."""
     order: np.ndarray
     """(T,) int64 scratch of the tour potential."""
     counters: np.ndarray
@@ -221,6 +236,10 @@ class StepScratch(NamedTuple):
     """(T, T) scratch of the tour potential: the legs between targets (m)."""
     homes: np.ndarray
     """(T,) scratch of the tour potential: each target's distance to the dock (m)."""
+    dvs: np.ndarray
+    """(C,) each chaser's Δv of the step (m/s)."""
+    mates: np.ndarray
+    """(C,) bool: each chaser touched another in the step."""
 
 
 def hold_steps(capture_hold: float, dt: float) -> int:
@@ -239,9 +258,14 @@ def make_rules(
     max_episode_steps: int | None,
     body_matrix_t: np.ndarray,
     reach: tuple[float, float],
+    n_chasers: int = 1,
+    chaser_separation: float | None = None,
+    field_loop: bool = False,
 ) -> Rules:
     """The :class:`Rules` of ``cfg`` for fields of ``n_targets`` targets and the given physics
-    (``body_matrix_t`` and ``reach``: see :class:`Rules`)."""
+    (``body_matrix_t`` and ``reach``: see :class:`Rules`), ``n_chasers`` chasers per field that
+    collide within ``chaser_separation`` (m, centre to centre; default: touching, twice the
+    chaser radius)."""
     return Rules(
         dt=float(dt),
         max_accel=float(max_accel),
@@ -264,6 +288,13 @@ def make_rules(
         queued=cfg.target_order == "queued",
         return_to_dock=bool(cfg.return_to_dock),
         max_steps=-1 if max_episode_steps is None else int(max_episode_steps),
+        n_chasers=int(n_chasers),
+        field_loop=bool(field_loop or n_chasers > 1),
+        chaser_separation=(
+            2.0 * float(cfg.chaser_radius)
+            if chaser_separation is None
+            else float(chaser_separation)
+        ),
         gamma=float(cfg.shaping_gamma),
         tour_potential=cfg.shaping_potential == "tour",
         terminal_zero=cfg.shaping_terminal == "zero",
@@ -306,6 +337,8 @@ def new_missions(num: int, dim: int, n_targets: int, n_bodies: int, n_ranked: in
         score=np.zeros(num),
         hold_anchor=np.zeros((num, n_targets, dim)),
         budget_spent=np.zeros(num, dtype=bool),
+        teammate_collision=np.zeros(num, dtype=bool),
+        separation=np.full(num, math.inf),
     )
 
 

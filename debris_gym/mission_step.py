@@ -106,10 +106,10 @@ def propagate(i, accel, matrix_t, rules, state, time, steps, start, path):
 
 
 @inlined
-def move_bodies(i, matrix_t, centers, velocities, attitude, turns):
-    """Every body of field ``i`` flies the step unforced: its state (``centers``,
+def move_bodies(f, matrix_t, centers, velocities, attitude, turns):
+    """Every body of field ``f`` flies the step unforced: its state (``centers``,
     ``velocities``) times the exact state-transition matrix Φ(dt) (``matrix_t`` = Φᵀ), and every
-    polygon turns by its step's angle (``turns[i, j, 0:2]``).
+    polygon turns by its step's angle (``turns[f, j, 0:2]``).
 
     Written out with Φ's structure (:func:`debris_gym.mission_batch.check_transition`): the
     along-track position feeds nothing but itself (Φ_yy = 1), and the cross-track pair (z, ż)
@@ -122,32 +122,33 @@ def move_bodies(i, matrix_t, centers, velocities, attitude, turns):
     pux, puu, puv = matrix_t[0, v], matrix_t[v, v], matrix_t[v + 1, v]
     pvx, pvu, pvv = matrix_t[0, v + 1], matrix_t[v, v + 1], matrix_t[v + 1, v + 1]
     for b in range(centers.shape[1]):
-        x, y = centers[i, b, 0], centers[i, b, 1]
-        vx, vy = velocities[i, b, 0], velocities[i, b, 1]
-        centers[i, b, 0] = pxx * x + pxu * vx + pxv * vy
-        centers[i, b, 1] = y + pyx * x + pyu * vx + pyv * vy
-        velocities[i, b, 0] = pux * x + puu * vx + puv * vy
-        velocities[i, b, 1] = pvx * x + pvu * vx + pvv * vy
+        x, y = centers[f, b, 0], centers[f, b, 1]
+        vx, vy = velocities[f, b, 0], velocities[f, b, 1]
+        centers[f, b, 0] = pxx * x + pxu * vx + pxv * vy
+        centers[f, b, 1] = y + pyx * x + pyu * vx + pyv * vy
+        velocities[f, b, 0] = pux * x + puu * vx + puv * vy
+        velocities[f, b, 1] = pvx * x + pvu * vx + pvv * vy
     if dim == 3:
         pzz, pzw = matrix_t[2, 2], matrix_t[5, 2]
         pwz, pww = matrix_t[2, 5], matrix_t[5, 5]
         for b in range(centers.shape[1]):
-            z, vz = centers[i, b, 2], velocities[i, b, 2]
-            centers[i, b, 2] = pzz * z + pzw * vz
-            velocities[i, b, 2] = pwz * z + pww * vz
+            z, vz = centers[f, b, 2], velocities[f, b, 2]
+            centers[f, b, 2] = pzz * z + pzw * vz
+            velocities[f, b, 2] = pwz * z + pww * vz
     for j in range(attitude.shape[1]):
-        c, s = attitude[i, j, 0], attitude[i, j, 1]
-        cd, sd = turns[i, j, 0], turns[i, j, 1]
-        attitude[i, j, 0] = c * cd - s * sd
-        attitude[i, j, 1] = s * cd + c * sd
+        c, s = attitude[f, j, 0], attitude[f, j, 1]
+        cd, sd = turns[f, j, 0], turns[f, j, 1]
+        attitude[f, j, 0] = c * cd - s * sd
+        attitude[f, j, 1] = s * cd + c * sd
 
 
 @inlined
 def measure(
-    i, state, gaps, nearest, centers, radii, polygon_start, polygons, n_vertices, vertices,
+    i, f, state, gaps, nearest, centers, radii, polygon_start, polygons, n_vertices, vertices,
     attitude,
 ):  # fmt: skip
-    """Gaps (m) from mission ``i``'s chaser centre to every body of its field into ``gaps[i]``,
+    """Gaps (m) from mission ``i``'s chaser centre to every body of its field ``f`` into
+    ``gaps[i]``,
     and its ranked obstacles ``nearest[i]`` re-sorted by gap (:func:`sort_by_gap`).
 
     The gaps are exact for every body: computing all of them in one tight loop costs less than
@@ -156,7 +157,7 @@ def measure(
     """
     dim = centers.shape[2]
     field_gaps(
-        state[i, :dim], i, centers, radii, polygon_start, polygons, n_vertices, vertices,
+        state[i, :dim], f, centers, radii, polygon_start, polygons, n_vertices, vertices,
         attitude, gaps[i],
     )  # fmt: skip
     sort_by_gap(gaps[i], nearest[i])
@@ -182,7 +183,7 @@ def speed_of(i, state):
 
 
 @inlined
-def captures(i, rules, state, gaps, centers, velocities, touched, captured, hold, anchor):
+def captures(i, f, rules, state, gaps, centers, velocities, touched, captured, hold, anchor):
     """Count a step end toward each target's capture: the chaser within ``capture_radius`` of
     the target's surface (surface to surface) with its velocity relative to the target's at
     most ``capture_speed``; a target held so for :attr:`Rules.hold_steps` consecutive step ends
@@ -201,7 +202,7 @@ def captures(i, rules, state, gaps, centers, velocities, touched, captured, hold
             continue
         rel2 = 0.0
         for a in range(dim):
-            dv = state[i, dim + a] - velocities[i, j, a]
+            dv = state[i, dim + a] - velocities[f, j, a]
             rel2 += dv * dv
         held = gaps[i, j] <= reach and math.sqrt(rel2) <= rules.capture_speed
         if rules.hold_capture:
@@ -209,13 +210,13 @@ def captures(i, rules, state, gaps, centers, velocities, touched, captured, hold
             if held and hold[i, j] > 0:
                 drift2 = 0.0
                 for a in range(dim):
-                    d = state[i, a] - centers[i, j, a] - anchor[i, j, a]
+                    d = state[i, a] - centers[f, j, a] - anchor[i, j, a]
                     drift2 += d * d
                 if drift2 > rules.capture_drift * rules.capture_drift:
                     hold[i, j] = 0  # drifted off: this step end starts a new hold
             if held and hold[i, j] == 0:
                 for a in range(dim):
-                    anchor[i, j, a] = state[i, a] - centers[i, j, a]
+                    anchor[i, j, a] = state[i, a] - centers[f, j, a]
         if held:
             hold[i, j] += 1
         else:
@@ -229,7 +230,7 @@ def captures(i, rules, state, gaps, centers, velocities, touched, captured, hold
 
 
 @inlined
-def collides(i, start, touched, slow, rules, state, centers):
+def collides(i, f, start, touched, slow, rules, state, centers):
     """Did the step collide? Any contact with debris that is not a target; with
     ``solid_targets`` any contact with a target too. Otherwise (the v0 rule) a target touched
     too fast (not ``slow``) unless the chaser is leaving it: moving away from its centre at
@@ -249,9 +250,9 @@ def collides(i, start, touched, slow, rules, state, centers):
                 closing1 = 0.0
                 closing_step = 0.0
                 for a in range(dim):
-                    toward = centers[i, j, a] - start[a]
+                    toward = centers[f, j, a] - start[a]
                     closing0 += toward * start[dim + a]
-                    closing1 += (centers[i, j, a] - state[i, a]) * state[i, dim + a]
+                    closing1 += (centers[f, j, a] - state[i, a]) * state[i, dim + a]
                     closing_step += toward * (state[i, a] - start[a])
                 if closing0 > 0.0 or closing1 > 0.0 or closing_step > 0.0:
                     hit = True
@@ -259,11 +260,11 @@ def collides(i, start, touched, slow, rules, state, centers):
 
 
 @inlined
-def outside(i, state, low, high):
-    """Is the chaser of row ``i`` on or beyond the bounds?"""
+def outside(i, f, state, low, high):
+    """Is the chaser of row ``i`` on or beyond the bounds of its field ``f``?"""
     oob = False
     for a in range(low.shape[1]):
-        if state[i, a] <= low[i, a] or state[i, a] >= high[i, a]:
+        if state[i, a] <= low[f, a] or state[i, a] >= high[f, a]:
             oob = True
     return oob
 
@@ -310,9 +311,11 @@ def reward(
 
 
 @inlined
-def potential(i, rules, shaping, state, gaps, captured, centers, dock, length_scale, speed_scale):
-    """Φ of mission ``i``: −(gap to the current goal / L + goals after it), less the optional
-    terms of ``shaping`` (:func:`shaping_terms`; see :mod:`debris_gym.rewards`).
+def potential(
+    i, f, rules, shaping, state, gaps, captured, centers, dock, length_scale, speed_scale
+):  # fmt: skip
+    """Φ of mission ``i`` (in field ``f``): −(gap to the current goal / L + goals after it),
+    less the optional terms of ``shaping`` (:func:`shaping_terms`; see :mod:`debris_gym.rewards`).
 
     ``shaping`` is None when those terms are off (:func:`debris_gym.mission_data.make_shaping`):
     numba then compiles the kernels without the call, whose mere presence cost time in every
@@ -331,40 +334,41 @@ def potential(i, rules, shaping, state, gaps, captured, centers, dock, length_sc
             s += off * off
         gap = math.sqrt(s)
     goal_gap = max(gap, 0.0)
-    phi = -(goal_gap / length_scale[i] + after)
+    phi = -(goal_gap / length_scale[f] + after)
     if shaping is not None:
         phi = shaping_terms(
-            phi, goal, goal_gap, i, rules, shaping, state, gaps, centers, speed_scale[i]
+            phi, goal, goal_gap, i, f, rules, shaping, state, gaps, centers, speed_scale[f]
         )
     return phi
 
 
 @inlined
 def tour_potential(
-    i, rules, shaping, state, gaps, captured, centers, radii, dock, length_scale, speed_scale,
+    i, f, rules, shaping, state, gaps, captured, centers, radii, dock, length_scale, speed_scale,
     order, counters, legs, homes,
 ):  # fmt: skip
-    """Φ of mission ``i`` with ``shaping_potential="tour"`` (the v1 world): −(the shortest
-    remaining mission / L) (:func:`debris_gym.goal.remaining_tour`), less the optional terms of
-    ``shaping`` as :func:`potential` applies them. ``order``, ``counters`` (T,), ``legs``
-    (T, T) and ``homes`` (T,) are scratch (:func:`~debris_gym.goal.remaining_tour`)."""
+    """Φ of mission ``i`` (in field ``f``) with ``shaping_potential="tour"`` (the v1 world):
+    −(the shortest remaining mission / L) (:func:`debris_gym.goal.remaining_tour`), less the
+    optional terms of ``shaping`` as :func:`potential` applies them. ``order``, ``counters``
+    (T,), ``legs`` (T, T) and ``homes`` (T,) are scratch
+    (:func:`~debris_gym.goal.remaining_tour`)."""
     tour = remaining_tour(
-        i, gaps, captured, rules.queued, rules.return_to_dock, rules.chaser_radius, centers,
+        i, f, gaps, captured, rules.queued, rules.return_to_dock, rules.chaser_radius, centers,
         radii, dock, state, order, counters, legs, homes,
     )  # fmt: skip
-    phi = -tour / length_scale[i]
+    phi = -tour / length_scale[f]
     if shaping is not None:
         goal, gap, _ = current_goal(
             i, gaps, captured, rules.queued, rules.return_to_dock, rules.chaser_radius
         )
         phi = shaping_terms(
-            phi, goal, max(gap, 0.0), i, rules, shaping, state, gaps, centers, speed_scale[i]
+            phi, goal, max(gap, 0.0), i, f, rules, shaping, state, gaps, centers, speed_scale[f]
         )
     return phi
 
 
 @kernel  # not inlined: off by default (see potential's ``shaping``)
-def shaping_terms(phi, goal, goal_gap, i, rules, shaping, state, gaps, centers, speed_scale):
+def shaping_terms(phi, goal, goal_gap, i, f, rules, shaping, state, gaps, centers, speed_scale):
     """Φ less the optional approach-speed, clearance and closing terms: ``shaping.speed`` ·
     max(0, speed − (capture_speed + slope · goal gap)) / V; ``shaping.clearance`` ·
     max(0, 1 − c / d)² (c: the chaser surface's gap to the nearest obstacle);
@@ -390,7 +394,7 @@ def shaping_terms(phi, goal, goal_gap, i, rules, shaping, state, gaps, centers, 
             toward = 0.0
             dist2 = 0.0
             for a in range(dim):
-                rel = centers[i, b, a] - state[i, a]
+                rel = centers[f, b, a] - state[i, a]
                 toward += rel * state[i, dim + a]
                 dist2 += rel * rel
             closing = toward / math.sqrt(dist2) if dist2 > 0.0 else 0.0
@@ -449,6 +453,7 @@ def begin_rows(rows, states, rules, shaping, missions, field):
     homes = np.empty(n_targets)
     for r in range(rows.shape[0]):
         i = rows[r]
+        f = i // rules.n_chasers
         for k in range(nearest.shape[1]):  # a new field: sort from index order
             nearest[i, k] = n_targets + k
         for a in range(dim):
@@ -470,37 +475,47 @@ def begin_rows(rows, states, rules, shaping, missions, field):
         out_of_bounds[i] = False
         success[i] = False
         budget_spent[i] = False
+        missions.teammate_collision[i] = False
+        missions.separation[i] = math.inf
         measure(
-            i, state, gaps, nearest, centers, radii, polygon_start, polygons, n_vertices, vertices,
-            attitude,
+            i, f, state, gaps, nearest, centers, radii, polygon_start, polygons, n_vertices,
+            vertices, attitude,
         )  # fmt: skip
         min_clearance[i] = nearest_obstacle(i, n_targets, gaps, math.inf)
         if rules.tour_potential:
             potential_of[i] = tour_potential(
-                i, rules, shaping, state, gaps, captured, centers, radii, dock, length_scale,
+                i, f, rules, shaping, state, gaps, captured, centers, radii, dock, length_scale,
                 speed_scale, order, counters, legs, homes,
             )  # fmt: skip
         else:
             potential_of[i] = potential(
-                i, rules, shaping, state, gaps, captured, centers, dock, length_scale, speed_scale
-            )
+                i, f, rules, shaping, state, gaps, captured, centers, dock, length_scale,
+                speed_scale,
+            )  # fmt: skip
 
 
 @kernel
 def step_all(live, actions, rules, shaping, missions, field, out):
     """One step of every mission in ``live`` (see :meth:`MissionBatch.step`)."""
     scratch = step_scratch(rules, field)
-    step_rows(0, live.shape[0], live, actions, rules, shaping, missions, field, out, scratch)
+    if not rules.field_loop:
+        step_rows(0, live.shape[0], live, actions, rules, shaping, missions, field, out, scratch)
+    else:
+        n_fields = live.shape[0] // rules.n_chasers
+        step_fields(0, n_fields, live, actions, rules, shaping, missions, field, out, scratch)
 
 
 @threaded
 def step_all_threaded(n_chunks, live, actions, rules, shaping, missions, field, out):
-    """:func:`step_all` with the missions split into ``n_chunks`` row ranges run in parallel."""
-    num = live.shape[0]
+    """:func:`step_all` with the fields split into ``n_chunks`` ranges run in parallel."""
+    num = live.shape[0] // rules.n_chasers
     for c in numba.prange(n_chunks):
         lo, hi = c * num // n_chunks, (c + 1) * num // n_chunks
         scratch = step_scratch(rules, field)
-        step_rows(lo, hi, live, actions, rules, shaping, missions, field, out, scratch)
+        if not rules.field_loop:
+            step_rows(lo, hi, live, actions, rules, shaping, missions, field, out, scratch)
+        else:
+            step_fields(lo, hi, live, actions, rules, shaping, missions, field, out, scratch)
 
 
 @inlined
@@ -509,108 +524,222 @@ def step_scratch(rules, field):
     dim = field.dock.shape[1]
     n_path = rules.step_matrix_t.shape[1] // dim  # start + every sub-step
     n_targets = rules.n_targets
+    n_chasers = rules.n_chasers
     return StepScratch(
-        np.empty((n_path, dim)),
-        np.empty(2 * dim),
+        np.empty((n_chasers, n_path, dim)),
+        np.empty((n_chasers, 2 * dim)),
         np.empty(dim),
-        np.empty(field.centers.shape[1], dtype=np.bool_),
+        np.empty((n_chasers, field.centers.shape[1]), dtype=np.bool_),
         np.empty((n_path, dim)),
         np.empty(n_targets, dtype=np.int64),
         np.empty(n_targets, dtype=np.int64),
         np.empty((n_targets, n_targets)),
         np.empty(n_targets),
+        np.empty(n_chasers),
+        np.empty(n_chasers, dtype=np.bool_),
     )
+
+
+@inlined
+def fly_row(i, f, k, actions, rules, missions, field, scratch, dvs):
+    """The first half of row ``i``'s step (chaser ``k`` of field ``f``): burn, propagate, and
+    the contacts along its path relative to the bodies' start-of-step states. The path, start
+    state and touched bodies stay in ``scratch``'s slot ``k`` and the step's Δv in
+    ``dvs[k]`` for :func:`land_row`."""
+    centers, radii, polygon_start = field.centers, field.radii, field.polygon_start
+    n_vertices, vertices = field.n_vertices, field.vertices
+    path, start, touched = scratch.path[k], scratch.start[k], scratch.touched[k]
+    accel = scratch.accel
+    dvs[k] = burn(i, actions[i], rules, missions.delta_v, missions.accel, accel)
+    propagate(
+        i, accel, rules.step_matrix_t, rules, missions.state, missions.time, missions.steps,
+        start, path,
+    )  # fmt: skip
+    if rules.moving:
+        moving_path_touches(
+            path, rules.step_matrix_t, rules.reach_position, rules.reach_velocity,
+            missions.gaps[i], rules.chaser_radius, f, centers, field.velocities, radii,
+            polygon_start, n_vertices, vertices, field.attitude, field.turns, rules.swept_turns,
+            scratch.relative_path, touched,
+        )  # fmt: skip
+    else:
+        path_touches(
+            path, missions.gaps[i], rules.chaser_radius, f, centers, radii, polygon_start,
+            n_vertices, vertices, touched,
+        )  # fmt: skip
+
+
+@inlined
+def land_row(i, f, k, rules, shaping, missions, field, out, scratch, dv, teammate):
+    """The second half of row ``i``'s step, once its field's bodies have flown the step:
+    measure, judge (``teammate``: it touched another chaser of its field), captures, reward."""
+    state, captured, hold = missions.state, missions.captured, missions.hold
+    collision, out_of_bounds, success = missions.collision, missions.out_of_bounds, missions.success
+    gaps, budget_spent, potential_of = missions.gaps, missions.budget_spent, missions.potential
+    centers, radii, dock = field.centers, field.radii, field.dock
+    length_scale, speed_scale = field.length_scale, field.speed_scale
+    n_targets = rules.n_targets
+    start, touched = scratch.start[k], scratch.touched[k]
+    measure(
+        i, f, state, gaps, missions.nearest, centers, radii, field.polygon_start, field.polygons,
+        field.n_vertices, field.vertices, field.attitude,
+    )  # fmt: skip
+    missions.min_clearance[i] = nearest_obstacle(i, n_targets, gaps, missions.min_clearance[i])
+    # judge contacts, then captures (with hold_capture a colliding step captures nothing)
+    slow = speed_of(i, state) <= rules.capture_speed
+    if teammate:
+        missions.teammate_collision[i] = True
+    collision[i] = (
+        collision[i] or teammate or collides(i, f, start, touched, slow, rules, state, centers)
+    )
+    new = 0
+    if not (rules.hold_capture and collision[i]):
+        new = captures(
+            i, f, rules, state, gaps, centers, field.velocities, touched, captured, hold,
+            missions.hold_anchor,
+        )  # fmt: skip
+    # judge the rest
+    out_of_bounds[i] = outside(i, f, state, field.low, field.high)
+    success[i] = success[i] or (
+        not collision[i] and succeeds(i, slow, rules, state, captured, dock)
+    )
+    spent = missions.delta_v[i] >= rules.delta_v_budget
+    budget_spent[i] = spent and not (success[i] or collision[i] or out_of_bounds[i])
+    ended = success[i] or collision[i] or out_of_bounds[i] or spent
+    out.terminated[i] = ended
+    out.truncated[i] = rules.max_steps > 0 and missions.steps[i] >= rules.max_steps
+    # reward
+    if rules.tour_potential:
+        phi = tour_potential(
+            i, f, rules, shaping, state, gaps, captured, centers, radii, dock, length_scale,
+            speed_scale, scratch.order, scratch.counters, scratch.legs, scratch.homes,
+        )  # fmt: skip
+    else:
+        phi = potential(
+            i, f, rules, shaping, state, gaps, captured, centers, dock, length_scale, speed_scale
+        )
+    before = potential_of[i]
+    potential_of[i] = phi
+    terms = out.terms
+    out.reward[i] = reward(
+        i, new, dv, ended, phi, before, rules, success, collision, out_of_bounds, budget_spent,
+        terms,
+    )  # fmt: skip
+    for c in range(terms.shape[1]):  # the task score: every term but the shaping
+        if c != _T_PROGRESS:
+            missions.score[i] += terms[i, c]
+
+
+@inlined
+def idle_row(i, out):
+    """Row ``i`` did not step: its outputs are zero / False."""
+    terms = out.terms
+    for c in range(terms.shape[1]):
+        terms[i, c] = 0.0
+    out.reward[i] = 0.0
+    out.terminated[i] = False
+    out.truncated[i] = False
 
 
 @borrowing  # called once per row range: no need to inline it
 def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out, scratch):
-    """One step of the missions ``lo … hi − 1`` that are ``live``: the phases in order
-    (``scratch``: a :class:`StepScratch` of this loop's own)."""
-    state, time, steps, delta_v = missions.state, missions.time, missions.steps, missions.delta_v
-    captured, hold, score = missions.captured, missions.hold, missions.score
-    collision, out_of_bounds, success = missions.collision, missions.out_of_bounds, missions.success
-    gaps, nearest, min_clearance = missions.gaps, missions.nearest, missions.min_clearance
-    potential_of, applied = missions.potential, missions.accel
-    anchor, budget_spent = missions.hold_anchor, missions.budget_spent
-    centers, radii, polygon_start = field.centers, field.radii, field.polygon_start
-    polygons, n_vertices, vertices = field.polygons, field.n_vertices, field.vertices
-    velocities, attitude, turns = field.velocities, field.attitude, field.turns
-    dock, low, high = field.dock, field.low, field.high
-    length_scale, speed_scale = field.length_scale, field.speed_scale
-    rewards, terminated, truncated, terms = out.reward, out.terminated, out.truncated, out.terms
-    matrix_t = rules.step_matrix_t
-    body_matrix_t = rules.body_matrix_t
-    n_targets = rules.n_targets
-    path, start, accel = scratch.path, scratch.start, scratch.accel
-    touched, rel = scratch.touched, scratch.relative_path
-    order, counters, legs, homes = scratch.order, scratch.counters, scratch.legs, scratch.homes
+    """One step of the missions ``lo … hi − 1`` that are ``live``, one chaser per field (row
+    i flies in field i): the phases in order (``scratch``: a :class:`StepScratch` of this
+    loop's own)."""
+    dvs = scratch.dvs
     for i in range(lo, hi):
         if not live[i]:
-            for k in range(terms.shape[1]):
-                terms[i, k] = 0.0
-            rewards[i] = 0.0
-            terminated[i] = False
-            truncated[i] = False
+            idle_row(i, out)
             continue
-        # burn, propagate
-        dv = burn(i, actions[i], rules, delta_v, applied, accel)
-        propagate(i, accel, matrix_t, rules, state, time, steps, start, path)
-        # contacts along the path, swept from the gaps at its start; then the bodies fly
+        fly_row(i, i, 0, actions, rules, missions, field, scratch, dvs)
+        if rules.moving:  # the bodies fly once the path has been checked against them
+            move_bodies(i, rules.body_matrix_t, field.centers, field.velocities, field.attitude,
+                        field.turns)  # fmt: skip
+        land_row(i, i, 0, rules, shaping, missions, field, out, scratch, dvs[0], False)
+
+
+@borrowing  # called once per field range
+def step_fields(lo, hi, live, actions, rules, shaping, missions, field, out, scratch):
+    """One step of the fields ``lo … hi − 1``, :attr:`Rules.n_chasers` K chasers each (rows
+    f·K … f·K + K − 1 of field f), those ``live`` flying: every chaser flies and is checked
+    against the bodies' start-of-step states, the bodies fly once, every pair of live chasers
+    is checked against each other along their paths (:func:`pair_touches`; a contact is a
+    collision for both), then every chaser is measured, judged and rewarded; last, the field's
+    captures are shared (a target captured by one chaser is captured for all; the capture
+    bonus goes to the chaser that held it). With K = 1 this is :func:`step_rows`, phase for
+    phase."""
+    n_chasers = rules.n_chasers
+    dvs, mates, separation = scratch.dvs, scratch.mates, missions.separation
+    captured = missions.captured
+    for f in range(lo, hi):
+        first = f * n_chasers
+        flying = False
+        for k in range(n_chasers):
+            i = first + k
+            mates[k] = False
+            if live[i]:
+                fly_row(i, f, k, actions, rules, missions, field, scratch, dvs)
+                flying = True
+            else:
+                idle_row(i, out)
+        if not flying:
+            continue
         if rules.moving:
-            moving_path_touches(
-                path, matrix_t, rules.reach_position, rules.reach_velocity, gaps[i],
-                rules.chaser_radius, i, centers, velocities, radii, polygon_start, n_vertices,
-                vertices, attitude, turns, rules.swept_turns, rel, touched,
-            )  # fmt: skip
-            move_bodies(i, body_matrix_t, centers, velocities, attitude, turns)
-        else:
-            path_touches(
-                path, gaps[i], rules.chaser_radius, i, centers, radii, polygon_start, n_vertices,
-                vertices, touched,
-            )  # fmt: skip
-        # measure at the end
-        measure(
-            i, state, gaps, nearest, centers, radii, polygon_start, polygons, n_vertices, vertices,
-            attitude,
-        )  # fmt: skip
-        min_clearance[i] = nearest_obstacle(i, n_targets, gaps, min_clearance[i])
-        # judge contacts, then captures (with hold_capture a colliding step captures nothing)
-        slow = speed_of(i, state) <= rules.capture_speed
-        collision[i] = collision[i] or collides(i, start, touched, slow, rules, state, centers)
-        new = 0
-        if not (rules.hold_capture and collision[i]):
-            new = captures(
-                i, rules, state, gaps, centers, velocities, touched, captured, hold, anchor
-            )
-        # judge the rest
-        out_of_bounds[i] = outside(i, state, low, high)
-        success[i] = success[i] or (
-            not collision[i] and succeeds(i, slow, rules, state, captured, dock)
-        )
-        spent = delta_v[i] >= rules.delta_v_budget
-        budget_spent[i] = spent and not (success[i] or collision[i] or out_of_bounds[i])
-        ended = success[i] or collision[i] or out_of_bounds[i] or spent
-        terminated[i] = ended
-        truncated[i] = rules.max_steps > 0 and steps[i] >= rules.max_steps
-        # reward
-        if rules.tour_potential:
-            phi = tour_potential(
-                i, rules, shaping, state, gaps, captured, centers, radii, dock, length_scale,
-                speed_scale, order, counters, legs, homes,
-            )  # fmt: skip
-        else:
-            phi = potential(
-                i, rules, shaping, state, gaps, captured, centers, dock, length_scale, speed_scale
-            )
-        before = potential_of[i]
-        potential_of[i] = phi
-        rewards[i] = reward(
-            i, new, dv, ended, phi, before, rules, success, collision, out_of_bounds,
-            budget_spent, terms,
-        )  # fmt: skip
-        for k in range(terms.shape[1]):  # the task score: every term but the shaping
-            if k != _T_PROGRESS:
-                score[i] += terms[i, k]
+            move_bodies(f, rules.body_matrix_t, field.centers, field.velocities, field.attitude,
+                        field.turns)  # fmt: skip
+        for k in range(n_chasers):
+            if not live[first + k]:
+                continue
+            for q in range(k + 1, n_chasers):
+                if not live[first + q]:
+                    continue
+                closest = pair_distance(scratch.path[k], scratch.path[q])
+                separation[first + k] = min(separation[first + k], closest)
+                separation[first + q] = min(separation[first + q], closest)
+                if closest <= rules.chaser_separation:
+                    mates[k] = True
+                    mates[q] = True
+        for k in range(n_chasers):
+            if live[first + k]:
+                land_row(
+                    first + k, f, k, rules, shaping, missions, field, out, scratch, dvs[k],
+                    mates[k],
+                )  # fmt: skip
+        for j in range(rules.n_targets):  # share the captures
+            taken = False
+            for k in range(n_chasers):
+                taken = taken or captured[first + k, j]
+            if taken:
+                for k in range(n_chasers):
+                    captured[first + k, j] = True
+
+
+@inlined
+def pair_distance(path_a, path_b):
+    """Closest approach (m, centre to centre) of two chasers flying the sampled paths
+    ``path_a`` and ``path_b`` (K + 1, dim) over one step: the smallest distance from the origin
+    to the chords of their relative path (both are free CW bodies under constant thrust, so
+    their relative motion is sampled at the same sub-steps exactly as a chaser's relative to a
+    body, :func:`~debris_gym.swept_contacts.moving_path_touches`)."""
+    n_points, dim = path_a.shape
+    best = math.inf
+    for k in range(n_points - 1):
+        len2 = 0.0
+        dot = 0.0
+        for a in range(dim):
+            r0 = path_a[k, a] - path_b[k, a]
+            ab = path_a[k + 1, a] - path_b[k + 1, a] - r0
+            len2 += ab * ab
+            dot -= r0 * ab
+        t = dot / len2 if len2 > 0.0 else 0.0
+        t = min(max(t, 0.0), 1.0)
+        d2 = 0.0
+        for a in range(dim):
+            r0 = path_a[k, a] - path_b[k, a]
+            g = r0 + t * (path_a[k + 1, a] - path_b[k + 1, a] - r0)
+            d2 += g * g
+        best = min(best, d2)
+    return math.sqrt(best)
 
 
 @kernel

@@ -25,6 +25,10 @@ from debris_gym.jit import inlined, kernel, threaded
 OBS_LIMIT = 10.0
 """Observation values are normalised to about [−1, 1] and clipped to ±OBS_LIMIT."""
 
+NEAR_LIMIT = 4.0
+"""The near-field goal elements (``obs_near``) saturate at ±NEAR_LIMIT: the gap at 4 capture
+radii, the closing speed at 4 capture speeds."""
+
 
 class ObservationBlock(NamedTuple):
     """One block of the observation: ``slots(cfg)`` slots of the elements ``elements``.
@@ -77,6 +81,19 @@ OBSERVATION_BLOCKS: tuple[ObservationBlock, ...] = (
     ObservationBlock(
         "goal", ("goal_rel_pos_{a}", "goal_rel_vel_{a}", "goal_gap"), lambda cfg: int(cfg.obs_goal)
     ),
+    ObservationBlock(
+        "goal_near", ("goal_near_gap", "goal_near_closing"), lambda cfg: int(cfg.obs_near)
+    ),
+    ObservationBlock(
+        "teammates",
+        (
+            "teammate{k}_rel_pos_{a}",
+            "teammate{k}_rel_vel_{a}",
+            "teammate{k}_heading_{a}",
+            "teammate{k}_flying",
+        ),
+        lambda cfg: cfg.obs_teammates,
+    ),
 )
 """The observation's blocks in order (docs/environments.md has the table with units)."""
 
@@ -117,6 +134,10 @@ class ObservationLayout(NamedTuple):
     budgets: int
     goal: int
     goal_slots: int
+    goal_near: int
+    goal_near_slots: int
+    teammates: int
+    teammate_slots: int
     other_targets: bool
     """``obs_other_targets``: the obstacle slots show the nearest bodies other than the goal."""
     lidar_range: float
@@ -149,6 +170,10 @@ def observation_layout(cfg: EnvConfig) -> ObservationLayout:
         budgets=offsets["budgets"],
         goal=offsets["goal"],
         goal_slots=slots["goal"],
+        goal_near=offsets["goal_near"],
+        goal_near_slots=slots["goal_near"],
+        teammates=offsets["teammates"],
+        teammate_slots=slots["teammates"],
         other_targets=bool(cfg.obs_other_targets),
         lidar_range=float(cfg.lidar_range),
         lidar_directions=lidar_directions(cfg.dim, cfg.lidar_rays)
@@ -208,15 +233,18 @@ def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
     near = np.empty(n_near, dtype=np.int64)  # the bodies in the obstacle slots
     near_gap = np.empty(n_near)
     ranges = np.empty(lidar_directions.shape[0])
+    mates = np.empty(layout.teammate_slots, dtype=np.int64)
+    mate_d2 = np.empty(layout.teammate_slots)
     for i in range(lo, hi):
+        f = i // rules.n_chasers  # the row's field
         goal, gap = NO_GOAL, 0.0  # the current goal, for the options that show it
-        if layout.goal_slots or layout.other_targets:
+        if layout.goal_slots or layout.goal_near_slots or layout.other_targets:
             goal, gap, _ = current_goal(
                 i, gaps, captured, rules.queued, rules.return_to_dock, rules.chaser_radius
             )
         # x / L as x · (1 / L): one division per scale instead of one per element
-        L = length_scale[i]
-        V = speed_scale[i]
+        L = length_scale[f]
+        V = speed_scale[f]
         inv_l = 1.0 / L
         inv_v = 1.0 / V
 
@@ -243,13 +271,13 @@ def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
         for s in range(m):
             j = order[s]
             for a in range(dim):
-                k = _put(out, i, k, (centers[i, j, a] - state[i, a]) * inv_l)
+                k = _put(out, i, k, (centers[f, j, a] - state[i, a]) * inv_l)
             for a in range(dim):
                 if moving:
-                    k = _put(out, i, k, (velocities[i, j, a] - state[i, dim + a]) * inv_v)
+                    k = _put(out, i, k, (velocities[f, j, a] - state[i, dim + a]) * inv_v)
                 else:  # at rest: minus the chaser's
                     k = _put(out, i, k, -state[i, dim + a] * inv_v)
-            k = _put(out, i, k, radii[i, j] * inv_l)
+            k = _put(out, i, k, radii[f, j] * inv_l)
             k = _put(out, i, k, 1.0 if captured[i, j] else 0.0)
         for _slot in range(m, layout.target_slots):  # empty slots read as "captured"
             for _ in range(2 * dim + 1):
@@ -281,8 +309,8 @@ def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
             for s in range(n_near):
                 b = near[s]
                 for a in range(dim):
-                    k = _put(out, i, k, (centers[i, b, a] - state[i, a]) * inv_l)
-                k = _put(out, i, k, radii[i, b] * inv_l)
+                    k = _put(out, i, k, (centers[f, b, a] - state[i, a]) * inv_l)
+                k = _put(out, i, k, radii[f, b] * inv_l)
                 k = _put(out, i, k, gaps[i, b] * inv_l)
             for _slot in range(n_near, layout.obstacle_slots):
                 for _ in range(dim + 1):
@@ -294,7 +322,7 @@ def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
                 for s in range(n_near):
                     b = near[s]
                     for a in range(dim):
-                        k = _put(out, i, k, (velocities[i, b, a] - state[i, dim + a]) * inv_v)
+                        k = _put(out, i, k, (velocities[f, b, a] - state[i, dim + a]) * inv_v)
                 for _slot in range(n_near, layout.obstacle_velocity_slots):
                     for _ in range(dim):
                         k = _put(out, i, k, 0.0)
@@ -303,7 +331,7 @@ def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
         if layout.lidar_rays:
             k = layout.lidar
             ray_ranges(
-                state[i, :dim], lidar_directions, layout.lidar_range, i, centers, radii,
+                state[i, :dim], lidar_directions, layout.lidar_range, f, centers, radii,
                 field.polygon_start, n_vertices, vertices, attitude, ranges,
             )  # fmt: skip
             for r in range(ranges.shape[0]):
@@ -323,7 +351,7 @@ def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
             s = 0.0
             for a in range(dim):
                 if goal >= 0:
-                    rel = centers[i, goal, a] - state[i, a]
+                    rel = centers[f, goal, a] - state[i, a]
                 elif goal == DOCK_GOAL:
                     rel = dock[i, a] - state[i, a]
                 else:
@@ -333,11 +361,98 @@ def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
             for a in range(dim):
                 rel_v = 0.0 if goal == NO_GOAL else -state[i, dim + a]
                 if moving and goal >= 0:
-                    rel_v = velocities[i, goal, a] - state[i, dim + a]
+                    rel_v = velocities[f, goal, a] - state[i, dim + a]
                 k = _put(out, i, k, rel_v / (V / 10.0))
             if goal == DOCK_GOAL:
                 gap = math.sqrt(s)
             k = _put(out, i, k, (gap if goal != NO_GOAL else 0.0) / fine_l)
+
+        # goal near field: gap / capture radius and closing speed / capture speed, saturated
+        if layout.goal_near_slots:
+            k = layout.goal_near
+            goal_near_gap, goal_closing = NEAR_LIMIT, 0.0  # no goal: far, not closing
+            if goal != NO_GOAL:
+                dist2, toward = 0.0, 0.0
+                for a in range(dim):
+                    rel = (
+                        dock[i, a] - state[i, a]
+                        if goal == DOCK_GOAL
+                        else centers[f, goal, a] - state[i, a]
+                    )
+                    rel_v = state[i, dim + a]  # the chaser's velocity relative to the goal
+                    if moving and goal >= 0:
+                        rel_v -= velocities[f, goal, a]
+                    dist2 += rel * rel
+                    toward += rel * rel_v
+                dist = math.sqrt(dist2)
+                if goal == DOCK_GOAL:
+                    gap = dist
+                goal_near_gap = min(max(gap, 0.0) / rules.capture_radius, NEAR_LIMIT)
+                if dist > 0.0:
+                    goal_closing = min(
+                        max(toward / dist / rules.capture_speed, -NEAR_LIMIT), NEAR_LIMIT
+                    )
+            k = _put(out, i, k, goal_near_gap)
+            k = _put(out, i, k, goal_closing)
+
+        # teammates: the other chasers of the field still flying, nearest first
+        if layout.teammate_slots:
+            _teammates(i, f, rules, layout, missions, field, inv_l, inv_v, mates, mate_d2, out)
+
+
+@inlined
+def flying(i, missions):
+    """Row ``i``'s chaser has not ended (no success, collision, exit or spent budget)."""
+    return not (
+        missions.success[i]
+        or missions.collision[i]
+        or missions.out_of_bounds[i]
+        or missions.budget_spent[i]
+    )
+
+
+@inlined
+def _teammates(i, f, rules, layout, missions, field, inv_l, inv_v, mates, mate_d2, out):
+    """The teammates block of row ``i`` (field ``f``): per slot, the nearest other chasers of
+    the field still flying (ties by row), relative position / L, relative velocity / V, the
+    vector from it to the goal it heads for / L (:func:`~debris_gym.goal.current_goal`), and
+    1; empty slots 0. ``mates`` (int64) and ``mate_d2`` are scratch of the slot count."""
+    state, dock, centers = missions.state, field.dock, field.centers
+    dim = dock.shape[1]
+    n_slots = mates.shape[0]
+    count = 0
+    first = f * rules.n_chasers
+    for j in range(first, first + rules.n_chasers):
+        if j == i or not flying(j, missions):
+            continue
+        d2 = 0.0
+        for a in range(dim):
+            d = state[j, a] - state[i, a]
+            d2 += d * d
+        count = _keep_smallest(d2, j, count, mate_d2, mates)
+    k = layout.teammates
+    for s in range(n_slots):
+        if s >= count:
+            for _ in range(3 * dim + 1):
+                k = _put(out, i, k, 0.0)
+            continue
+        j = mates[s]
+        for a in range(dim):
+            k = _put(out, i, k, (state[j, a] - state[i, a]) * inv_l)
+        for a in range(dim):
+            k = _put(out, i, k, (state[j, dim + a] - state[i, dim + a]) * inv_v)
+        goal, _, _ = current_goal(
+            j, missions.gaps, missions.captured, rules.queued, rules.return_to_dock,
+            rules.chaser_radius,
+        )  # fmt: skip
+        for a in range(dim):
+            heading = 0.0
+            if goal >= 0:
+                heading = centers[f, goal, a] - state[j, a]
+            elif goal == DOCK_GOAL:
+                heading = dock[j, a] - state[j, a]
+            k = _put(out, i, k, heading * inv_l)
+        k = _put(out, i, k, 1.0)
 
 
 @inlined
@@ -353,6 +468,30 @@ def _target_before(x, y, i, captured, gaps, queued):
 
 
 @inlined
+def _keep_smallest(value, index, count, best, chosen):
+    """Offer ``index`` with ``value`` to the ``count`` smallest values so far, kept sorted in
+    ``best`` with their indices in ``chosen`` (at most ``best``'s length); returns the new
+    count. Strict comparisons: an equal value stays behind the ones offered before it."""
+    n = best.shape[0]
+    if n == 0:
+        return count
+    if count == n:
+        if not value < best[n - 1]:
+            return count
+        pos = n - 1
+    else:
+        pos = count
+        count += 1
+    while pos > 0 and value < best[pos - 1]:
+        best[pos] = best[pos - 1]
+        chosen[pos] = chosen[pos - 1]
+        pos -= 1
+    best[pos] = value
+    chosen[pos] = index
+    return count
+
+
+@inlined
 def _select_nearest(gaps, first, skip, nearest, best):
     """The bodies ``first …`` except ``skip`` with the smallest ``gaps`` (B,), nearest first (ties
     by index), into ``nearest``; ``best`` is scratch of its length (their gaps, kept beside the
@@ -362,17 +501,4 @@ def _select_nearest(gaps, first, skip, nearest, best):
     for b in range(first, gaps.shape[0] if n else first):
         if b == skip:
             continue
-        g = gaps[b]
-        if count == n:
-            if not g < best[n - 1]:
-                continue
-            pos = n - 1
-        else:
-            pos = count
-            count += 1
-        while pos > 0 and g < best[pos - 1]:  # strict: an equal gap stays behind (by index)
-            best[pos] = best[pos - 1]
-            nearest[pos] = nearest[pos - 1]
-            pos -= 1
-        best[pos] = g
-        nearest[pos] = b
+        count = _keep_smallest(gaps[b], b, count, best, nearest)

@@ -54,6 +54,13 @@ OBS_MEANING = [
     (r"goal_rel_pos_(\w)", "current goal − chaser position, {0} (obs_goal)", "m", "L/10"),
     (r"goal_rel_vel_(\w)", "current goal − chaser velocity, {0} (obs_goal)", "m/s", "V/10"),
     (r"goal_gap", "gap from the chaser's surface to the goal (obs_goal)", "m", "L/10"),
+    (r"goal_near_gap", "gap to the goal, saturated at 4 (obs_near)", "m", "capture_radius"),
+    (
+        r"goal_near_closing",
+        "speed toward the goal, saturated at ±4 (obs_near)",
+        "m/s",
+        "capture_speed",
+    ),
 ]
 
 

@@ -668,6 +668,34 @@ def test_goal_observation_at_a_fine_scale():
     assert goal["goal_gap"] == pytest.approx(np.linalg.norm(pos) / 50.0, rel=1e-6)
 
 
+def test_near_field_goal_observation_hand_computed():
+    """obs_near appends the goal gap / capture_radius and the closing speed / capture_speed,
+    each saturated at ±4; the dock goal's gap is the distance to the dock point."""
+    env = DebrisFieldEnv(obs_near=True, capture_radius=5.0, capture_speed=0.2)
+    names = env.observation_names()
+    assert names[-2:] == ["goal_near_gap", "goal_near_closing"]
+    scen = simple_scenario()  # target at (0, 100), radius 5; chaser radius 1
+    d = math.hypot(3.0, 10.0)
+    cases = [  # chaser state -> (gap / 5 m, closing / 0.2 m/s)
+        ([0.0, 80.0, 0.1, 0.2], (14.0 / 5.0, 0.2 / 0.2)),
+        ([0.0, 92.0, 0.0, -0.05], (2.0 / 5.0, -0.05 / 0.2)),
+        ([3.0, 90.0, 0.3, 0.0], ((d - 6.0) / 5.0, (-3.0 * 0.3 / d) / 0.2)),
+        ([0.0, 0.0, 0.0, 3.0], (4.0, 4.0)),  # both saturated
+    ]  # fmt: skip
+    for chaser, (gap, closing) in cases:
+        obs, _ = env.reset(options={"scenario": scen, "chaser_state": chaser})
+        assert obs[-2] == pytest.approx(gap, rel=1e-6)
+        assert obs[-1] == pytest.approx(closing, rel=1e-6)
+    # once the only target is captured, the goal is the dock at the origin
+    env.reset(options={"scenario": scen, "chaser_state": [0.0, 92.0, 0.0, 0.0]})
+    obs, _, _, _, info = env.step(np.zeros(2, dtype=np.float32))
+    assert info["targets_captured"] == 1
+    pos, vel = info["chaser_state"][:2], info["chaser_state"][2:]
+    dist = float(np.linalg.norm(pos))
+    assert obs[-2] == pytest.approx(min(dist / 5.0, 4.0), rel=1e-6)
+    assert obs[-1] == pytest.approx(float(-pos @ vel) / dist / 0.2, rel=1e-5, abs=1e-6)
+
+
 def assert_progress_telescopes(seed: int, steps: int, **kwargs) -> None:
     """With γ = 1 and 'hold' the progress terms of random flights sum to w · (Φ(end) − Φ(start))."""
     env = DebrisFieldEnv(shaping_gamma=1.0, shaping_terminal="hold", **kwargs)

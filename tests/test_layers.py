@@ -36,7 +36,12 @@ PHYSICS = {
 }
 """The physics of debris_gym: CW motion, thrust, contacts and gaps, compiled."""
 
-SHELL_LAYER = ("debris_gym.envs", "debris_gym.integrations", "debris_gym.suites")
+SHELL_LAYER = (
+    "debris_gym.envs",
+    "debris_gym.integrations",
+    "debris_gym.suites",
+    "debris_gym.swarm",
+)
 """The modules that build on gymnasium (with ``debris_gym.registration`` and the package's
 ``__init__``, which registers the IDs)."""
 

@@ -53,7 +53,7 @@ def test_remaining_tour_is_the_shortest_order(seed, n_targets, dim, queued, retu
         orders = itertools.permutations(left) if left else [()]
         want = min(tour_length(list(p), chaser[:dim], *args) for p in orders)
     got = remaining_tour(
-        0, gaps[None], captured, queued, return_to_dock, CHASER_RADIUS, centers, radii,
+        0, 0, gaps[None], captured, queued, return_to_dock, CHASER_RADIUS, centers, radii,
         np.zeros((1, dim)), chaser[None], np.zeros(n_targets, np.int64),
         np.zeros(n_targets, np.int64), np.zeros((n_targets, n_targets)), np.zeros(n_targets),
     )  # fmt: skip

@@ -43,6 +43,7 @@ from agents.experiments.training.run import TrainOptions, train
 from agents.policies.learned import LearnedAgent
 from agents.policies.model_files import sidecar_path
 from debris_gym.files import save_atomic
+from debris_gym.swarm import SWARM_SPECS
 from tests.helpers import flies_old_ids, load_script
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -349,7 +350,9 @@ def test_checked_in_configs_are_valid():
         if config.algo == "ppo":
             assert config.normalize.enabled
             # the env's options as the run makes them: its ID's, then the recipe's
-            env_options = {**gym.spec(config.env_id).kwargs, **config.env_kwargs}
+            spec = SWARM_SPECS[config.env_id] if config.env_id in SWARM_SPECS else None
+            own = spec["kwargs"] if spec else gym.spec(config.env_id).kwargs
+            env_options = {**own, **config.env_kwargs}
             if env_options.get("shaping_terminal", "zero") == "zero":
                 # policy-invariant shaping: gamma equals the env's shaping_gamma (0.99 default)
                 assert config.gamma == env_options.get("shaping_gamma", 0.99)

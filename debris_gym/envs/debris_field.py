@@ -126,6 +126,10 @@ class DebrisFieldEnv(ShellView, gym.Env):
 
     ## Version History
 
+    * v2 (the default): the v1 world with the hold rules — a capture is a 30 s hold within 5 m
+      of the target's surface at ≤ 0.1 m/s relative to it, drifting at most 1 m and untouched
+      (a colliding step captures nothing); running out of Δv is a failure (−50); the hold's
+      progress is observed; contacts follow a turning polygon's surface through its turn.
     * v1: the physical world — every body on its natural CWH relative orbit, solid targets,
       capture as a 30 s hold at ≤ 0.2 m/s relative to the target, fine discrete thrust, a
       potential on the shortest remaining mission; the Easy and Medium rungs.

@@ -127,9 +127,20 @@ class MissionShell:
         threads: threads that step and observe the missions (results do not depend on it).
         draw_ahead: draw each row's next moving field on a worker thread
             (:class:`~debris_gym.envs.field_supply.FieldSupply`).
+        chasers: chasers per field K (a swarm): ``num`` missions fly in ``num / K`` fields,
+            missions f·K … f·K + K − 1 in field f, each from its own dock slot
+            (``dock_offsets``); fields, generators and pinned scenarios are per field. A
+            swarm shell does not restart missions by itself (``autoreset`` NEVER).
+        chaser_separation: centre-to-centre distance (m) at which two chasers of a field
+            collide (default: twice the chaser radius).
+        dock_offsets: (K, dim) each chaser's dock slot relative to the field's dock (m;
+            default: all at the dock).
+        field_loop: step field by field, as swarms do, even with one chaser per field (the
+            results are those of the row loop: what the swarm's one-chaser test checks).
 
     Raises:
-        ValueError: a random-field config whose fields can never be placed; a bad ``threads``.
+        ValueError: a random-field config whose fields can never be placed; a bad ``threads``
+            or ``chasers``.
     """
 
     def __init__(
@@ -141,25 +152,44 @@ class MissionShell:
         max_episode_steps: int | None = None,
         threads: int = 1,
         draw_ahead: bool = False,
+        chasers: int = 1,
+        chaser_separation: float | None = None,
+        dock_offsets: np.ndarray | None = None,
+        field_loop: bool = False,
     ) -> None:
         self.threads = check_threads(threads)
         self.made_config = self.config = config
         self.num, self.dim = num, config.dim
+        if chasers < 1 or num % chasers:
+            raise ValueError(f"chasers={chasers} must be at least 1 and divide num={num}")
+        if chasers > 1 and autoreset is not Autoreset.NEVER:
+            raise ValueError("a swarm shell (chasers > 1) does not autoreset: use Autoreset.NEVER")
+        if chasers == 1 and config.obs_teammates:
+            raise ValueError(
+                f"obs_teammates={config.obs_teammates} is a swarm option (teammate slots); "
+                "single-agent envs have none: use 0, or debris_gym.swarm.make"
+            )
+        self.chasers, self.n_fields = chasers, num // chasers
+        self.chaser_separation = chaser_separation
+        self.field_loop = field_loop or chasers > 1
+        self.dock_offsets = None if dock_offsets is None else np.asarray(dock_offsets, float)
         self.autoreset = autoreset
         self.max_episode_steps = max_episode_steps
         self.horizon = DEFAULT_HORIZON_STEPS
         """Steps the ``time_remaining`` observation counts down from (the views set it)."""
-        self.supply = FieldSupply(config, num, ahead=draw_ahead)
+        fields = self.n_fields
+        self.supply = FieldSupply(config, fields, ahead=draw_ahead)
         self.batch: MissionBatch | None = None
         """The missions and fields as arrays (None before the first reset)."""
-        self.pinned: list[Scenario | None] = [None] * num
-        """Each row's field when it was not drawn (pinned or the paper world), else None."""
+        self.pinned: list[Scenario | None] = [None] * fields
+        """Each field's scenario when it was not drawn (pinned or the paper world), else None."""
         self._pin: Scenario | None = None  # pinned by the last reset: autoresets fly it again
-        self._built: list[Scenario | None] = [None] * num  # random fields' Scenarios, once built
-        self._random_world = np.zeros(num, dtype=bool)  # the row has the random fields' world
+        self._built: list[Scenario | None] = [None] * fields  # random fields' Scenarios, built
+        self._random_world = np.zeros(fields, dtype=bool)  # the field has the random world
         self._restart = np.zeros(num, dtype=bool)  # next-step autoreset: rows to restart
         self._obs_size = len(observation_names(config))
         self._all_rows = np.arange(num, dtype=np.int64)
+        self._all_fields = np.arange(fields, dtype=np.int64)
         self._live = np.ones(num, dtype=bool)
 
     # --- reading ------------------------------------------------------------------------------
@@ -177,9 +207,9 @@ class MissionShell:
         return batch
 
     def scenario(self, i: int) -> Scenario | None:
-        """Row ``i``'s field as a :class:`Scenario` (a pinned one as given; a random one built
-        from its arrays, as drawn at t = 0, when first asked for), or None before the first
-        reset."""
+        """Field ``i`` (row ``i``'s with one chaser per field) as a :class:`Scenario` (a pinned
+        one as given; a random one built from its arrays, as drawn at t = 0, when first asked
+        for), or None before the first reset."""
         batch = self.batch
         if batch is None:
             return None
@@ -272,8 +302,8 @@ class MissionShell:
         """Start a new episode in every row, as a transaction.
 
         Args:
-            generators: per row, a new generator (a seeded reset) or None (the row's own goes
-                on); None for all rows going on.
+            generators: per field (per row with one chaser per field), a new generator (a
+                seeded reset) or None (the field's own goes on); None for all going on.
             options: ``reset``'s options (:data:`~debris_gym.envs.common.RESET_OPTIONS`):
                 ``scenario`` pins one field in every row, ``chaser_state`` sets the initial
                 states ((2·dim,) or (N, 2·dim)), ``mission`` changes what the missions ask
@@ -283,7 +313,7 @@ class MissionShell:
             ValueError: naming the bad option; nothing changed.
         """
         options = checked_reset_options(options)
-        rows = self._all_rows
+        rows, fields_rows = self._all_rows, self._all_fields
         saved_supply = self.supply.save()
         saved = self.config, self.batch
         try:
@@ -299,8 +329,8 @@ class MissionShell:
                     self.config, self.batch = config, None
             if generators is not None:
                 self.supply.set_generators(
-                    rows, [g if g is not None else self.supply.generators[i]
-                           for i, g in enumerate(generators)],
+                    fields_rows, [g if g is not None else self.supply.generators[i]
+                                  for i, g in enumerate(generators)],
                 )  # fmt: skip
             pinned = options.get("scenario")
             fields = None
@@ -308,7 +338,7 @@ class MissionShell:
                 steps = self.max_episode_steps or self.horizon  # its motion is checked so long
                 pinned = self._checked_pinned(as_scenario(pinned, horizon_steps=steps))
             else:
-                fields = self.supply.take(rows)
+                fields = self.supply.take(fields_rows)
                 if fields is None:
                     self._fit(self._shape_of(self.supply.paper_field()))
                 else:
@@ -325,13 +355,13 @@ class MissionShell:
         # commit: everything is valid, nothing below raises on it
         self._pin = pinned
         if pinned is not None:
-            self._install_scenario(rows, pinned)
+            self._install_scenario(fields_rows, pinned)
         else:
-            self._install(rows, fields)
+            self._install(fields_rows, fields)
         self.batch_in_use.begin(rows, states)
         self._restart[:] = False
         if pinned is None:
-            self.supply.draw_ahead(rows)
+            self.supply.draw_ahead(fields_rows)
 
     def checked_mission(self, mission: Any) -> EnvConfig:
         """The config a ``{"mission": ...}`` reset option gives
@@ -371,12 +401,15 @@ class MissionShell:
                 value, n, scenario.low, scenario.high, scenario.size / scenario.dt,
                 geometry.signed_distance, cfg.chaser_radius,
             )  # fmt: skip
-        # the drawn fields in a batch of their own: the gaps the shell's batch would give
+        # the drawn fields in a batch of their own (one row per chaser): the gaps the shell's
+        # batch would give
         bodies = fields.radii.shape[1]
         check = FieldBatch(n, bodies, self.dim, MAX_POLYGON_VERTICES, fields.n_targets)
+        k = self.chasers
         check.load_arrays(
-            self._all_rows, fields.centers, fields.radii, fields.vertices, fields.n_vertices
-        )
+            self._all_rows, *(np.repeat(a, k, axis=0) if k > 1 else a for a in (
+                fields.centers, fields.radii, fields.vertices, fields.n_vertices))
+        )  # fmt: skip
         low, high = np.array(fields.bounds).T
         return checked_chaser_states(
             value, n, low, high, self.supply.spec.field_size / cfg.dt, check.gaps,
@@ -409,12 +442,14 @@ class MissionShell:
             self.config, self.num, shape.n_targets, shape.n_bodies, physics=shape.physics,
             polygon_start=0 if shape.polygon_targets else None,
             max_episode_steps=self.max_episode_steps, threads=self.threads,
+            chasers=self.chasers, chaser_separation=self.chaser_separation,
+            field_loop=self.field_loop,
         )  # fmt: skip
         self._random_world[:] = False
         return self.batch
 
     def _install(self, rows: np.ndarray, fields: FieldArrays | None) -> None:
-        """Load the drawn ``fields`` (None: the paper world) into the rows ``rows``."""
+        """Load the drawn ``fields`` (None: the paper world) into the fields ``rows``."""
         if fields is None:
             self._install_scenario(rows, self.supply.paper_field())
             return
@@ -425,23 +460,34 @@ class MissionShell:
         stale = rows[~self._random_world[rows]]
         if len(stale):  # every random field has the same world: set it where it changed
             half = fields.half_size
-            batch.set_world(stale, 0.0, -half, half, half)
+            self._set_world(stale, 0.0, -half, half, half)
             self._random_world[stale] = True
 
     def _install_scenario(self, rows: np.ndarray, scenario: Scenario) -> None:
-        """Load ``scenario`` into the rows ``rows``."""
+        """Load ``scenario`` into the fields ``rows``."""
         batch = self.batch_in_use
         batch.load_scenario(rows, scenario)
         for i in rows.tolist():
             self.pinned[i], self._built[i] = scenario, None
-        batch.set_world(rows, scenario.dock, scenario.low, scenario.high, scenario.size / 2.0)
+        self._set_world(rows, scenario.dock, scenario.low, scenario.high, scenario.size / 2.0)
         self._random_world[rows] = False
+
+    def _set_world(self, rows: np.ndarray, dock, low, high, length_scale: float) -> None:
+        """The world of the fields ``rows``; each chaser's dock is the field's plus its slot's
+        offset (:attr:`dock_offsets`)."""
+        batch = self.batch_in_use
+        batch.set_world(rows, dock, low, high, length_scale)
+        if self.dock_offsets is not None:
+            k = self.chasers
+            missions = (np.asarray(rows, dtype=np.int64)[:, None] * k + np.arange(k)).ravel()
+            batch.dock[missions] += np.tile(self.dock_offsets, (len(rows), 1))
 
     # --- step ---------------------------------------------------------------------------------
 
-    def step(self, actions: np.ndarray) -> StepResult:
+    def step(self, actions: np.ndarray, live: np.ndarray | None = None) -> StepResult:
         """One step of every mission (validated normalised thrust commands (N, dim)); ended
-        missions restart as :attr:`autoreset` says.
+        missions restart as :attr:`autoreset` says. ``live`` (N,) bool: with autoreset NEVER,
+        the missions that step (default all; a swarm leaves out its ended chasers).
 
         Raises:
             RuntimeError: before the first reset.
@@ -450,7 +496,7 @@ class MissionShell:
             raise RuntimeError("call reset() before step()")
         batch = self.batch
         if self.autoreset is Autoreset.NEVER:
-            out = batch.step(actions, self._live)
+            out = batch.step(actions, self._live if live is None else live)
             return StepResult(out.reward, out.terminated, out.truncated, out.terms)
         restart = self._restart
         out = batch.step(actions, ~restart)
@@ -470,16 +516,19 @@ class MissionShell:
         return StepResult(reward, terminated, truncated, terms)
 
     def restart(self, mask: np.ndarray) -> None:
-        """New episodes for the rows in ``mask`` (an autoreset): in a field pinned by the last
-        reset again, else in the next field of each row's supply; the chaser at the dock."""
-        rows = np.flatnonzero(mask)
+        """New episodes in the fields in ``mask`` (F,) (an autoreset; with one chaser per field
+        the rows): in a field pinned by the last reset again, else in the next field of each
+        field's supply; every chaser of the field at rest at its dock."""
+        fields = np.flatnonzero(mask)
+        k = self.chasers
+        rows = fields if k == 1 else (fields[:, None] * k + np.arange(k)).ravel()
         if self._pin is not None:
-            self._install_scenario(rows, self._pin)
+            self._install_scenario(fields, self._pin)
             self.batch_in_use.begin(rows)
             return
-        self._install(rows, self.supply.take(rows))
+        self._install(fields, self.supply.take(fields))
         self.batch_in_use.begin(rows)
-        self.supply.draw_ahead(rows)
+        self.supply.draw_ahead(fields)
 
     def close(self) -> None:
         """Stop the field supply's worker thread."""

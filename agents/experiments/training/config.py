@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from agents.experiments.config_files import CONFIG_DIR, apply_overrides, env_stub
+from agents.experiments.config_files import CONFIG_DIR, ConfigError, apply_overrides, env_stub
 from agents.experiments.training.sweep_config import SweepConfig, validate_sweep
 from agents.experiments.training.validation import (
     at_least,
@@ -261,6 +261,8 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
 
     import debris_gym  # noqa: F401  (registers the IDs)
     from debris_gym.config import EnvConfig
+    from debris_gym.swarm import SWARM_SPECS
+    from debris_gym.swarm import checked_options as checked_swarm_options
 
     top = [f.name for f in dataclasses.fields(TrainConfig)]
     data = check_keys(data, top, "", source)
@@ -270,8 +272,9 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
     version = typed(data["version"], int, "version", source)
     at_least(version, 1, "version", source)
     env_id = typed(data["env_id"], str, "env_id", source)
-    if env_id not in gym.registry or gym.registry[env_id].namespace != "DebrisGym":
-        ids = [i for i in gym.registry if i.startswith("DebrisGym/")]
+    swarm = env_id in SWARM_SPECS
+    if not swarm and (env_id not in gym.registry or gym.registry[env_id].namespace != "DebrisGym"):
+        ids = [i for i in gym.registry if i.startswith("DebrisGym/")] + list(SWARM_SPECS)
         what = "is not a DebrisGym env" if env_id in gym.registry else "names an unknown env"
         raise config_error(source, "env_id", f"{what}: {env_id!r}; DebrisGym IDs: {', '.join(ids)}")
     algo = typed(data["algo"], str, "algo", source).lower()
@@ -287,15 +290,25 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
 
     # env options: the env's own validation names the key
     env_kwargs = typed(data.get("env_kwargs") or {}, dict, "env_kwargs", source)
-    spec = gym.registry[env_id]
     options = {k: v for k, v in env_kwargs.items() if k != "max_episode_steps"}
+    spec_kwargs = SWARM_SPECS[env_id]["kwargs"] if swarm else gym.registry[env_id].kwargs
     if "max_episode_steps" in env_kwargs:
         steps = typed(env_kwargs["max_episode_steps"], int, "env_kwargs.max_episode_steps", source)
         at_least(steps, 1, "env_kwargs.max_episode_steps", source)
         env_kwargs["max_episode_steps"] = steps
     try:
-        env_config = EnvConfig.from_kwargs(**{**spec.kwargs, **options})
+        if swarm:  # one env per chaser: n_envs counts chasers
+            env_config, swarm_config = checked_swarm_options(env_id, options)
+            if n_envs % swarm_config.n_chasers:
+                raise config_error(
+                    source, "n_envs", f"must be a multiple of n_chasers={swarm_config.n_chasers} "
+                    f"(one env per chaser), got {n_envs}",
+                )  # fmt: skip
+        else:
+            env_config = EnvConfig.from_kwargs(**{**spec_kwargs, **options})
     except (TypeError, ValueError) as exc:
+        if isinstance(exc, ConfigError):
+            raise
         raise config_error(source, "env_kwargs", f"is invalid: {exc}") from None
     if algo == "dqn" and env_config.action != "discrete":
         raise config_error(
@@ -354,8 +367,10 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
             "checkpoint.replay_buffer",
             f"must be 'auto', 'always' or 'never', got {checkpoint.replay_buffer!r}",
         )
+    if swarm and data.get("curriculum"):
+        raise config_error(source, "curriculum", "is not supported for swarm IDs yet (use [])")
     curriculum = validate_curriculum(
-        data.get("curriculum"), env_kwargs, spec.kwargs, env_config, source
+        data.get("curriculum"), env_kwargs, spec_kwargs, env_config, source
     )
     init = _validate_init(data.get("init"), algo, normalize, source)
     encoder = _validate_encoder(data.get("encoder"), init, source)

@@ -1,0 +1,111 @@
+"""Several chasers in one debris field: PettingZoo envs on the single-agent compiled step.
+
+``debris_gym.swarm.make("DebrisGym/Swarm2D-v0", **options)`` gives a
+:class:`~debris_gym.swarm.parallel.SwarmParallelEnv` (PettingZoo ``ParallelEnv``);
+:func:`parallel_env` and :func:`env` (its AEC view) take the same options. Needs PettingZoo (the
+``multiagent`` extra; the specs, :class:`SwarmCore` and the SB3 training env
+:class:`~debris_gym.integrations.sb3_swarm.SwarmVecEnv` do not). docs/swarm.md has the rules,
+spaces and IDs.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from debris_gym.config import EnvConfig
+from debris_gym.registration import V2_WORLD
+from debris_gym.swarm.config import SwarmConfig, dock_slots, split_options
+from debris_gym.swarm.core import TEAM_INFO_KEYS, SwarmCore
+
+if TYPE_CHECKING:
+    from debris_gym.swarm.parallel import SwarmParallelEnv
+
+__all__ = [
+    "DEFAULT_SWARM",
+    "SWARM_SPECS",
+    "TEAM_INFO_KEYS",
+    "SwarmConfig",
+    "SwarmCore",
+    "SwarmParallelEnv",
+    "checked_options",
+    "dock_slots",
+    "env",
+    "make",
+    "parallel_env",
+]
+
+DEFAULT_SWARM = "DebrisGym/Swarm2D-v0"
+
+_CAPTURE_MISSION: dict[str, object] = {"n_chasers": 3, "n_targets": 6, "n_obstacles": 20}
+"""The capture mission: six targets shared by three chasers among twenty other debris, every
+surviving chaser back at its own dock slot."""
+
+SWARM_SPECS: dict[str, dict[str, Any]] = {
+    "DebrisGym/Swarm2D-v0": {"max_episode_steps": 1000,
+                             "kwargs": {"dim": 2, **V2_WORLD, **_CAPTURE_MISSION}},
+    "DebrisGym/Swarm3D-v0": {"max_episode_steps": 1000,
+                             "kwargs": {"dim": 3, **V2_WORLD, **_CAPTURE_MISSION}},
+    "DebrisGym/Swarm2D-Easy-v0": {
+        "max_episode_steps": 1000,
+        "kwargs": {"dim": 2, **V2_WORLD, "n_chasers": 2, "n_targets": 2, "n_obstacles": 5,
+                   "return_to_dock": False},
+    },
+}  # fmt: skip
+"""Every swarm ID with its time limit (steps) and options: the v2 world of the single-agent
+IDs with several chasers."""
+
+
+def __getattr__(name: str) -> Any:
+    # the PettingZoo view is imported on first use: the specs and the core (which train.py
+    # reads) need no PettingZoo
+    if name == "SwarmParallelEnv":
+        from debris_gym.swarm.parallel import SwarmParallelEnv
+
+        return SwarmParallelEnv
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def checked_options(env_id: str, options: dict[str, Any]) -> tuple[EnvConfig, SwarmConfig]:
+    """The single-agent config and the swarm config of ``env_id`` with ``options`` over its
+    own (``max_episode_steps`` left out), validated.
+
+    Raises:
+        ValueError: an unknown ID or a bad option (the message names it).
+    """
+    spec = SWARM_SPECS.get(env_id)
+    if spec is None:
+        raise ValueError(f"unknown swarm ID {env_id!r}; known: {', '.join(SWARM_SPECS)}")
+    merged = {**spec["kwargs"], **options}
+    merged.pop("max_episode_steps", None)
+    env_options, swarm = split_options(merged)
+    config = EnvConfig.from_kwargs(**env_options)
+    return config, swarm.checked(config)
+
+
+def make(env_id: str = DEFAULT_SWARM, **options: Any) -> SwarmParallelEnv:
+    """The swarm env ``env_id`` (:data:`SWARM_SPECS`) with ``options`` over its own.
+
+    Raises:
+        ValueError: an unknown ID (the message lists the known ones) or option.
+    """
+    spec = SWARM_SPECS.get(env_id)
+    if spec is None:
+        raise ValueError(f"unknown swarm ID {env_id!r}; known: {', '.join(SWARM_SPECS)}")
+    from debris_gym.swarm.parallel import SwarmParallelEnv
+
+    kwargs = {**spec["kwargs"], **options}
+    kwargs.setdefault("max_episode_steps", spec["max_episode_steps"])
+    return SwarmParallelEnv(**kwargs)
+
+
+def parallel_env(**options: Any) -> SwarmParallelEnv:
+    """The default swarm ID (:data:`DEFAULT_SWARM`) as a ``ParallelEnv``, with ``options``."""
+    return make(DEFAULT_SWARM, **options)
+
+
+def env(**options: Any):
+    """The default swarm ID as a PettingZoo AEC env (``parallel_to_aec`` of
+    :func:`parallel_env`)."""
+    from pettingzoo.utils.conversions import parallel_to_aec
+
+    return parallel_to_aec(parallel_env(**options))

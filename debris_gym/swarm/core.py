@@ -1,0 +1,197 @@
+"""E swarm missions (fields) of K chasers each, the core every swarm env is a view of.
+
+:class:`SwarmCore` holds a :class:`~debris_gym.envs.shell.MissionShell` with K chasers per
+field (row e·K + k is chaser k of field e) and what a swarm adds to it: the dock slots, the
+chasers still flying, the team term of the reward and the team's outcome. The PettingZoo env
+(:class:`~debris_gym.swarm.parallel.SwarmParallelEnv`) is its one-field view, the SB3 training
+env (:class:`~debris_gym.integrations.sb3_swarm.SwarmVecEnv`) its many-field view.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from debris_gym.config import EnvConfig
+from debris_gym.envs.common import (
+    DEFAULT_HORIZON_STEPS,
+    checked_continuous_actions,
+    discrete_action_table,
+    field_spec,
+    observation_names,
+    single_spaces,
+)
+from debris_gym.envs.shell import Autoreset, MissionShell
+from debris_gym.rewards import REWARD_TERMS
+from debris_gym.swarm.config import SwarmConfig, dock_slots, split_options
+
+__all__ = ["TEAM_INFO_KEYS", "SwarmCore", "SwarmStep"]
+
+TEAM_INFO_KEYS = (
+    "team_success",
+    "team_captures",
+    "min_separation",
+    "teammate_collision",
+    "separation",
+    "reward_team",
+)
+"""The keys a swarm adds to every chaser's single-agent info (docs/swarm.md)."""
+
+_CAPTURE, _SUCCESS = REWARD_TERMS.index("capture"), REWARD_TERMS.index("success")
+
+
+class SwarmStep(NamedTuple):
+    """One step of every field (row i = chaser i; new arrays)."""
+
+    reward: np.ndarray
+    """(N,) each chaser's reward with its team term (0 for chasers that did not fly)."""
+    terminated: np.ndarray
+    """(N,) bool: the chaser ended in this step (success, collision, exit, budget)."""
+    truncated: np.ndarray
+    """(N,) bool: the time limit ended the chaser in this step."""
+    terms: np.ndarray
+    """(N, 8) the named reward terms."""
+    team: np.ndarray
+    """(N,) each chaser's team term."""
+    flew: np.ndarray
+    """(N,) bool: the chasers that flew this step."""
+    field_over: np.ndarray
+    """(E,) bool: every chaser of the field has ended."""
+
+
+class SwarmCore:
+    """E fields of K chasers: the shell, the dock slots, the flying mask and the team.
+
+    Args:
+        num_fields: fields E.
+        max_episode_steps: the time limit that truncates every chaser (None: none).
+        **options: single-agent options and the swarm's (:class:`SwarmConfig`).
+
+    Raises:
+        ValueError: naming a bad option.
+    """
+
+    render_mode: str | None = None
+    """Swarm envs do not render yet (vector-env wrappers ask for this)."""
+
+    def __init__(
+        self, num_fields: int = 1, max_episode_steps: int | None = DEFAULT_HORIZON_STEPS,
+        **options: Any,
+    ) -> None:  # fmt: skip
+        env_options, swarm = split_options(options)
+        self.config = config = EnvConfig.from_kwargs(**env_options)
+        self.swarm: SwarmConfig = swarm.checked(config)
+        k = self.chasers = self.swarm.n_chasers
+        self.num_fields = num_fields
+        self.num = num_fields * k
+        slots = dock_slots(k, self.swarm.dock_spacing, config.dim)
+        reach = float(np.max(np.linalg.norm(slots, axis=1))) + config.chaser_radius
+        clear = field_spec(config).dock_clearance
+        if config.scenario == "random" and reach >= clear:
+            raise ValueError(
+                f"{k} dock slots at dock_spacing={self.swarm.dock_spacing:g} m reach "
+                f"{reach:g} m from the dock, beyond its clear zone ({clear:g} m): lower "
+                "dock_spacing or n_chasers"
+            )
+        self.max_episode_steps = max_episode_steps
+        self.shell = MissionShell(
+            config, self.num, autoreset=Autoreset.NEVER, max_episode_steps=max_episode_steps,
+            chasers=k, chaser_separation=self.swarm.separation, dock_offsets=slots,
+            field_loop=True,
+        )  # fmt: skip
+        if max_episode_steps is not None:
+            self.shell.horizon = max_episode_steps
+        self.observation_space, self.action_space = single_spaces(config)
+        self.obs_names = observation_names(config)
+        self._discrete = discrete_action_table(config.dim, config.fine_thrust)
+        self._obs = np.zeros((self.num, len(self.obs_names)), dtype=np.float32)
+        self.flying = np.zeros(self.num, dtype=bool)
+        """(N,) the chasers that have not ended."""
+
+    # --- episodes -----------------------------------------------------------------------------
+
+    def reset(self, generators: list | None = None, options: Any = None) -> np.ndarray:
+        """Every field anew (``generators``: one per field or None); the observations (N, size),
+        a buffer the next call overwrites."""
+        self.shell.reset(generators, options)
+        self.flying[:] = True
+        return self.observe()
+
+    def restart(self, fields: np.ndarray) -> None:
+        """New episodes in the fields in the mask ``fields`` (E,), every chaser at its slot."""
+        self.shell.restart(fields)
+        self.flying.reshape(self.num_fields, self.chasers)[fields] = True
+
+    def step(self, commands: np.ndarray) -> SwarmStep:
+        """One step of the chasers still flying (``commands``: (N, dim) validated normalised
+        thrust, rows of ended chasers ignored)."""
+        flew = self.flying.copy()
+        out = self.shell.step(commands, flew)
+        terms = out.terms.copy()
+        team = self._team_term(terms) * flew
+        reward = (out.reward + team) * flew
+        terminated, truncated = out.terminated & flew, out.truncated & flew
+        self.flying &= ~(terminated | truncated)
+        field_over = np.logical_not(self.flying.reshape(self.num_fields, self.chasers).any(axis=1))
+        return SwarmStep(reward, terminated, truncated, terms, team, flew, field_over)
+
+    def command(self, action: Any) -> np.ndarray:
+        """One chaser's action as a normalised thrust (dim,) (raises ``ValueError`` naming
+        ``action``)."""
+        if self.config.action == "discrete":
+            from debris_gym.envs.common import checked_discrete_action
+
+            return self._discrete[checked_discrete_action(action, len(self._discrete))]
+        return checked_continuous_actions(action, (self.config.dim,))
+
+    def _team_term(self, terms: np.ndarray) -> np.ndarray:
+        """Each chaser's team term: ``reward_team`` times its field's mean capture and success
+        terms."""
+        w = self.swarm.reward_team
+        if w == 0.0:
+            return np.zeros(self.num)
+        shared = (terms[:, _CAPTURE] + terms[:, _SUCCESS]).reshape(self.num_fields, -1)
+        return np.repeat(w * shared.mean(axis=1), self.chasers)
+
+    # --- reading ------------------------------------------------------------------------------
+
+    def observe(self) -> np.ndarray:
+        """Every chaser's observation (N, size), into a buffer the next call overwrites."""
+        return self.shell.observe(self._obs)
+
+    def team_success(self) -> np.ndarray:
+        """(E,) every chaser that did not fail back at its dock slot, and at least one did."""
+        m = self.shell.batch_in_use.missions
+        shape = (self.num_fields, self.chasers)
+        success = m.success.reshape(shape)
+        failed = (m.collision | m.out_of_bounds | m.budget_spent).reshape(shape)
+        return np.all(success | failed, axis=1) & np.any(success, axis=1)
+
+    def team_captures(self) -> np.ndarray:
+        """(E,) targets the team has captured."""
+        m = self.shell.batch_in_use.missions
+        captured = m.captured.reshape(self.num_fields, self.chasers, -1).any(axis=1)
+        return np.count_nonzero(captured, axis=1)
+
+    def min_separation(self) -> np.ndarray:
+        """(E,) the closest two chasers of each field came this episode (m)."""
+        m = self.shell.batch_in_use.missions
+        return m.separation.reshape(self.num_fields, self.chasers).min(axis=1)
+
+    def row_info(self, i: int, terms: np.ndarray, team: float) -> dict[str, Any]:
+        """Chaser ``i``'s info: the single-agent keys and :data:`TEAM_INFO_KEYS`."""
+        m = self.shell.batch_in_use.missions
+        e = i // self.chasers
+        info = self.shell.row_info(i, terms.tolist())
+        info["team_success"] = bool(self.team_success()[e])
+        info["team_captures"] = int(self.team_captures()[e])
+        info["min_separation"] = float(self.min_separation()[e])
+        info["teammate_collision"] = bool(m.teammate_collision[i])
+        info["separation"] = float(m.separation[i])
+        info["reward_team"] = float(team)
+        return info
+
+    def close(self) -> None:
+        """Stop the field supply's worker thread."""
+        self.shell.close()
