@@ -514,3 +514,33 @@ def test_resume_continues_with_the_reference_restored(init_run, tmp_path):
             train(TrainOptions(resume=out, timesteps=64, progress=False, argv=["test"]))
     finally:
         moved.rename(init_run)
+
+
+def test_a_single_agent_policy_is_widened_to_a_swarm(init_run, tmp_path):
+    """A fine-tune on a swarm ID from a single-agent run: one SB3 env per chaser, the init
+    widened to the hold and teammates blocks (zero policy weights for them, so every chaser
+    starts flying as the init flies alone)."""
+    from debris_gym.swarm import make as make_swarm
+
+    out = tmp_path / "ft_swarm"
+    result = train(
+        TrainOptions(
+            out=out, config=RECIPE, init=init_run, timesteps=128, n_envs=2, seed=5,
+            progress=False, argv=["test"],
+            overrides=[*TINY, "env_id=DebrisGym/Swarm2D-Easy-v0", "init.critic_warmup=256",
+                       "env_kwargs.obs_hold=true"],
+        )
+    )  # fmt: skip
+    assert result.status == "completed"
+    config = yaml.safe_load((out / "config.yaml").read_text())
+    assert config["env_id"] == "DebrisGym/Swarm2D-Easy-v0"
+    model, init = ppo(out / "model.zip"), ppo(init_run / "model.zip")
+    env = make_swarm("DebrisGym/Swarm2D-Easy-v0", **INIT_OPTIONS, obs_hold=True)
+    names = env.observation_names()
+    assert names[-1] == "teammate0_flying" and model.observation_space.shape == (len(names),)
+    new = [k for k, name in enumerate(names) if name.startswith("teammate") or "hold" in name]
+    weights = model.policy.state_dict()
+    # inside the warm-up the policy is the init's; the critic has begun to read the teammates
+    assert torch.count_nonzero(weights["mlp_extractor.policy_net.0.weight"][:, new]) == 0
+    assert torch.count_nonzero(weights["mlp_extractor.value_net.0.weight"][:, new[1:]]) > 0
+    assert model.observation_space.shape[0] == init.observation_space.shape[0] + len(new)

@@ -59,7 +59,7 @@ __all__ = [
 
 OBSERVATION_KEYS = (
     "observation", "obs_targets", "obs_obstacles", "lidar_rays", "lidar_range", "obs_goal",
-    "obs_other_targets", "obs_hold", "obs_near",
+    "obs_other_targets", "obs_hold", "obs_near", "obs_teammates",
 )  # fmt: skip
 """Env options that shape the observation (and nothing else): a learned policy needs the ones
 it was trained with."""

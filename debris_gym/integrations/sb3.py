@@ -31,6 +31,28 @@ INFO_KEYS = ("time", "delta_v", "targets_captured", "n_targets", "min_clearance"
              "out_of_bounds", "is_success")  # fmt: skip
 
 
+def make_vec_env(env_id: str, num_envs: int, **kwargs: Any) -> VecEnv:
+    """The SB3 training env of ``env_id``: :class:`NativeVecEnv` for the single-agent IDs,
+    :class:`~debris_gym.integrations.sb3_swarm.SwarmVecEnv` (one env per chaser) for the swarm
+    IDs."""
+    from debris_gym.swarm import SWARM_SPECS
+
+    if env_id in SWARM_SPECS:
+        from debris_gym.integrations.sb3_swarm import SwarmVecEnv
+
+        return SwarmVecEnv(env_id, num_envs, **kwargs)
+    return NativeVecEnv(env_id, num_envs, **kwargs)
+
+
+def envs_per_mission(env_id: str, **kwargs: Any) -> int:
+    """SB3 envs one mission takes: the chasers of a swarm ID's field, else 1."""
+    from debris_gym.swarm import SWARM_SPECS
+
+    if env_id not in SWARM_SPECS:
+        return 1
+    return int(kwargs.get("n_chasers", SWARM_SPECS[env_id]["kwargs"]["n_chasers"]))
+
+
 class NativeVecEnv(VecEnv):
     """SB3 view of ``gym.make_vec(env_id, num_envs, vectorization_mode="vector_entry_point")``.
 

@@ -36,9 +36,18 @@ __all__ = [
 
 DEFAULT_SWARM = "DebrisGym/Swarm2D-v0"
 
-_CAPTURE_MISSION: dict[str, object] = {"n_chasers": 3, "n_targets": 6, "n_obstacles": 20}
+_CAPTURE_MISSION: dict[str, object] = {
+    "n_chasers": 3,
+    "n_targets": 6,
+    "n_obstacles": 20,
+    "shaping_potential": "goal",
+}
 """The capture mission: six targets shared by three chasers among twenty other debris, every
-surviving chaser back at its own dock slot."""
+surviving chaser back at its own dock slot. Each chaser's shaping potential is its gap to its
+current goal (``shaping_potential="goal"``), not the v2 world's shortest tour through every
+remaining target: in a team that tour is not one chaser's task, and its exact search over six
+targets (720 orders) would cost about 20 times the rest of a chaser's step
+(docs/benchmarks.md)."""
 
 SWARM_SPECS: dict[str, dict[str, Any]] = {
     "DebrisGym/Swarm2D-v0": {"max_episode_steps": 1000,

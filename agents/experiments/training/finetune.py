@@ -91,9 +91,12 @@ def _env_config(env_id: str, env_kwargs: dict[str, Any]) -> Any:
 
     import debris_gym  # noqa: F401  (registers the IDs)
     from debris_gym.config import EnvConfig
+    from debris_gym.swarm import SWARM_SPECS, checked_options
 
-    spec_kwargs = gym.registry[env_id].kwargs if env_id in gym.registry else {}
     options = {k: v for k, v in env_kwargs.items() if k != "max_episode_steps"}
+    if env_id in SWARM_SPECS:
+        return checked_options(env_id, options)[0]
+    spec_kwargs = gym.registry[env_id].kwargs if env_id in gym.registry else {}
     return EnvConfig.from_kwargs(**{**spec_kwargs, **options})
 
 
@@ -271,7 +274,7 @@ def check_init_run(config: TrainConfig, source: str) -> None:
     """
     if config.init.path is None:
         return
-    from debris_gym.integrations.sb3 import NativeVecEnv
+    from debris_gym.integrations.sb3 import envs_per_mission, make_vec_env
 
     model_file, stats_file, config_file = _init_files(Path(config.init.path), source)
     try:
@@ -294,7 +297,9 @@ def check_init_run(config: TrainConfig, source: str) -> None:
         columns = init_columns(config, config_file)
     except ValueError as exc:
         raise _init_error(source, f"names a run that does not fit this one: {exc}") from None
-    env = NativeVecEnv(config.env_id, 1, **config.env_kwargs)
+    env = make_vec_env(
+        config.env_id, envs_per_mission(config.env_id, **config.env_kwargs), **config.env_kwargs
+    )
     try:
         for what in ("observation_space", "action_space"):
             ours, theirs = getattr(env, what), getattr(model, what)
@@ -330,11 +335,12 @@ def _check_widened_values(
     env and the same env observed with the init's options fly the same seeded missions, and
     the init's elements must be equal, bit for bit, in both (a name alone does not say, e.g.,
     which direction a lidar ray points in)."""
-    from debris_gym.integrations.sb3 import NativeVecEnv
+    from debris_gym.integrations.sb3 import envs_per_mission, make_vec_env
 
     _, init_options = _init_observation(_read_init_config(init_config))
-    wide = NativeVecEnv(config.env_id, 2, **config.env_kwargs)
-    narrow = NativeVecEnv(config.env_id, 2, **{**config.env_kwargs, **init_options})
+    n = 2 * envs_per_mission(config.env_id, **config.env_kwargs)
+    wide = make_vec_env(config.env_id, n, **config.env_kwargs)
+    narrow = make_vec_env(config.env_id, n, **{**config.env_kwargs, **init_options})
     try:
         for env in (wide, narrow):
             env.seed(0)
@@ -351,7 +357,7 @@ def _check_widened_values(
                     f"values in this env (step {step} of a test mission): the same names, not "
                     "the same meaning; keep the init run's observation options",
                 )
-            action = np.stack([wide.action_space.sample() for _ in range(2)])
+            action = np.stack([wide.action_space.sample() for _ in range(wide.num_envs)])
             obs_wide, obs_narrow = (
                 np.asarray(wide.step(action)[0]),
                 np.asarray(narrow.step(action)[0]),

@@ -37,15 +37,10 @@ DEVICES = ("cpu", "auto", "cuda", "cuda:<N>", "mps")
 def _vec_env(config: TrainConfig, n_envs: int) -> Any:
     from stable_baselines3.common.vec_env import VecMonitor
 
-    from debris_gym.integrations.sb3 import NativeVecEnv
-    from debris_gym.swarm import SWARM_SPECS
+    from debris_gym.integrations.sb3 import make_vec_env
 
-    if config.env_id in SWARM_SPECS:  # one SB3 env per chaser: parameter sharing (IPPO)
-        from debris_gym.integrations.sb3_swarm import SwarmVecEnv
-
-        venv: Any = SwarmVecEnv(config.env_id, n_envs, **config.env_kwargs)
-    else:
-        venv = NativeVecEnv(config.env_id, n_envs, **config.env_kwargs)
+    # swarm IDs: one SB3 env per chaser, one policy for all (parameter sharing, IPPO)
+    venv = make_vec_env(config.env_id, n_envs, **config.env_kwargs)
     return VecMonitor(venv, info_keywords=("is_success", "targets_captured"))
 
 
