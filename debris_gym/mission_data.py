@@ -161,6 +161,10 @@ class Missions(NamedTuple):
     separation: np.ndarray
     """(N,) closest approach (m, centre to centre) to another chaser of the field so far (inf
     with one chaser per field)."""
+    assigned: np.ndarray
+    """(N, T) bool: the targets that are the chaser's to capture (all of them unless a swarm
+    assigns them); a chaser's ``captured`` flags start True for the others, so its goal, its
+    observation's target slots, its captures and its success count its own alone."""
 
 
 class Field(NamedTuple):
@@ -339,6 +343,7 @@ def new_missions(num: int, dim: int, n_targets: int, n_bodies: int, n_ranked: in
         budget_spent=np.zeros(num, dtype=bool),
         teammate_collision=np.zeros(num, dtype=bool),
         separation=np.full(num, math.inf),
+        assigned=np.ones((num, n_targets), dtype=bool),
     )
 
 

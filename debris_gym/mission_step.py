@@ -469,7 +469,7 @@ def begin_rows(rows, states, rules, shaping, missions, field):
         delta_v[i] = 0.0
         score[i] = 0.0
         for j in range(n_targets):
-            captured[i, j] = False
+            captured[i, j] = not missions.assigned[i, j]  # another chaser's: not this one's task
             hold[i, j] = 0
         collision[i] = False
         out_of_bounds[i] = False
@@ -666,11 +666,12 @@ def step_fields(lo, hi, live, actions, rules, shaping, missions, field, out, scr
     is checked against each other along their paths (:func:`pair_touches`; a contact is a
     collision for both), then every chaser is measured, judged and rewarded; last, the field's
     captures are shared (a target captured by one chaser is captured for all; the capture
-    bonus goes to the chaser that held it). With K = 1 this is :func:`step_rows`, phase for
-    phase."""
+    bonus goes to the chaser that held it; only the targets assigned to a chaser,
+    :attr:`Missions.assigned`, are its to capture). With K = 1 this is :func:`step_rows`, phase
+    for phase."""
     n_chasers = rules.n_chasers
     dvs, mates, separation = scratch.dvs, scratch.mates, missions.separation
-    captured = missions.captured
+    captured, assigned = missions.captured, missions.assigned
     for f in range(lo, hi):
         first = f * n_chasers
         flying = False
@@ -705,10 +706,10 @@ def step_fields(lo, hi, live, actions, rules, shaping, missions, field, out, scr
                     first + k, f, k, rules, shaping, missions, field, out, scratch, dvs[k],
                     mates[k],
                 )  # fmt: skip
-        for j in range(rules.n_targets):  # share the captures
-            taken = False
+        for j in range(rules.n_targets):  # share the captures (a chaser's own, not the
+            taken = False  # flags it starts with for the targets assigned to others)
             for k in range(n_chasers):
-                taken = taken or captured[first + k, j]
+                taken = taken or (captured[first + k, j] and assigned[first + k, j])
             if taken:
                 for k in range(n_chasers):
                     captured[first + k, j] = True

@@ -4,6 +4,8 @@ own API tests."""
 
 from __future__ import annotations
 
+import itertools
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -15,6 +17,7 @@ pytest.importorskip("pettingzoo")
 from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test
 
 from debris_gym import swarm
+from debris_gym.swarm.assignment import balanced_assignment
 from debris_gym.swarm.config import dock_slots
 from tests.helpers import cw_closed_form
 
@@ -241,3 +244,88 @@ def test_state_is_every_observation_in_agent_order():
     state = env.state()
     assert env.state_space.contains(state)
     assert np.array_equal(state, np.concatenate([obs[a] for a in env.possible_agents]))
+
+
+def brute_force_cost(gaps: np.ndarray) -> float:
+    """The least total gap of any assignment of every target to one chaser, each chaser at most
+    ⌈T / K⌉ targets: every map from targets to chasers, enumerated."""
+    k, t = gaps.shape
+    places = -(-t // k)
+    best = np.inf
+    for owners in itertools.product(range(k), repeat=t):
+        if max(owners.count(c) for c in range(k)) <= places:
+            best = min(best, sum(gaps[c, j] for j, c in enumerate(owners)))
+    return float(best)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    k=st.integers(1, 4), t=st.integers(1, 6), seed=st.integers(0, 2**32 - 1),
+)  # fmt: skip
+def test_the_balanced_assignment_is_the_brute_force_optimum(k, t, seed):
+    rng = np.random.default_rng(seed)
+    docks, centers = rng.uniform(-50, 50, (k, 2)), rng.uniform(-400, 400, (t, 2))
+    radii = rng.uniform(3, 10, t)
+    out = balanced_assignment(docks, centers, radii)
+    assert out.shape == (k, t) and np.all(out.sum(axis=0) == 1)
+    assert out.sum(axis=1).max() <= -(-t // k)
+    gaps = np.linalg.norm(docks[:, None] - centers[None], axis=-1) - radii
+    assert gaps[out].sum() == pytest.approx(brute_force_cost(gaps), rel=1e-12, abs=1e-9)
+
+
+@pytest.mark.parametrize(
+    "value, match",
+    [
+        ([[0], [0]], "target 0 to 2 chasers"),
+        ([[0], []], "target 1 to 0 chasers"),
+        ([[0, 5], [1]], r"assignment\[0\] holds 5"),
+        ([[0, 1]], "must be 2 lists"),
+        (np.ones((2, 3), dtype=bool), r"shape \(2, 2\)"),
+    ],
+)
+def test_a_bad_assignment_names_what_is_wrong(value, match):
+    env = swarm.make(EASY, assignment="given")
+    with pytest.raises(ValueError, match=match):
+        env.reset(seed=0, options={"assignment": value})
+
+
+def test_a_given_target_is_its_chasers_alone():
+    """With assignment="given" a chaser holding beside another chaser's target captures
+    nothing; beside its own it captures it, for the team; the team succeeds only when every
+    target is captured."""
+    env = swarm.make(EASY, assignment="given", return_to_dock=False)
+    env.reset(seed=11, options={"assignment": [[1], [0]]})
+    batch = env.core.shell.batch_in_use
+    d = env.config.dim
+    center, velocity = batch.field.centers[0, 0], batch.field.velocities[0, 0]
+    gap = batch.field.radii[0, 0] + env.config.chaser_radius + 2.0
+    states = np.zeros((2, 2 * d))
+    states[1, :d] = center + np.array([gap, 0.0])
+    states[1, d:] = velocity
+    for owner, captures in ((0, False), (1, True)):
+        env.reset(
+            seed=11,
+            options={
+                "chaser_state": states,
+                "assignment": [[1], [0]] if owner == 1 else [[0], [1]],
+            },
+        )
+        infos: dict = {}
+        for _ in range(6):  # the last info of each chaser (one that succeeds leaves)
+            infos.update(env.step({a: np.zeros(d, np.float32) for a in env.agents})[4])
+        assert infos["chaser_1"]["assigned"][0] == captures
+        assert infos["chaser_1"]["is_success"] == captures  # its one target: its whole task
+        assert bool(infos["chaser_1"]["captured"][0]) == captures
+        assert bool(infos["chaser_0"]["captured"][0]) == captures  # the team's flags
+        assert not infos["chaser_1"]["team_success"]  # target 1 is still out there
+
+
+def test_a_reset_without_assignment_uses_the_balanced_rule():
+    env = swarm.make("DebrisGym/Swarm2D-v0", assignment="given")
+    env.reset(seed=3)
+    batch = env.core.shell.batch_in_use
+    expected = balanced_assignment(batch.dock, batch.field.centers[0, :6], batch.field.radii[0, :6])
+    assert np.array_equal(batch.missions.assigned, expected)
+    assert expected.sum(axis=1).tolist() == [2, 2, 2]
+    with pytest.raises(ValueError, match="needs an env made with assignment='given'"):
+        swarm.make(EASY).reset(seed=0, options={"assignment": [[0], [1]]})

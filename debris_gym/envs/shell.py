@@ -25,7 +25,7 @@ field plugs in.
 from __future__ import annotations
 
 import enum
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -190,6 +190,9 @@ class MissionShell:
         self._obs_size = len(observation_names(config))
         self._all_rows = np.arange(num, dtype=np.int64)
         self._all_fields = np.arange(fields, dtype=np.int64)
+        self.on_install: Callable[[np.ndarray], None] | None = None
+        """Called with the fields (indices) that a reset or restart has just installed, before
+        their missions begin (a swarm assigns its targets there)."""
         self._live = np.ones(num, dtype=bool)
 
     # --- reading ------------------------------------------------------------------------------
@@ -358,6 +361,8 @@ class MissionShell:
             self._install_scenario(fields_rows, pinned)
         else:
             self._install(fields_rows, fields)
+        if self.on_install is not None:
+            self.on_install(fields_rows)
         self.batch_in_use.begin(rows, states)
         self._restart[:] = False
         if pinned is None:
@@ -524,11 +529,13 @@ class MissionShell:
         rows = fields if k == 1 else (fields[:, None] * k + np.arange(k)).ravel()
         if self._pin is not None:
             self._install_scenario(fields, self._pin)
-            self.batch_in_use.begin(rows)
-            return
-        self._install(fields, self.supply.take(fields))
+        else:
+            self._install(fields, self.supply.take(fields))
+        if self.on_install is not None:
+            self.on_install(fields)
         self.batch_in_use.begin(rows)
-        self.supply.draw_ahead(fields)
+        if self._pin is None:
+            self.supply.draw_ahead(fields)
 
     def close(self) -> None:
         """Stop the field supply's worker thread."""

@@ -57,11 +57,13 @@ SWARM_SPECS: dict[str, dict[str, Any]] = {
     "DebrisGym/Swarm2D-Easy-v0": {
         "max_episode_steps": 1000,
         "kwargs": {"dim": 2, **V2_WORLD, "n_chasers": 2, "n_targets": 2, "n_obstacles": 5,
-                   "return_to_dock": False},
+                   "return_to_dock": False, "assignment": "given"},
     },
 }  # fmt: skip
 """Every swarm ID with its time limit (steps) and options: the v2 world of the single-agent
-IDs with several chasers."""
+IDs with several chasers. The Easy rung, for learners, gives each chaser its own target (the
+balanced rule of :func:`~debris_gym.swarm.assignment.balanced_assignment`): what is left to
+learn is the flight and the teammate; choosing targets is the task of the full IDs."""
 
 
 def __getattr__(name: str) -> Any:

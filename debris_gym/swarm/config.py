@@ -23,7 +23,11 @@ MAX_TEAMMATE_SLOTS = 4
 """Teammate slots of the observation when ``obs_teammates`` is not given: the nearest four
 other chasers (or all of them in a smaller swarm)."""
 
-SWARM_KEYS = ("n_chasers", "r_col", "dock_spacing", "reward_team")
+SWARM_KEYS = ("n_chasers", "r_col", "dock_spacing", "reward_team", "assignment")
+
+ASSIGNMENTS = ("free", "given")
+"""``free``: every chaser may capture every target; ``given``: every target is one chaser's
+(:mod:`debris_gym.swarm.assignment`)."""
 """The options a swarm adds to the single-agent ones."""
 
 
@@ -40,12 +44,16 @@ class SwarmConfig:
             the dock itself).
         reward_team: weight of the shared team term: each chaser also gets this times the
             mean, over the chasers, of the step's capture and success terms (0 = off).
+        assignment: ``"free"`` (any chaser captures any target) or ``"given"`` (each target is
+            one chaser's: by the reset option ``assignment``, else the balanced nearest rule of
+            :func:`~debris_gym.swarm.assignment.balanced_assignment`).
     """
 
     n_chasers: int = 3
     r_col: float | None = None
     dock_spacing: float = 5.0
     reward_team: float = 0.0
+    assignment: str = "free"
 
     def checked(self, env: EnvConfig) -> SwarmConfig:
         """This config validated against ``env``'s (raises ``ValueError`` naming the key and
@@ -71,13 +79,19 @@ class SwarmConfig:
             raise ValueError(
                 f"reward_team={self.reward_team!r} is out of range; allowed: [0, {MAX_WEIGHT:g}]"
             )
+        if self.assignment not in ASSIGNMENTS:
+            raise ValueError(
+                f"assignment={self.assignment!r} is not allowed; allowed: one of "
+                f"{', '.join(map(repr, ASSIGNMENTS))}"
+            )
         if env.obs_teammates > k - 1:
             raise ValueError(
                 f"obs_teammates={env.obs_teammates} is out of range for {k} chasers; "
                 f"allowed: [0, {k - 1}]"
             )
         return SwarmConfig(int(k), None if self.r_col is None else float(self.r_col),
-                           float(self.dock_spacing), float(self.reward_team))  # fmt: skip
+                           float(self.dock_spacing), float(self.reward_team),
+                           str(self.assignment))  # fmt: skip
 
     @property
     def separation(self) -> float | None:

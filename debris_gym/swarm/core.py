@@ -24,11 +24,13 @@ from debris_gym.envs.common import (
 )
 from debris_gym.envs.shell import Autoreset, MissionShell
 from debris_gym.rewards import REWARD_TERMS
+from debris_gym.swarm.assignment import balanced_assignment, checked_assignment
 from debris_gym.swarm.config import SwarmConfig, dock_slots, split_options
 
 __all__ = ["TEAM_INFO_KEYS", "SwarmCore", "SwarmStep"]
 
 TEAM_INFO_KEYS = (
+    "assigned",
     "team_success",
     "team_captures",
     "min_separation",
@@ -36,7 +38,8 @@ TEAM_INFO_KEYS = (
     "separation",
     "reward_team",
 )
-"""The keys a swarm adds to every chaser's single-agent info (docs/swarm.md)."""
+"""The keys a swarm adds to every chaser's single-agent info (docs/swarm.md); its
+``captured`` is the team's."""
 
 _CAPTURE, _SUCCESS = REWARD_TERMS.index("capture"), REWARD_TERMS.index("success")
 
@@ -108,15 +111,60 @@ class SwarmCore:
         self._obs = np.zeros((self.num, len(self.obs_names)), dtype=np.float32)
         self.flying = np.zeros(self.num, dtype=bool)
         """(N,) the chasers that have not ended."""
+        self._given: np.ndarray | None = None  # the reset option "assignment", (K, T) bool
+        self.shell.on_install = self._assign
 
     # --- episodes -----------------------------------------------------------------------------
 
     def reset(self, generators: list | None = None, options: Any = None) -> np.ndarray:
         """Every field anew (``generators``: one per field or None); the observations (N, size),
-        a buffer the next call overwrites."""
-        self.shell.reset(generators, options)
+        a buffer the next call overwrites. ``options``: the single-agent reset options and, with
+        ``assignment="given"``, ``assignment`` (one list of target indices per chaser, or a
+        (K, T) bool array) for every field from this reset on (None: the balanced rule).
+
+        Raises:
+            ValueError: naming a bad option; nothing changed.
+        """
+        saved = self._given
+        if isinstance(options, dict) and "assignment" in options:
+            options = dict(options)
+            given = options.pop("assignment")
+            if given is not None and self.swarm.assignment != "given":
+                raise ValueError("options['assignment'] needs an env made with assignment='given'")
+            n_targets = self.config.n_targets
+            self._given = (
+                None if given is None
+                else checked_assignment(given, self.chasers, n_targets)
+            )  # fmt: skip
+        try:
+            self.shell.reset(generators, options)
+        except BaseException:
+            self._given = saved
+            raise
         self.flying[:] = True
         return self.observe()
+
+    def _assign(self, fields: np.ndarray) -> None:
+        """Each chaser's targets in the fields just installed (before their missions begin)."""
+        batch = self.shell.batch_in_use
+        k, assigned = self.chasers, batch.missions.assigned
+        if self.swarm.assignment == "free":
+            for e in fields.tolist():
+                assigned[e * k : e * k + k] = True
+            return
+        t = batch.n_targets
+        if self._given is not None and self._given.shape[1] != t:
+            raise ValueError(
+                f"options['assignment'] names {self._given.shape[1]} targets but the field has {t}"
+            )
+        for e in fields.tolist():
+            rows = slice(e * k, e * k + k)
+            assigned[rows] = (
+                self._given if self._given is not None
+                else balanced_assignment(
+                    batch.dock[rows], batch.field.centers[e, :t], batch.field.radii[e, :t]
+                )
+            )  # fmt: skip
 
     def restart(self, fields: np.ndarray) -> None:
         """New episodes in the fields in the mask ``fields`` (E,), every chaser at its slot."""
@@ -161,18 +209,25 @@ class SwarmCore:
         return self.shell.observe(self._obs)
 
     def team_success(self) -> np.ndarray:
-        """(E,) every chaser that did not fail back at its dock slot, and at least one did."""
+        """(E,) every target captured, every chaser that did not fail back at its dock slot,
+        and at least one did."""
         m = self.shell.batch_in_use.missions
         shape = (self.num_fields, self.chasers)
         success = m.success.reshape(shape)
         failed = (m.collision | m.out_of_bounds | m.budget_spent).reshape(shape)
-        return np.all(success | failed, axis=1) & np.any(success, axis=1)
+        every = self.team_captured().all(axis=1)
+        return every & np.all(success | failed, axis=1) & np.any(success, axis=1)
+
+    def team_captured(self) -> np.ndarray:
+        """(E, T) bool: the targets the team has captured (a chaser's own captures; the flags
+        it starts with for targets assigned to others do not count)."""
+        m = self.shell.batch_in_use.missions
+        own = (m.captured & m.assigned).reshape(self.num_fields, self.chasers, -1)
+        return own.any(axis=1)
 
     def team_captures(self) -> np.ndarray:
         """(E,) targets the team has captured."""
-        m = self.shell.batch_in_use.missions
-        captured = m.captured.reshape(self.num_fields, self.chasers, -1).any(axis=1)
-        return np.count_nonzero(captured, axis=1)
+        return np.count_nonzero(self.team_captured(), axis=1)
 
     def min_separation(self) -> np.ndarray:
         """(E,) the closest two chasers of each field came this episode (m)."""
@@ -184,6 +239,9 @@ class SwarmCore:
         m = self.shell.batch_in_use.missions
         e = i // self.chasers
         info = self.shell.row_info(i, terms.tolist())
+        info["captured"] = self.team_captured()[e]
+        info["targets_captured"] = int(np.count_nonzero(info["captured"]))
+        info["assigned"] = m.assigned[i].copy()
         info["team_success"] = bool(self.team_success()[e])
         info["team_captures"] = int(self.team_captures()[e])
         info["min_separation"] = float(self.min_separation()[e])

@@ -100,18 +100,20 @@ class SwarmParallelEnv(ParallelEnv):
         Args:
             seed: seeds the field's generator.
             options: the single-agent reset options (``scenario``, ``chaser_state`` of shape
-                (K, 2·dim), ``mission``); other keys are warned about and ignored (PettingZoo's
-                API test passes some of its own).
+                (K, 2·dim), ``mission``) and ``assignment`` (with ``assignment="given"``: one
+                list of target indices per chaser); other keys are warned about and ignored
+                (PettingZoo's API test passes some of its own).
         """
         seed = checked_seed(seed)
-        if isinstance(options, dict) and set(options) - set(RESET_OPTIONS):
-            unknown = sorted(set(options) - set(RESET_OPTIONS), key=str)
+        allowed = (*RESET_OPTIONS, "assignment")
+        if isinstance(options, dict) and set(options) - set(allowed):
+            unknown = sorted(set(options) - set(allowed), key=str)
             warnings.warn(
                 f"reset options {unknown} are not swarm options (allowed: "
-                f"{', '.join(RESET_OPTIONS)}); ignored",
+                f"{', '.join(allowed)}); ignored",
                 stacklevel=2,
             )
-            options = {k: v for k, v in options.items() if k in RESET_OPTIONS}
+            options = {k: v for k, v in options.items() if k in allowed}
         generator = None
         if seed is not None or self._np_random is None:
             generator, _ = seeding.np_random(seed)
