@@ -401,29 +401,23 @@ def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
 
 
 @inlined
-def flying(i, missions):
-    """Row ``i``'s chaser has not ended (no success, collision, exit or spent budget)."""
-    return not (
-        missions.success[i]
-        or missions.collision[i]
-        or missions.out_of_bounds[i]
-        or missions.budget_spent[i]
-    )
-
-
-@inlined
 def _teammates(i, f, rules, layout, missions, field, inv_l, inv_v, mates, mate_d2, out):
     """The teammates block of row ``i`` (field ``f``): per slot, the nearest other chasers of
     the field still flying (ties by row), relative position / L, relative velocity / V, the
     vector from it to the goal it heads for / L (:func:`~debris_gym.goal.current_goal`), and
     1; empty slots 0. ``mates`` (int64) and ``mate_d2`` are scratch of the slot count."""
     state, dock, centers = missions.state, field.dock, field.centers
+    # the flags read once here, not through the record in the loop (each read of a record's
+    # array inside the loop costs a reference-count update)
+    success, collision = missions.success, missions.collision
+    out_of_bounds, budget_spent = missions.out_of_bounds, missions.budget_spent
+    gaps, captured = missions.gaps, missions.captured
     dim = dock.shape[1]
     n_slots = mates.shape[0]
     count = 0
     first = f * rules.n_chasers
     for j in range(first, first + rules.n_chasers):
-        if j == i or not flying(j, missions):
+        if j == i or success[j] or collision[j] or out_of_bounds[j] or budget_spent[j]:
             continue
         d2 = 0.0
         for a in range(dim):
@@ -442,9 +436,8 @@ def _teammates(i, f, rules, layout, missions, field, inv_l, inv_v, mates, mate_d
         for a in range(dim):
             k = _put(out, i, k, (state[j, dim + a] - state[i, dim + a]) * inv_v)
         goal, _, _ = current_goal(
-            j, missions.gaps, missions.captured, rules.queued, rules.return_to_dock,
-            rules.chaser_radius,
-        )  # fmt: skip
+            j, gaps, captured, rules.queued, rules.return_to_dock, rules.chaser_radius
+        )
         for a in range(dim):
             heading = 0.0
             if goal >= 0:

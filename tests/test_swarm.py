@@ -130,7 +130,7 @@ def test_a_teammate_collision_ends_both_and_is_penalised():
 def test_a_target_captured_by_one_chaser_is_captured_for_all():
     """Park chaser 1 beside target 0, still relative to it: it holds and captures; the capture
     shows in every chaser's captured flags, the bonus only in the holder's reward."""
-    env = swarm.make(EASY, return_to_dock=False)
+    env = swarm.make(EASY, return_to_dock=False, assignment="free")
     env.reset(seed=11)
     m = env.core.shell.batch_in_use
     d = env.config.dim
@@ -328,4 +328,4 @@ def test_a_reset_without_assignment_uses_the_balanced_rule():
     assert np.array_equal(batch.missions.assigned, expected)
     assert expected.sum(axis=1).tolist() == [2, 2, 2]
     with pytest.raises(ValueError, match="needs an env made with assignment='given'"):
-        swarm.make(EASY).reset(seed=0, options={"assignment": [[0], [1]]})
+        swarm.make(EASY, assignment="free").reset(seed=0, options={"assignment": [[0], [1]]})
