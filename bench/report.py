@@ -321,12 +321,14 @@ def _swarm_lines(swarm: list[dict[str, Any]]) -> list[str]:
         "lidar on, no obstacles; spawn square grown with K). *× VMAS* = chaser-steps/s over the "
         "VMAS row's at the same E and K; in brackets the smallest and largest ratio of two "
         "measurements taken in the same repeat; *flying rows only* counts the swarm's rows that "
-        "flew (× rows flying), as every VMAS agent moves every step.",
+        "flew (× rows flying), as every VMAS agent moves every step. *% of time in restarts*: "
+        "the swarm core's `restart`, VMAS's resets and the observations read after them, "
+        "clocked inside the timed loop.",
         "| simulator | K | E | steps/repeat | chaser-steps/s (median) | chaser-steps/s (best) "
         "| µs per chaser-step | rows flying % | chasers ended / 1000 chaser-steps "
-        "| fields restarted / 1000 chaser-steps | obs size | × VMAS (same E × K) "
-        "| × VMAS, flying rows only |",
-        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|",
+        "| fields restarted / 1000 chaser-steps | % of time in restarts | obs size "
+        "| × VMAS (same E × K) | × VMAS, flying rows only |",
+        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|",
     )
     for row in swarm:
         name = "swarm core" if row["level"] == "native" else VMAS_LABEL
@@ -341,6 +343,7 @@ def _swarm_lines(swarm: list[dict[str, Any]]) -> list[str]:
             _f(100 * row["flying_share"], 0),
             _f(row["ends_per_1000"], 2),
             _f(row["resets_per_1000"], 2),
+            _f(100 * row["reset_share"], 1),
             str(row["obs_size"] or "–"),
             _range(row, "ratio_vmas", 1),
             _f(row["ratio_vmas_flying"], 1),

@@ -124,6 +124,7 @@ class SwarmMeasurement:
     times: list[float] = field(default_factory=list)  # seconds per repeat
     ends: list[int] = field(default_factory=list)  # chasers (agents) ended per repeat
     resets: list[int] = field(default_factory=list)  # fields (envs) restarted per repeat
+    reset_times: list[float] = field(default_factory=list)  # seconds of them per repeat
     flew: list[int] = field(default_factory=list)  # rows that flew, summed over steps
     warmup_steps: int = 0
     build_s: float = math.nan
@@ -170,11 +171,12 @@ class SwarmMeasurement:
         self.actions = self._actions(self.count, rng)
 
     def measure(self, round_index: int = 0) -> None:
-        t, ends, resets, flew = self._loop(self.actions)
+        t, ends, resets, flew, in_resets = self._loop(self.actions)
         self.times.append(t)
         self.ends.append(ends)
         self.resets.append(resets)
         self.flew.append(flew)
+        self.reset_times.append(in_resets)
 
     def tear_down(self) -> None:
         env, self.env, self.actions = self.env, None, None
@@ -221,42 +223,47 @@ class SwarmMeasurement:
         drawn = draw_actions(box, VMAS_LABEL, (steps, self.chasers, self.num_envs), rng, "random")
         return [list(torch.from_numpy(a).unbind(0)) for a in drawn]
 
-    def _loop(self, actions: Any) -> tuple[float, int, int, int]:
+    def _loop(self, actions: Any) -> tuple[float, int, int, int, float]:
         """Step through ``actions``; returns (seconds, chasers ended, fields restarted, rows
-        that flew). Counting is not timed."""
+        that flew, seconds of the restarts). Counting is not timed."""
         if self.backend == "native":
             return self._swarm_loop(actions)
         return self._vmas_loop(actions)
 
-    def _swarm_loop(self, actions: np.ndarray) -> tuple[float, int, int, int]:
+    def _swarm_loop(self, actions: np.ndarray) -> tuple[float, int, int, int, float]:
         core, clock = self.env, time.perf_counter
         step, restart, observe = core.step, core.restart, core.observe
         shape = (self.rows, core.config.dim)
         outs: list[Any] = []
         add = outs.append
+        in_resets = 0.0
         start = clock()
         for action in actions:
             out = step(checked_continuous_actions(action, shape))
             over = out.field_over
             if over.any():
+                begin = clock()
                 restart(over)
+                in_resets += clock() - begin
             observe()
             add((out.terminated, out.truncated, over, out.flew))
         elapsed = clock() - start
         ends = sum(int(np.count_nonzero(a | b)) for a, b, _, _ in outs)
         resets = sum(int(np.count_nonzero(over)) for _, _, over, _ in outs)
         flew = sum(int(np.count_nonzero(f)) for _, _, _, f in outs)
-        return elapsed, ends, resets, flew
+        return elapsed, ends, resets, flew, in_resets
 
-    def _vmas_loop(self, actions: list[list[Any]]) -> tuple[float, int, int, int]:
+    def _vmas_loop(self, actions: list[list[Any]]) -> tuple[float, int, int, int, float]:
         env, clock = self.env, time.perf_counter
         step, reset, reset_at = env.step, env.reset, env.reset_at
         flags: list[Any] = []
         add = flags.append
+        in_resets = 0.0
         start = clock()
         for action in actions:
             obs, rewards, dones, infos = step(action)
             if dones.any():
+                begin = clock()
                 if dones.all():
                     reset(return_observations=False)
                 else:
@@ -265,10 +272,11 @@ class SwarmMeasurement:
                 (obs,) = env.get_from_scenario(
                     get_observations=True, get_rewards=False, get_infos=False, get_dones=False
                 )
+                in_resets += clock() - begin
             add(dones)
         elapsed = clock() - start
         resets = sum(int(d.sum()) for d in flags)
-        return elapsed, resets * self.chasers, resets, len(flags) * self.rows
+        return elapsed, resets * self.chasers, resets, len(flags) * self.rows, in_resets
 
 
 def swarm_measurements(cfg: dict[str, Any], steps: int | None = None) -> list[SwarmMeasurement]:
@@ -321,7 +329,9 @@ def swarm_rows(todo: list[SwarmMeasurement]) -> list[dict[str, Any]]:
     ``chaser_steps_per_s_best``, ``us_per_chaser_step`` (median), ``flying_share`` (share of
     the rows stepped that flew; VMAS 1), ``ends_per_1000`` (chasers ended per 1000
     chaser-steps; VMAS: K per env done), ``resets_per_1000`` (fields restarted per 1000
-    chaser-steps), ``obs_size`` (observation numbers per chaser), ``build_s``,
+    chaser-steps), ``reset_share`` (share of the timed time spent restarting fields: the swarm
+    core's ``restart``, VMAS's resets and the observations read after them), ``obs_size``
+    (observation numbers per chaser), ``build_s``,
     ``reset_ms_per_field`` (first reset / E), ``ratio_vmas`` (chaser-steps/s over the VMAS
     row's of the same E and K; NaN for VMAS rows) with ``ratio_vmas_range`` (the smallest and
     largest ratio of two measurements taken in the same round), ``ratio_vmas_flying`` (the same
@@ -356,6 +366,7 @@ def swarm_rows(todo: list[SwarmMeasurement]) -> list[dict[str, Any]]:
                 "flying_share": _share(sum(m.flew), timed),
                 "ends_per_1000": 1000.0 * _share(sum(m.ends), timed),
                 "resets_per_1000": 1000.0 * _share(sum(m.resets), timed),
+                "reset_share": sum(m.reset_times) / sum(m.times) if rates else math.nan,
                 "obs_size": m.obs_size,
                 "build_s": m.build_s,
                 "reset_ms_per_field": 1e3 * m.reset_s / m.num_envs,

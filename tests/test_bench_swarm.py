@@ -64,6 +64,8 @@ def test_the_swarm_core_is_measured_at_every_k_with_both_kinds_of_actions(swarm_
         assert row["us_per_chaser_step"] == pytest.approx(1e6 / row["chaser_steps_per_s"])
         assert 0 < row["flying_share"] <= 1
         assert 0 <= row["resets_per_1000"] <= row["ends_per_1000"] <= 1000
+        assert 0 <= row["reset_share"] < 1
+        assert (row["reset_share"] > 0) == (row["resets_per_1000"] > 0)
         assert row["obs_size"] == _obs_size(row["chasers"])
         assert 0 < row["reset_ms_per_field"] < 1e4
         assert row["n_obstacles"] == SWARM_SPECS[swarm.SWARM_ID]["kwargs"]["n_obstacles"]
@@ -130,6 +132,7 @@ def test_vmas_envs_that_are_done_are_reset_inside_the_timed_steps(ahead, monkeyp
     assert m.resets == [4 * 3]
     assert m.ends == [4 * 3 * 2]  # both agents of each env
     assert m.flew == [20 * 6]
+    assert 0 < m.reset_times[0] < m.times[0]
     assert calls == ([0, 1, 2] * 4 if ahead else [])
 
 
@@ -176,6 +179,7 @@ def test_a_timed_swarm_step_restarts_ended_fields_and_observes(monkeypatch):
             assert log[i + 1][0] == "observe"
     assert sum(over.sum() for what, over in log if what == "restart") == m.resets[0]
     assert m.resets[0] > 0  # random thrust ends chasers within 40 steps
+    assert 0 < m.reset_times[0] < m.times[0]
 
 
 def test_without_vmas_its_rows_carry_the_error(monkeypatch):
