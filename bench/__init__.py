@@ -5,6 +5,7 @@ Run from the repo root::
     python bench/run.py                       # every section
     python bench/run.py --quick               # fewer / shorter repeats, smaller N
     python bench/run.py --only vector,train   # some sections only
+    python bench/run.py --only swarm          # the swarm core against VMAS
     python bench/run.py --out docs/bench_table.md
     python -m bench --quick                   # the same command line
 
@@ -18,6 +19,9 @@ Sections (``--only`` takes a comma-separated list; default: all of them), one mo
 * ``vector`` (:mod:`bench.vector`): env-steps/s of the native vector env at several N, next to
   gymnasium's SyncVectorEnv, SB3's SubprocVecEnv and CartPole-v1's native vector env.
 * ``scaling`` (:mod:`bench.scaling`): the native vector env against the debris count.
+* ``swarm`` (:mod:`bench.swarm`): chaser-steps/s of the native swarm core at K = 1, 8, 48, 256
+  chasers per field, next to VMAS's navigation scenario at equal envs × agents (VMAS comes with
+  the ``bench`` extra; without it those rows carry an error).
 * ``memory`` (:mod:`bench.memory`): bytes of state per sub-env, measured in fresh processes.
 * ``train`` (:mod:`bench.train`): end-to-end SB3 PPO env-steps/s on the native and on a
   Dummy VecEnv, split into env, the rest of the rollout, and the update.

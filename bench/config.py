@@ -58,6 +58,13 @@ QUICK: dict[str, Any] = {
     # decision times: missions per agent (seeds DECISION_SEED …), time limit (None: the env's)
     "decision_episodes": 1,
     "decision_max_steps": None,
+    # swarm: chasers K per field, chasers in all fields (E = total // K), warm-up steps of the
+    # swarm core and of VMAS (whose step takes seconds at K = 256), seconds per repeat
+    "swarm_chasers": (1, 8, 48, 256),
+    "swarm_chasers_total": 1024,
+    "swarm_warmup_steps": 150,
+    "vmas_warmup_steps": 1,
+    "swarm_seconds": 0.25,
 }
 """Sizes of ``--quick``: fewer and shorter repeats, smaller N."""
 
@@ -80,6 +87,9 @@ FULL: dict[str, Any] = {
     "train_rollouts": 3,
     "train_repeats": 2,
     "decision_episodes": 3,
+    "swarm_warmup_steps": 250,
+    "vmas_warmup_steps": 2,
+    "swarm_seconds": 0.8,
 }
 """Sizes of the default run."""
 
@@ -102,6 +112,10 @@ TINY: dict[str, Any] = {
     "train_epochs": 1,
     "decision_episodes": 1,
     "decision_max_steps": 5,
+    "swarm_chasers": (1, 3),
+    "swarm_chasers_total": 6,
+    "swarm_warmup_steps": 3,
+    "vmas_warmup_steps": 1,
 }
 """Sizes for smoke tests (``run(sizes=TINY)``): every code path, seconds not minutes."""
 

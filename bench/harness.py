@@ -136,19 +136,24 @@ def draw_actions(
 
 
 def paired_ratio(
-    row: dict[str, Any], ref: dict[str, Any] | None, key: str, cost: bool = False
+    row: dict[str, Any],
+    ref: dict[str, Any] | None,
+    key: str,
+    cost: bool = False,
+    rate: str = "env_steps_per_s",
 ) -> None:
     """Set ``row[key]`` to the ratio of median rates and ``row[key + "_range"]`` to its range.
 
-    Rates are env-steps/s (``env_steps_per_s``, per repeat in ``_rates``). The ratio is
-    row / ref, or ref / row when ``cost`` (a cost per step instead of a rate). The range pairs
+    Rates are ``row[rate]`` (the median; env-steps/s unless ``rate`` names another key), per
+    repeat in ``_rates``. The ratio is row / ref, or ref / row when ``cost`` (a cost per step
+    instead of a rate). The range pairs
     the two measurements taken in the same round, which share that round's machine load. Left
     untouched (NaN) when either side has no repeats.
     """
     if ref is None or not row["_rates"] or not ref["_rates"]:
         return
     a, b = (ref, row) if cost else (row, ref)
-    row[key] = a["env_steps_per_s"] / b["env_steps_per_s"]
+    row[key] = a[rate] / b[rate]
     paired = [x / y for x, y in zip(a["_rates"], b["_rates"], strict=False)]
     row[key + "_range"] = (min(paired), max(paired))
 

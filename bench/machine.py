@@ -43,7 +43,7 @@ def machine_description() -> list[str]:
         f"- Python {platform.python_version()} ({platform.python_implementation()})",
         f"- numpy {np.__version__}, gymnasium {gym.__version__}, numba {_version('numba')}, "
         f"debris_gym {debris_gym.__version__}, torch {_version('torch')}, "
-        f"stable-baselines3 {_version('stable-baselines3')}",
+        f"stable-baselines3 {_version('stable-baselines3')}, vmas {_version('vmas')}",
         f"- debris_gym source measured: {source}",
     ]
 

@@ -15,6 +15,7 @@ from bench.config import CARTPOLE, DEFAULT_OBSTACLES, ID_2D, field_size_for
 from bench.decisions import DECISION_SEED
 from bench.harness import RANDOM
 from bench.machine import machine_description
+from bench.swarm import SWARM_ID, VMAS_LABEL, VMAS_TASK
 
 GOAL_CARTPOLE = 0.075
 """Goal: native 2D env-steps/s at CartPole's N ≥ this × CartPole-v1's native vector env."""
@@ -29,6 +30,11 @@ GOAL_MEMORY = 10 * 1024
 """Limit: bytes of state per sub-env."""
 GOAL_TRAIN = 20_000
 """Goal: end-to-end SB3 PPO env-steps/s."""
+GOAL_VMAS = 5.0
+"""Goal: swarm-core chaser-steps/s ≥ this × VMAS navigation's agent-steps/s at equal envs ×
+agents, one thread, uniformly random actions on both sides."""
+GOAL_VMAS_CHASERS = 48
+"""The chasers per field K the VMAS goal is stated at (the other K are reported beside it)."""
 
 BACKENDS = {
     "native": "native",
@@ -64,6 +70,7 @@ def format_report(
         (("step", "scaling", "reset"), _single_lines),
         (("vector",), _vector_lines),
         (("vector_scaling",), _vector_scaling_lines),
+        (("swarm",), _swarm_lines),
         (("memory",), _memory_lines),
         (("train",), _train_lines),
         (("decisions",), _decision_lines),
@@ -293,6 +300,71 @@ def _vector_scaling_lines(scal: list[dict[str, Any]]) -> list[str]:
         first = [label, _f(row["field_size"], 0), str(row["num_envs"])]
         rest = [*_throughput_cells(row), _f(row["reset_ms_per_env"], 2), _range(row, "ratio")]
         lines.append(_line(row, first, rest, "env_steps_per_s"))
+    return [*lines, ""]
+
+
+def _swarm_lines(swarm: list[dict[str, Any]]) -> list[str]:
+    """The swarm table against VMAS and the goal it is held against."""
+    repeats = max(r["repeats"] for r in swarm)
+    warm = {r["level"]: r["warmup_steps"] for r in swarm}
+    lines = _heading(
+        f"## Swarm throughput (`{SWARM_ID}` swarm core against {VMAS_LABEL})",
+        "chaser-steps/s = steps × E fields × K chasers / seconds, all on one thread (torch "
+        f"pinned to 1). {repeats} interleaved repeats after {warm.get('native', '–')} warm-up "
+        f"steps (swarm core) and {warm.get('vmas', '–')} (VMAS) from the first reset. A swarm "
+        "step: the (E·K, 2) actions checked, `SwarmCore.step`, `restart` of the fields whose "
+        "chasers have all ended, `observe()` of every chaser; a chaser that ended keeps its row, "
+        "idle, until its field restarts (*rows flying*). Actions: uniform in [-0.05, 0.05] of "
+        "`max_accel`, rows `actions=random` uniform in [-1, 1]. VMAS: `env.step` of K (E, 2) "
+        "uniformly random actions, the done envs reset as TorchRL's `VmasWrapper` does "
+        f"(BenchMARL's navigation task: `max_steps={VMAS_TASK['max_steps']}`, collisions and "
+        "lidar on, no obstacles; spawn square grown with K). *× VMAS* = chaser-steps/s over the "
+        "VMAS row's at the same E and K; in brackets the smallest and largest ratio of two "
+        "measurements taken in the same repeat; *flying rows only* counts the swarm's rows that "
+        "flew (× rows flying), as every VMAS agent moves every step. *% of time in restarts*: "
+        "the swarm core's `restart`, VMAS's resets and the observations read after them, "
+        "clocked inside the timed loop.",
+        "| simulator | K | E | steps/repeat | chaser-steps/s (median) | chaser-steps/s (best) "
+        "| µs per chaser-step | rows flying % | chasers ended / 1000 chaser-steps "
+        "| fields restarted / 1000 chaser-steps | % of time in restarts | obs size "
+        "| × VMAS (same E × K) | × VMAS, flying rows only |",
+        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|",
+    )
+    for row in swarm:
+        name = "swarm core" if row["level"] == "native" else VMAS_LABEL
+        if row["variant"]:
+            name += f" {row['variant']}"
+        first = [name, str(row["chasers"]), str(row["num_envs"])]
+        rest = [
+            str(row["count"]),
+            _f(row["chaser_steps_per_s"], 0),
+            _f(row["chaser_steps_per_s_best"], 0),
+            _f(row["us_per_chaser_step"], 2),
+            _f(100 * row["flying_share"], 0),
+            _f(row["ends_per_1000"], 2),
+            _f(row["resets_per_1000"], 2),
+            _f(100 * row["reset_share"], 1),
+            str(row["obs_size"] or "–"),
+            _range(row, "ratio_vmas", 1),
+            _f(row["ratio_vmas_flying"], 1),
+        ]
+        lines.append(_line(row, first, rest, "chaser_steps_per_s"))
+    lines += [
+        "",
+        f"Goal: swarm core ≥ {GOAL_VMAS:g}× VMAS at equal envs × agents, one thread, uniformly "
+        f"random actions (stated at K = {GOAL_VMAS_CHASERS}):",
+        "",
+    ]
+    for row in swarm:
+        if row["level"] != "native" or row["variant"] != RANDOM:
+            continue
+        lines.append(
+            f"- K={row['chasers']}, E={row['num_envs']}: {_range(row, 'ratio_vmas', 1)}× "
+            f"(goal ≥ {GOAL_VMAS:g}×): {_verdict(row['ratio_vmas'], GOAL_VMAS)}; flying rows "
+            f"only {_f(row['ratio_vmas_flying'], 1)}×: "
+            f"{_verdict(row['ratio_vmas_flying'], GOAL_VMAS)}"
+            + (" (the goal's K)" if row["chasers"] == GOAL_VMAS_CHASERS else "")
+        )
     return [*lines, ""]
 
 

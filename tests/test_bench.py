@@ -131,7 +131,9 @@ def test_write_atomic_replaces_the_file(tmp_path):
 
 def test_sections_are_selectable():
     assert bench.SECTIONS is suite.SECTIONS
-    assert suite.SECTIONS == ("single", "vector", "scaling", "memory", "train", "decisions")
+    assert suite.SECTIONS == (
+        "single", "vector", "scaling", "swarm", "memory", "train", "decisions"
+    )  # fmt: skip
     assert suite.choose_sections(["train", "vector"]) == ("vector", "train")  # run order
     assert suite.choose_sections(None) == suite.SECTIONS
     with pytest.raises(ValueError, match="unknown section"):
@@ -379,6 +381,7 @@ def test_report_has_every_section(all_rows):
         "## Single-env step cost",
         "## Vector env throughput",
         "## Vector env: scaling with debris count",
+        "## Swarm throughput",
         "## Memory per sub-env",
         "## Training throughput",
         "## Decision times",
