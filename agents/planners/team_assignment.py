@@ -230,7 +230,7 @@ def _partition_costs(
             "use fewer targets or chasers, or another rule"
         )
     tours = tour_costs(field) if tours is None else tours
-    owners = np.array(list(itertools.product(range(k), repeat=t)), dtype=np.int64).reshape(-1, t)
+    owners = np.array(list(itertools.product(range(k), repeat=t)), dtype=np.int64).reshape(k**t, t)
     bits = 1 << np.arange(t, dtype=np.int64)
     per = np.stack([tours[c, ((owners == c) * bits[None, :]).sum(axis=1)] for c in range(k)])
     return owners, per.sum(axis=0), per.max(axis=0)
