@@ -277,6 +277,9 @@ def test_evaluate_py_flies_teams_on_a_swarm_id_and_writes_the_tables(evaluate, t
         assert r["assignment"] == r["agent"].rpartition("@")[2]
         outcomes = [r[f"chaser{k}_outcome"] for k in range(3)]
         assert int(r["chasers_succeeded"]) == outcomes.count("success")
+        collided = [o for o in outcomes if o.endswith("collision")]
+        assert int(r["collisions"]) == len(collided)
+        assert r["clean_success"] == str(r["team_success"] == "True" and not collided)
         assert float(r["assignment_gap"]) >= -1e-9
     optimal = [r for r in rows if r["assignment"] == "optimal"]
     assert all(float(r["assignment_gap"]) == 0.0 for r in optimal)

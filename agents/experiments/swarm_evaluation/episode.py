@@ -74,6 +74,7 @@ class TeamEpisode:
         optimal_cost: the least total on this field (the ``optimal`` rule), m.
         minmax_longest: the least longest tour on this field (the ``minmax`` rule), m.
         decision_ms: team decision time per chaser deciding, one per step (ms).
+        wall_s: the episode's wall-clock time, both resets included (s).
     """
 
     agent: str
@@ -97,6 +98,7 @@ class TeamEpisode:
     optimal_cost: float
     minmax_longest: float
     decision_ms: tuple[float, ...] = field(repr=False, default=())
+    wall_s: float = 0.0
 
     @property
     def n_chasers(self) -> int:
@@ -111,6 +113,12 @@ class TeamEpisode:
     def collisions(self) -> int:
         """Chasers that collided (with debris or a teammate)."""
         return self.count("debris_collision") + self.count("teammate_collision")
+
+    @property
+    def clean_success(self) -> bool:
+        """Team success with no chaser colliding (the env's team success forgives a chaser
+        that collides once every target is captured)."""
+        return self.team_success and self.collisions == 0
 
     @property
     def gap(self) -> float:
@@ -146,6 +154,7 @@ def fly_episode(
     Returns:
         the record, and every rule's assignment on the episode's field.
     """
+    began = time.perf_counter()
     observations, _, chosen = start_episode(env, team, seed)
     rules = field_assignments(views)
     scenario = views[0].scenario
@@ -187,5 +196,6 @@ def fly_episode(
         optimal_cost=rules["optimal"].cost,
         minmax_longest=rules["minmax"].longest,
         decision_ms=tuple(decision_ms),
+        wall_s=time.perf_counter() - began,
     )
     return record, rules

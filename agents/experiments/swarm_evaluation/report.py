@@ -39,12 +39,13 @@ __all__ = [
 def episode_columns(n_chasers: int) -> list[str]:
     """The columns of ``episodes.csv`` for ``n_chasers`` chasers (docs/swarm.md lists them)."""
     head = [
-        "agent", "episode", "seed", "field", "team_success", "team_captures", "n_targets",
+        "agent", "episode", "seed", "field", "team_success", "clean_success", "team_captures",
+        "n_targets",
         "chasers_succeeded", "collisions", "debris_collisions", "teammate_collisions",
         "out_of_bounds", "budget_spent", "time_limit", "min_separation", "delta_v_total",
         "delta_v_max", "time", "steps", "assignment", "assignment_targets", "assignment_cost",
         "assignment_longest", "optimal_cost", "assignment_gap", "assignment_gap_pct",
-        "minmax_longest", "decision_ms_mean", "decision_ms_p95",
+        "minmax_longest", "decision_ms_mean", "decision_ms_p95", "wall_s",
     ]  # fmt: skip
     for k in range(n_chasers):
         head += [f"chaser{k}_outcome", f"chaser{k}_captures", f"chaser{k}_delta_v",
@@ -60,14 +61,15 @@ def _targets_text(targets: Sequence[Sequence[int]]) -> str:
 def _row(r: TeamEpisode) -> list[Any]:
     ms = np.asarray(r.decision_ms, dtype=float)
     row: list[Any] = [
-        r.agent, r.episode, r.seed, r.field_hash, r.team_success, r.team_captures, r.n_targets,
+        r.agent, r.episode, r.seed, r.field_hash, r.team_success, r.clean_success,
+        r.team_captures, r.n_targets,
         r.count("success"), r.collisions, r.count("debris_collision"),
         r.count("teammate_collision"), r.count("out_of_bounds"), r.count("delta_v_budget"),
         r.count("time_limit"), r.min_separation, sum(r.delta_v), max(r.delta_v), r.time,
         r.steps, r.assignment, _targets_text(r.targets), r.cost, r.longest, r.optimal_cost,
         r.gap, r.gap_pct, r.minmax_longest,
         float(ms.mean()) if ms.size else None,
-        float(np.percentile(ms, 95)) if ms.size else None,
+        float(np.percentile(ms, 95)) if ms.size else None, r.wall_s,
     ]  # fmt: skip
     for k in range(r.n_chasers):
         row += [r.outcomes[k], r.captures[k], r.delta_v[k], r.end_time[k]]
@@ -135,6 +137,7 @@ def summarize_teams(
         entry: dict[str, Any] = {"episodes": n, "n_chasers": k, "n_targets": t}
         for key, hits in (
             ("team_success_rate", sum(r.team_success for r in recs)),
+            ("clean_success_rate", sum(r.clean_success for r in recs)),
             ("collision_rate", sum(r.collisions > 0 for r in recs)),
             ("teammate_collision_rate", sum(r.count("teammate_collision") > 0 for r in recs)),
             ("debris_collision_rate", sum(r.count("debris_collision") > 0 for r in recs)),
@@ -154,6 +157,7 @@ def summarize_teams(
         ):
             entry[key], entry[f"{key}_ci95"] = _mean_ci(values, lo, hi)
         entry["min_separation_min"] = float(min(r.min_separation for r in recs))
+        entry["wall_s_mean"] = float(np.mean([r.wall_s for r in recs]))
         entry["decision_ms_p50"] = float(np.percentile(ms, 50)) if ms.size else None
         entry["decision_ms_p95"] = float(np.percentile(ms, 95)) if ms.size else None
         teams[label] = entry
@@ -217,23 +221,26 @@ def summary_markdown(summary: dict[str, Any]) -> str:
     teams, title = summary["teams"], summary.get("title", "")
     lines = [title, ""] if title else []
     lines += [
-        "| team | team success % | collisions % (debris / teammate chasers) | chaser success % "
-        "(chaser-episodes) | captures | Δv total (m/s) | Δv max chaser (m/s) | time (s) | "
-        "min separation (m) | tour cost (m) | gap to optimal % | decision ms p50 / p95 |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| team | team success % | no collision and team success % | collisions % (debris / "
+        "teammate chasers) | chaser success % (chaser-episodes) | captures | Δv total (m/s) | "
+        "Δv max chaser (m/s) | time (s) | min separation (m) | tour cost (m) | gap to optimal "
+        "% | decision ms p50 / p95 | wall s / episode |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for label, e in teams.items():
         out = e["chaser_outcomes"]
         lines.append(
             f"| {markdown_cell(label)} | {_ci(e, 'team_success_rate', 100)} | "
-            f"{_ci(e, 'collision_rate', 100)} ({out['debris_collision']} / "
+            f"{_ci(e, 'clean_success_rate', 100)} | {_ci(e, 'collision_rate', 100)} "
+            f"({out['debris_collision']} / "
             f"{out['teammate_collision']}) | {_ci(e, 'chaser_success_rate', 100)} | "
             f"{_ci(e, 'team_captures_mean')} | {_ci(e, 'delta_v_total_mean')} | "
             f"{_ci(e, 'delta_v_max_mean')} | {_ci(e, 'time_mean')} | "
             f"{format_number(e['min_separation_min'])} | "
             f"{format_number(e['assignment_cost_mean'])} | "
             f"{format_number(e['assignment_gap_pct_mean'])} | "
-            f"{format_number(e['decision_ms_p50'])} / {format_number(e['decision_ms_p95'])} |"
+            f"{format_number(e['decision_ms_p50'])} / {format_number(e['decision_ms_p95'])} | "
+            f"{format_number(e['wall_s_mean'])} |"
         )
     paired = summary.get("paired_team_success") or {}
     if paired:
