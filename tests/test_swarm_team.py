@@ -214,6 +214,19 @@ def test_a_team_starts_each_episode_on_the_seeded_field_with_its_assignment():
         start_episode(env, team, None)  # type: ignore[arg-type]
 
 
+def test_a_team_answers_for_the_chasers_still_flying():
+    env = swarm.make(SWARM, n_targets=4, n_obstacles=3, assignment="given")
+    team = TeamOfSingles(env, "zero", "optimal")
+    observations, _, chosen = start_episode(env, team, 7)
+    assert chosen.targets() == [[0, 1, 2, 3], [], []]  # the chasers without targets end at once
+    observations, *_ = env.step(team.predict(observations))
+    assert sorted(observations) == ["chaser_0", "chaser_1", "chaser_2"]
+    assert env.agents == ["chaser_0"]
+    assert list(team.predict(observations)) == ["chaser_0"]
+    with pytest.raises(ValueError, match="unknown agents"):
+        team.predict({"chaser_9": observations["chaser_0"]})
+
+
 def test_a_team_needs_given_assignments_and_a_known_rule_and_member():
     with pytest.raises(ValueError, match="assignment='given'"):
         TeamOfSingles(swarm.make(SWARM, **SMALL), "zero")

@@ -4,10 +4,11 @@ A team policy answers the swarm's PettingZoo protocol::
 
     actions = team.predict(observations)   # {agent: observation} -> {agent: action}
 
-for the agents still flying (``env.agents``), and says, before an episode, which chaser captures
-which target (:meth:`TeamOfSingles.choose_assignment`, on the field just drawn): the swarm must
-be made with ``assignment="given"`` and reset with that assignment (the reset option
-``assignment``; :func:`start_episode` does both resets).
+for the agents still flying (``env.agents``; observations of the others are ignored), and
+says, before an episode, which chaser captures which target
+(:meth:`TeamOfSingles.choose_assignment`, on the field just drawn): the swarm must be made
+with ``assignment="given"`` and reset with that assignment (the reset option ``assignment``;
+:func:`start_episode` does both resets).
 
 :class:`TeamOfSingles` flies one single-agent policy per chaser:
 
@@ -182,7 +183,8 @@ class TeamOfSingles:
     def predict(
         self, observations: dict[str, np.ndarray], deterministic: bool = True
     ) -> dict[str, np.ndarray]:
-        """One action per agent of ``observations`` (the agents still flying).
+        """One action per agent of ``observations`` still flying (the observations ``step``
+        returns for the agents it has just ended are ignored).
 
         Raises:
             ValueError: an unknown agent name.
@@ -190,16 +192,15 @@ class TeamOfSingles:
         unknown = sorted(set(observations) - set(self._index))
         if unknown:
             raise ValueError(f"unknown agents {unknown}; the team flies {self.agents}")
+        names = [a for a in observations if self.views[self._index[a]].flying]
         if self._learned is not None:
-            names = list(observations)
             if not names:
                 return {}
             batch = np.stack([np.asarray(observations[a])[: self._size] for a in names])
             actions, _ = self._learned.predict(batch, deterministic=deterministic)
             return {a: np.asarray(actions[i]) for i, a in enumerate(names)}
         return {
-            a: np.asarray(self._members[self._index[a]].predict(obs)[0])
-            for a, obs in observations.items()
+            a: np.asarray(self._members[self._index[a]].predict(observations[a])[0]) for a in names
         }
 
     def __repr__(self) -> str:
