@@ -26,6 +26,7 @@ from gymnasium import spaces
 from debris_gym.config import EnvConfig
 from debris_gym.geometry import FieldGeometry
 from debris_gym.scenario import Scenario
+from debris_gym.swarm import SwarmCore
 
 __all__ = ["ChaserView"]
 
@@ -43,7 +44,7 @@ class ChaserView:
         ValueError: ``chaser`` or ``field`` out of range.
     """
 
-    def __init__(self, core: Any, chaser: int, field: int = 0) -> None:
+    def __init__(self, core: SwarmCore, chaser: int, field: int = 0) -> None:
         k, fields = int(core.chasers), int(core.num_fields)
         if isinstance(chaser, bool) or not isinstance(chaser, (int, np.integer)):
             raise ValueError(f"chaser must be an integer in [0, {k - 1}], got {chaser!r}")

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from typing import Any, Protocol
 
+import gymnasium as gym
 import numpy as np
 
 from agents.planners.team_assignment import (
@@ -37,7 +38,12 @@ from agents.planners.team_assignment import (
 )
 from agents.policies.base import unwrap
 from agents.policies.chaser_view import ChaserView
-from agents.policies.learned import LEARNED_ALGOS, PRETRAINED, observation_options
+from agents.policies.learned import (
+    LEARNED_ALGOS,
+    OBSERVATION_KEYS,
+    PRETRAINED,
+    observation_options,
+)
 from agents.policies.registry import BASELINES, load_agent, make_agent
 
 __all__ = [
@@ -154,10 +160,6 @@ class TeamOfSingles:
     def _load(agent: str, env: Any) -> tuple[Any, int]:
         """The learned policy, loaded for the single-agent ID of the swarm's world with the
         swarm's observation options, and the size of its observation."""
-        import gymnasium as gym
-
-        from agents.policies.learned import OBSERVATION_KEYS
-
         config = env.core.config
         options = {k: getattr(config, k) for k in OBSERVATION_KEYS if k != "obs_teammates"}
         single = gym.make(single_agent_id(config.dim), **options)
