@@ -71,6 +71,19 @@ Agents (--agents, comma-separated):
 The colon of ALGO:PATH and MODULE:ATTR is told apart by the word before it: ppo, sac, td3, dqn
 and recurrent_ppo name an algorithm, anything else a module. From Python, evaluate_agents() also
 takes policy objects: see agents.experiments.evaluation and docs/training.md.
+
+Swarm IDs (--env DebrisGym/Swarm2D-v0, Swarm3D-v0, Swarm2D-Easy-v0) fly teams, one
+single-agent policy per chaser behind an assignment of the targets (docs/swarm.md, "Baselines"):
+  team-AGENT@RULE           AGENT a baseline (apf-mpc, zero, ...), pretrained (the policy
+                            shipped for the swarm's single-agent world) or ALGO:PATH; RULE
+                            balanced (the env's; the default), greedy, optimal or minmax
+Default: team-apf-mpc and team-pretrained under every rule, and team-zero@balanced. Every
+team flies episode i from reset(seed=SEED + i); the run writes episodes.csv (one row per
+team x episode: team success, per-chaser outcomes, debris and teammate collisions, min
+separation, Δv, time, the assignment with its tour cost and gap to the optimal, decision
+time per chaser), assignments.csv (every rule on every field), summary.json and summary.md,
+in one process (default --out runs/eval-swarm). --suite, --paper, --shield, --video,
+--plots, --resume, --backend ray and several --workers do not apply and are refused.
 """
 
 from __future__ import annotations
@@ -98,6 +111,8 @@ examples:
   python evaluate.py --workers 1                       # everything in this one process
   python evaluate.py --backend ray --workers 2 --episodes 200    # episodes on a local Ray
   python evaluate.py --backend ray --address auto ...  # on the Ray cluster this node is part of
+  python evaluate.py --env DebrisGym/Swarm2D-v0 --episodes 30        # every swarm team
+  python evaluate.py --env DebrisGym/Swarm2D-v0 --agents team-apf-mpc@minmax,team-zero
 """
 
 
@@ -307,7 +322,10 @@ def main(argv: list[str] | None = None) -> int:
         UsageError,
         run_evaluation,
     )
+    from agents.experiments.swarm_evaluation import is_swarm_id
 
+    if is_swarm_id(args.env):
+        return _swarm(parser, args)
     options = EvaluateOptions(**vars(args))  # the parser's destinations are the option names
     try:
         text = run_evaluation(options, remote={"ray": RayRemote()})
@@ -323,6 +341,25 @@ def main(argv: list[str] | None = None) -> int:
         kept = f"{args.resume}/unfinished/ is unchanged" if args.resume else "nothing saved"
         print(f"\ninterrupted before any episode ran; {kept}", file=sys.stderr)
         return 130
+    print(text, end="")
+    return 0
+
+
+def _swarm(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
+    """``--env SWARM_ID``: teams on the swarm IDs (agents.experiments.swarm_evaluation)."""
+    from agents.experiments.evaluation.plan import UsageError
+    from agents.experiments.swarm_evaluation import SwarmEvaluateOptions, run_swarm_evaluation
+
+    try:
+        text = run_swarm_evaluation(SwarmEvaluateOptions.from_arguments(vars(args)))
+    except UsageError as exc:
+        parser.error(f"argument {exc.flag}: {exc}")
+    except KeyboardInterrupt:
+        print("\ninterrupted: nothing written", file=sys.stderr)
+        return 130
+    except RuntimeError as exc:
+        print(f"\nerror: {exc}\nstopped: nothing written", file=sys.stderr)
+        return 1
     print(text, end="")
     return 0
 

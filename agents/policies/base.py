@@ -10,27 +10,104 @@ know the bodies' motion too: :class:`agents.planners.motion.FieldMotion`): they 
 the env (:func:`agents.make_agent`) and read the field from ``env.unwrapped.scenario`` and the
 chaser's state and capture flags from the env's read-only properties. So they act for the env
 they were built with; SB3's ``evaluate_policy`` works on a one-env ``DummyVecEnv`` around that env.
+
+What they read is the small read-only protocol :class:`FieldView`: a
+:class:`~debris_gym.envs.DebrisFieldEnv` is one, and so is one chaser of a swarm
+(:class:`agents.policies.chaser_view.ChaserView`), which a single-agent baseline flies unchanged.
 """
 
 from __future__ import annotations
 
-from typing import Any
+import inspect
+from typing import Any, Protocol
 
 import numpy as np
+from gymnasium import spaces
 
+from debris_gym.config import EnvConfig
 from debris_gym.envs import DebrisFieldEnv
+from debris_gym.geometry import FieldGeometry
 from debris_gym.scenario import Scenario
 from debris_gym.thrust import action_for_accel
+
+FIELD_VIEW_MEMBERS = (
+    "config", "dim", "observation_space", "scenario", "chaser_state", "captured", "elapsed",
+    "geometry",
+)  # fmt: skip
+"""The members of :class:`FieldView`, what :func:`field_view` looks for."""
+
+
+class FieldView(Protocol):
+    """What a classical agent reads from the env it flies, all read-only: the field, one
+    chaser's state and capture flags, the clock and the options."""
+
+    @property
+    def config(self) -> EnvConfig:
+        """The env's options."""
+
+    @property
+    def dim(self) -> int:
+        """2 or 3."""
+
+    @property
+    def observation_space(self) -> spaces.Space:
+        """The space of the observations ``predict`` is given."""
+
+    @property
+    def scenario(self) -> Scenario | None:
+        """The current field, its ``dock`` the chaser's own (None before the first reset)."""
+
+    @property
+    def chaser_state(self) -> np.ndarray:
+        """The chaser's LVLH state [position (m), velocity (m/s)] (a copy)."""
+
+    @property
+    def captured(self) -> np.ndarray:
+        """(T,) bool: the targets the chaser has nothing more to do with (a copy)."""
+
+    @property
+    def elapsed(self) -> float:
+        """Time since the episode began (s)."""
+
+    @property
+    def geometry(self) -> FieldGeometry:
+        """The field's geometry with the bodies where they are now, inflated by the chaser's
+        radius."""
+
+
+def _inner(env: Any) -> Any:
+    base = env
+    if hasattr(base, "envs") and len(base.envs) == 1:  # SB3 DummyVecEnv
+        base = base.envs[0]
+    return getattr(base, "unwrapped", base)
 
 
 def unwrap(env: Any) -> DebrisFieldEnv:
     """The :class:`DebrisFieldEnv` inside ``env`` (gymnasium wrappers, or a one-env VecEnv)."""
-    base = env
-    if hasattr(base, "envs") and len(base.envs) == 1:  # SB3 DummyVecEnv
-        base = base.envs[0]
-    base = getattr(base, "unwrapped", base)
+    base = _inner(env)
     if not isinstance(base, DebrisFieldEnv):
         raise TypeError(f"expected a DebrisGym env, got {type(base).__name__}")
+    return base
+
+
+def field_view(env: Any) -> FieldView:
+    """What a classical agent reads from ``env``: the :class:`DebrisFieldEnv` inside it
+    (:func:`unwrap`), or ``env`` itself when it has every member of :class:`FieldView` (one
+    chaser of a swarm, say). The members are looked up without being read (a view that has no
+    field yet is still a view).
+
+    Raises:
+        TypeError: ``env`` is neither (the message names the members it lacks).
+    """
+    base = _inner(env)
+    if isinstance(base, DebrisFieldEnv):
+        return base
+    missing = [n for n in FIELD_VIEW_MEMBERS if inspect.getattr_static(base, n, None) is None]
+    if missing:
+        raise TypeError(
+            f"expected a DebrisGym env or a field view, got {type(base).__name__} (it lacks "
+            f"{', '.join(missing)})"
+        )
     return base
 
 
@@ -42,7 +119,8 @@ class ClassicalAgent:
     the current state).
 
     Args:
-        env: the DebrisGym env (wrapped or not) the agent flies; needs ``action="continuous"``.
+        env: the DebrisGym env (wrapped or not) or :class:`FieldView` the agent flies; needs
+            ``action="continuous"``.
     """
 
     name = "classical"
@@ -53,7 +131,7 @@ class ClassicalAgent:
     any copy of the agent (the Ray backend does; :mod:`agents.experiments.distributed`)."""
 
     def __init__(self, env: Any) -> None:
-        self.env = unwrap(env)
+        self.env = field_view(env)
         if self.env.config.action != "continuous":
             raise ValueError(
                 f"the {self.name!r} baseline needs action='continuous', got "

@@ -1,0 +1,144 @@
+"""One chaser of a swarm as the env a single-agent classical baseline flies.
+
+A :class:`ChaserView` is a read-only :class:`~agents.policies.base.FieldView` of chaser ``k`` of
+a swarm (:class:`debris_gym.swarm.SwarmCore`, the core of every swarm env): its state, its own
+capture flags, the swarm's clock and options, and the field as a
+:class:`~debris_gym.scenario.Scenario` whose dock is the chaser's own dock slot. A baseline built
+on it (``agents.make_agent("apf-mpc", ChaserView(env.core, k))``) flies chaser ``k`` exactly as it
+would fly a single env holding the same field and chaser state (``tests/test_swarm_team.py``).
+
+With ``assignment="given"`` the chaser's flags mark the targets of the other chasers as
+captured, so the baseline goes after its own targets alone, and still avoids the others: they
+stay bodies of the field.
+
+The teammates are not bodies of the view's field: a baseline flying one chaser does not see the
+others (their contacts are still collisions in the swarm).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+from debris_gym.config import EnvConfig
+from debris_gym.geometry import FieldGeometry
+from debris_gym.scenario import Scenario
+from debris_gym.swarm import SwarmCore
+
+__all__ = ["ChaserView"]
+
+
+class ChaserView:
+    """Chaser ``chaser`` of field ``field`` of a swarm, read-only.
+
+    Args:
+        core: the swarm's core (``env.core`` of a
+            :class:`~debris_gym.swarm.parallel.SwarmParallelEnv`).
+        chaser: the chaser's index k in its field, 0 … K − 1.
+        field: the field's index (0 for a PettingZoo env, which has one).
+
+    Raises:
+        ValueError: ``chaser`` or ``field`` out of range.
+    """
+
+    def __init__(self, core: SwarmCore, chaser: int, field: int = 0) -> None:
+        k, fields = int(core.chasers), int(core.num_fields)
+        if isinstance(chaser, bool) or not isinstance(chaser, (int, np.integer)):
+            raise ValueError(f"chaser must be an integer in [0, {k - 1}], got {chaser!r}")
+        if not 0 <= chaser < k:
+            raise ValueError(f"chaser={chaser} is out of range; allowed: [0, {k - 1}]")
+        if isinstance(field, bool) or not isinstance(field, (int, np.integer)):
+            raise ValueError(f"field must be an integer in [0, {fields - 1}], got {field!r}")
+        if not 0 <= field < fields:
+            raise ValueError(f"field={field} is out of range; allowed: [0, {fields - 1}]")
+        self.core = core
+        self.chaser, self.field = int(chaser), int(field)
+        self.row = self.field * k + self.chaser
+        """The chaser's row in the swarm's missions."""
+        self._source: Scenario | None = None  # the swarm's field the cached view was made from
+        self._scenario: Scenario | None = None
+        self._geometry: FieldGeometry | None = None
+
+    # --- the FieldView members ------------------------------------------------------------------
+
+    @property
+    def config(self) -> EnvConfig:
+        """The swarm's single-agent options."""
+        return self.core.config
+
+    @property
+    def dim(self) -> int:
+        """2 or 3."""
+        return int(self.core.config.dim)
+
+    @property
+    def observation_space(self) -> spaces.Space:
+        """One chaser's observation space in the swarm (its single-agent observation and the
+        teammate slots)."""
+        return self.core.observation_space
+
+    @property
+    def scenario(self) -> Scenario | None:
+        """The field as drawn at t = 0, its ``dock`` the chaser's dock slot (m); the same
+        object until the swarm installs another field. None before the first reset."""
+        source = self.core.shell.scenario(self.field)
+        if source is None:
+            return None
+        if source is not self._source:
+            slot = self.core.shell.batch_in_use.dock[self.row]
+            self._scenario = dataclasses.replace(source, dock=tuple(float(x) for x in slot))
+            self._source = source
+        return self._scenario
+
+    @property
+    def chaser_state(self) -> np.ndarray:
+        """The chaser's LVLH state [position (m), velocity (m/s)] (a copy)."""
+        return self._missions.state[self.row].copy()
+
+    @property
+    def captured(self) -> np.ndarray:
+        """(T,) bool, the chaser's own flags (a copy): the targets captured by the team, and,
+        with ``assignment="given"``, every target that is another chaser's."""
+        return self._missions.captured[self.row].copy()
+
+    @property
+    def elapsed(self) -> float:
+        """Time since the episode began (s)."""
+        return float(self._missions.time[self.row])
+
+    @property
+    def geometry(self) -> FieldGeometry:
+        """The field's geometry with the bodies where they are now (the view's clock),
+        inflated by the chaser radius; rebuilt when the field or the time changes."""
+        scenario = self.scenario
+        if scenario is None:
+            raise RuntimeError("reset the swarm before reading its geometry")
+        t = self.elapsed if scenario.moving else 0.0
+        geometry = self._geometry
+        if geometry is None or geometry.time != t or geometry.scenario is not scenario:
+            geometry = self._geometry = FieldGeometry(
+                scenario, inflate=self.config.chaser_radius, time=t
+            )
+        return geometry
+
+    # --- what a team reads besides ---------------------------------------------------------------
+
+    @property
+    def assigned(self) -> np.ndarray:
+        """(T,) bool: the targets that are this chaser's (every one with ``assignment="free"``)."""
+        return self._missions.assigned[self.row].copy()
+
+    @property
+    def flying(self) -> bool:
+        """Whether the chaser has not ended its mission."""
+        return bool(self.core.flying[self.row])
+
+    @property
+    def _missions(self) -> Any:
+        return self.core.shell.batch_in_use.missions
+
+    def __repr__(self) -> str:
+        return f"ChaserView(chaser={self.chaser}, field={self.field})"

@@ -1,0 +1,230 @@
+"""Team policies: one decision for every chaser of a swarm, behind an assignment of the targets.
+
+A team policy answers the swarm's PettingZoo protocol::
+
+    actions = team.predict(observations)   # {agent: observation} -> {agent: action}
+
+for the agents still flying (``env.agents``; observations of the others are ignored), and
+says, before an episode, which chaser captures which target
+(:meth:`TeamOfSingles.choose_assignment`, on the field just drawn): the swarm must be made
+with ``assignment="given"`` and reset with that assignment (the reset option ``assignment``;
+:func:`start_episode` does both resets).
+
+:class:`TeamOfSingles` flies one single-agent policy per chaser:
+
+* a classical baseline (:data:`agents.BASELINES`) built on each chaser's
+  :class:`~agents.policies.chaser_view.ChaserView`, so it sees the field, its own dock slot and
+  its own targets (the others' read as captured; they stay bodies to avoid) — not its
+  teammates;
+* a learned single-agent policy (``"pretrained"``, the one shipped for the single-agent ID of
+  the swarm's world, or ``"ALGO:PATH"``), given the single-agent part of each chaser's swarm
+  observation (its first elements, when the swarm is made with the policy's observation
+  options: :func:`team_options`), all chasers in one batch.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol
+
+import gymnasium as gym
+import numpy as np
+
+from agents.planners.team_assignment import (
+    ASSIGNMENT_RULES,
+    TeamAssignment,
+    TeamField,
+    assign,
+    tour_costs,
+)
+from agents.policies.base import unwrap
+from agents.policies.chaser_view import ChaserView
+from agents.policies.learned import (
+    LEARNED_ALGOS,
+    OBSERVATION_KEYS,
+    PRETRAINED,
+    observation_options,
+)
+from agents.policies.registry import BASELINES, load_agent, make_agent
+
+__all__ = [
+    "TeamOfSingles",
+    "TeamPolicy",
+    "single_agent_id",
+    "start_episode",
+    "team_field",
+    "team_options",
+]
+
+
+class TeamPolicy(Protocol):
+    """What the swarm evaluation flies: a name, an assignment per episode and a joint
+    ``predict``."""
+
+    name: str
+    rule: str
+
+    def choose_assignment(self) -> TeamAssignment:
+        """The assignment for the field the env holds now (before its missions begin)."""
+
+    def predict(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """One action per agent of ``observations`` (the agents still flying)."""
+
+
+def single_agent_id(dim: int) -> str:
+    """The single-agent ID whose world (v2) the swarm IDs fly, in ``dim`` dimensions: the ID
+    a learned single-agent policy for a team is looked up and checked for."""
+    return f"DebrisGym/Rendezvous{int(dim)}D-v2"
+
+
+def _is_learned(agent: str) -> bool:
+    text = agent.strip().replace("=", ":")
+    head, sep, _ = text.partition(":")
+    return text == PRETRAINED or (bool(sep) and head.strip().lower() in LEARNED_ALGOS)
+
+
+def team_options(agent: str, dim: int) -> dict[str, Any]:
+    """The swarm options a team of ``agent`` needs: ``assignment="given"``, and for a learned
+    policy the observation options it was trained with (so each chaser's observation starts
+    with the single-agent layout it knows)."""
+    options: dict[str, Any] = {"assignment": "given"}
+    if _is_learned(agent):
+        options.update(observation_options(agent, single_agent_id(dim)))
+    return options
+
+
+def team_field(views: list[ChaserView]) -> TeamField:
+    """What an assignment rule reads of the views' field, at t = 0: each chaser's dock slot,
+    the targets' centres and radii, and whether the tours return.
+
+    Raises:
+        RuntimeError: the swarm has not been reset.
+    """
+    scenarios = [v.scenario for v in views]
+    if any(s is None for s in scenarios):
+        raise RuntimeError("reset the swarm before choosing an assignment")
+    first = scenarios[0]
+    assert first is not None
+    docks = np.array([s.dock for s in scenarios if s is not None], dtype=float)
+    centers = np.array([t.position for t in first.targets], dtype=float).reshape(-1, first.dim)
+    radii = np.array([t.radius for t in first.targets], dtype=float)
+    return TeamField(docks, centers, radii, bool(views[0].config.return_to_dock))
+
+
+class TeamOfSingles:
+    """One single-agent policy per chaser, behind an assignment rule.
+
+    Args:
+        env: the swarm env (a :class:`~debris_gym.swarm.parallel.SwarmParallelEnv` made with
+            ``assignment="given"`` and :func:`team_options`).
+        agent: a baseline name (:data:`agents.BASELINES`), ``"pretrained"`` or ``"ALGO:PATH"``.
+        rule: the assignment rule (:data:`~agents.planners.team_assignment.ASSIGNMENT_RULES`).
+        **params: the baseline's constructor parameters (classical agents only).
+
+    Raises:
+        ValueError: an unknown agent or rule, a swarm not made with ``assignment="given"``, or
+            (learned) a swarm observation that does not start with the policy's layout.
+    """
+
+    def __init__(self, env: Any, agent: str, rule: str = "balanced", **params: Any) -> None:
+        if rule not in ASSIGNMENT_RULES:
+            raise ValueError(
+                f"unknown assignment rule {rule!r}; known: {', '.join(ASSIGNMENT_RULES)}"
+            )
+        core = env.core
+        if core.swarm.assignment != "given":
+            raise ValueError(
+                f"a team of single agents flies behind an assignment: make the swarm with "
+                f"assignment='given' (it has assignment={core.swarm.assignment!r})"
+            )
+        self.env, self.agent, self.rule = env, agent, rule
+        self.name = f"team-{agent}@{rule}"
+        self.agents: list[str] = list(env.possible_agents)
+        self.views = [ChaserView(core, k) for k in range(core.chasers)]
+        self._index = {a: k for k, a in enumerate(self.agents)}
+        self._members: list[Any] = []
+        self._learned: Any = None
+        self._size = 0
+        if _is_learned(agent):
+            if params:
+                raise ValueError(f"a learned team member takes no parameters, got {sorted(params)}")
+            self._learned, self._size = self._load(agent, env)
+        elif agent in BASELINES:
+            self._members = [make_agent(agent, view, **params) for view in self.views]
+        else:
+            raise ValueError(
+                f"unknown team member {agent!r}; known: {', '.join(BASELINES)}, {PRETRAINED!r} "
+                "or ALGO:PATH"
+            )
+
+    @staticmethod
+    def _load(agent: str, env: Any) -> tuple[Any, int]:
+        """The learned policy, loaded for the single-agent ID of the swarm's world with the
+        swarm's observation options, and the size of its observation."""
+        config = env.core.config
+        options = {k: getattr(config, k) for k in OBSERVATION_KEYS if k != "obs_teammates"}
+        single = gym.make(single_agent_id(config.dim), **options)
+        try:
+            names = unwrap(single).observation_names()
+            if env.observation_names()[: len(names)] != names:
+                raise ValueError(
+                    f"the swarm's observation does not start with the single-agent layout "
+                    f"{agent!r} reads; make the swarm with team_options({agent!r}, "
+                    f"{config.dim})"
+                )
+            policy = load_agent(agent, single)
+        finally:
+            single.close()
+        return policy, len(names)
+
+    def choose_assignment(self) -> TeamAssignment:
+        """The rule's assignment on the field the swarm holds now (after a reset, before the
+        missions begin), with its cost (:func:`~agents.planners.team_assignment.assign`)."""
+        field = team_field(self.views)
+        return assign(self.rule, field, tour_costs(field))
+
+    def predict(
+        self, observations: dict[str, np.ndarray], deterministic: bool = True
+    ) -> dict[str, np.ndarray]:
+        """One action per agent of ``observations`` still flying (the observations ``step``
+        returns for the agents it has just ended are ignored).
+
+        Raises:
+            ValueError: an unknown agent name.
+        """
+        unknown = sorted(set(observations) - set(self._index))
+        if unknown:
+            raise ValueError(f"unknown agents {unknown}; the team flies {self.agents}")
+        names = [a for a in observations if self.views[self._index[a]].flying]
+        if self._learned is not None:
+            if not names:
+                return {}
+            batch = np.stack([np.asarray(observations[a])[: self._size] for a in names])
+            actions, _ = self._learned.predict(batch, deterministic=deterministic)
+            return {a: np.asarray(actions[i]) for i, a in enumerate(names)}
+        return {
+            a: np.asarray(self._members[self._index[a]].predict(observations[a])[0]) for a in names
+        }
+
+    def __repr__(self) -> str:
+        return f"TeamOfSingles({self.agent!r}, rule={self.rule!r})"
+
+
+def start_episode(
+    env: Any, team: TeamPolicy, seed: int
+) -> tuple[dict[str, np.ndarray], dict[str, dict[str, Any]], TeamAssignment]:
+    """Reset ``env`` with ``seed``, let ``team`` choose its assignment on the field drawn, and
+    reset again with the same seed and that assignment (the same field, the missions begun
+    with it).
+
+    Returns:
+        the observations and infos of the second reset, and the assignment.
+
+    Raises:
+        ValueError: ``seed`` is not an integer (an unseeded reset would draw another field).
+    """
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+        raise ValueError(f"seed must be an integer (both resets draw the same field), got {seed!r}")
+    env.reset(seed=seed)
+    chosen = team.choose_assignment()
+    observations, infos = env.reset(seed=seed, options={"assignment": chosen.targets()})
+    return observations, infos, chosen
