@@ -262,7 +262,8 @@ def summary_markdown(summary: dict[str, Any]) -> str:
         lines += [
             "",
             "Assignment rules on the same fields (tour cost: each chaser's shortest tour slot → "
-            "its targets → slot, surface-to-surface legs at t = 0, summed over the chasers):",
+            "its targets (→ slot when the mission returns), surface-to-surface legs at t = 0, "
+            "summed over the chasers):",
             "",
             "| rule | tour cost (m) | gap to optimal (m) | gap % mean / max | at optimum | "
             "longest tour (m) | longest above minmax (m) |",
