@@ -28,6 +28,23 @@ from debris_gym.geometry_kernels import first_contacts, nearest_points
 from debris_gym.scenario import Scenario
 
 
+def geometry_now(
+    previous: FieldGeometry | None, scenario: Scenario, time: float, inflate: float
+) -> FieldGeometry:
+    """The :class:`FieldGeometry` of ``scenario`` at ``time`` (s; 0 for a frozen field)
+    inflated by ``inflate`` (m): ``previous`` when it is that one already, else a new one (the
+    cache of the envs' and views' ``geometry``)."""
+    t = time if scenario.moving else 0.0
+    if (
+        previous is not None
+        and previous.time == t
+        and previous.scenario is scenario
+        and previous.inflate == inflate
+    ):
+        return previous
+    return FieldGeometry(scenario, inflate=inflate, time=t)
+
+
 class FieldGeometry:
     """Geometry of one :class:`Scenario` with its bodies where they are at ``time``.
 

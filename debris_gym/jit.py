@@ -37,6 +37,7 @@ COMPILED_MODULES = (
     "geometry_kernels",
     "goal",
     "mission_step",
+    "potential",
     "observation",
     "thrust",
 )

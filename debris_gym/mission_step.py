@@ -41,11 +41,11 @@ import numba
 import numpy as np
 
 from debris_gym.batch_geometry import field_gaps
-from debris_gym.goal import DOCK_GOAL, NO_GOAL, current_goal, remaining_tour
 from debris_gym.jit import borrowing, inlined, kernel, threaded
 from debris_gym.mission_data import StepScratch
+from debris_gym.potential import nearest_obstacle, potential, speed_of, tour_potential
 from debris_gym.rewards import REWARD_TERMS
-from debris_gym.swept_contacts import moving_path_touches, path_touches
+from debris_gym.swept_contacts import moving_path_touches, pair_distance, path_touches
 from debris_gym.thrust import delta_v_rate_row, thrust_row
 
 # reward term columns, in REWARD_TERMS order
@@ -161,25 +161,6 @@ def measure(
         attitude, gaps[i],
     )  # fmt: skip
     sort_by_gap(gaps[i], nearest[i])
-
-
-@inlined
-def nearest_obstacle(i, n_targets, gaps, clearance):
-    """The smaller of ``clearance`` and the gaps (m) to the obstacles (bodies from
-    ``n_targets`` on) of row ``i``."""
-    for b in range(n_targets, gaps.shape[1]):
-        clearance = min(clearance, gaps[i, b])
-    return clearance
-
-
-@inlined
-def speed_of(i, state):
-    """The chaser's speed (m/s) in row ``i`` of ``state`` (N, 2·dim)."""
-    dim = state.shape[1] // 2
-    s = 0.0
-    for a in range(dim):
-        s += state[i, dim + a] * state[i, dim + a]
-    return math.sqrt(s)
 
 
 @inlined
@@ -305,103 +286,6 @@ def reward(
     for k in range(terms.shape[1]):
         total += terms[i, k]
     return total
-
-
-# --- the potential ----------------------------------------------------------------------------
-
-
-@inlined
-def potential(
-    i, f, rules, shaping, state, gaps, captured, centers, dock, length_scale, speed_scale
-):  # fmt: skip
-    """Φ of mission ``i`` (in field ``f``): −(gap to the current goal / L + goals after it),
-    less the optional terms of ``shaping`` (:func:`shaping_terms`; see :mod:`debris_gym.rewards`).
-
-    ``shaping`` is None when those terms are off (:func:`debris_gym.mission_data.make_shaping`):
-    numba then compiles the kernels without the call, whose mere presence cost time in every
-    step (docs/benchmarks.md, "Measured design choices").
-    """
-    goal, gap, after = current_goal(
-        i, gaps, captured, rules.queued, rules.return_to_dock, rules.chaser_radius
-    )
-    if goal == DOCK_GOAL:  # the distance to the dock, written out for 2 or 3 axes (no loop)
-        off = state[i, 0] - dock[i, 0]
-        s = off * off
-        off = state[i, 1] - dock[i, 1]
-        s += off * off
-        if dock.shape[1] == 3:
-            off = state[i, 2] - dock[i, 2]
-            s += off * off
-        gap = math.sqrt(s)
-    goal_gap = max(gap, 0.0)
-    phi = -(goal_gap / length_scale[f] + after)
-    if shaping is not None:
-        phi = shaping_terms(
-            phi, goal, goal_gap, i, f, rules, shaping, state, gaps, centers, speed_scale[f]
-        )
-    return phi
-
-
-@inlined
-def tour_potential(
-    i, f, rules, shaping, state, gaps, captured, centers, radii, dock, length_scale, speed_scale,
-    order, counters, legs, homes,
-):  # fmt: skip
-    """Φ of mission ``i`` (in field ``f``) with ``shaping_potential="tour"`` (the v1 world):
-    −(the shortest remaining mission / L) (:func:`debris_gym.goal.remaining_tour`), less the
-    optional terms of ``shaping`` as :func:`potential` applies them. ``order``, ``counters``
-    (T,), ``legs`` (T, T) and ``homes`` (T,) are scratch
-    (:func:`~debris_gym.goal.remaining_tour`)."""
-    tour = remaining_tour(
-        i, f, gaps, captured, rules.queued, rules.return_to_dock, rules.chaser_radius, centers,
-        radii, dock, state, order, counters, legs, homes,
-    )  # fmt: skip
-    phi = -tour / length_scale[f]
-    if shaping is not None:
-        goal, gap, _ = current_goal(
-            i, gaps, captured, rules.queued, rules.return_to_dock, rules.chaser_radius
-        )
-        phi = shaping_terms(
-            phi, goal, max(gap, 0.0), i, f, rules, shaping, state, gaps, centers, speed_scale[f]
-        )
-    return phi
-
-
-@kernel  # not inlined: off by default (see potential's ``shaping``)
-def shaping_terms(phi, goal, goal_gap, i, f, rules, shaping, state, gaps, centers, speed_scale):
-    """Φ less the optional approach-speed, clearance and closing terms: ``shaping.speed`` ·
-    max(0, speed − (capture_speed + slope · goal gap)) / V; ``shaping.clearance`` ·
-    max(0, 1 − c / d)² (c: the chaser surface's gap to the nearest obstacle);
-    ``shaping.closing`` · the largest, over bodies b other than the goal within
-    ``closing_distance`` d, of max(0, v_b − capture_speed) / V · (1 − c_b / d) (v_b: the
-    chaser's speed toward b's centre). ``speed_scale`` is the row's V (m/s)."""
-    dim = centers.shape[2]
-    n_targets, chaser_r = rules.n_targets, rules.chaser_radius
-    if shaping.speed > 0.0 and goal != NO_GOAL:
-        allowed = rules.capture_speed + shaping.speed_slope * goal_gap
-        phi -= shaping.speed * max(speed_of(i, state) - allowed, 0.0) / speed_scale
-    if shaping.clearance > 0.0 and gaps.shape[1] > n_targets:
-        clearance = max(nearest_obstacle(i, n_targets, gaps, math.inf) - chaser_r, 0.0)
-        closeness = max(1.0 - clearance / shaping.clearance_distance, 0.0)
-        phi -= shaping.clearance * closeness * closeness
-    if shaping.closing > 0.0:
-        worst = 0.0
-        reach = shaping.closing_distance
-        for b in range(gaps.shape[1]):
-            c = gaps[i, b] - chaser_r
-            if b == goal or not c < reach:
-                continue
-            toward = 0.0
-            dist2 = 0.0
-            for a in range(dim):
-                rel = centers[f, b, a] - state[i, a]
-                toward += rel * state[i, dim + a]
-                dist2 += rel * rel
-            closing = toward / math.sqrt(dist2) if dist2 > 0.0 else 0.0
-            excess = max(closing - rules.capture_speed, 0.0) / speed_scale
-            worst = max(worst, excess * (1.0 - max(c, 0.0) / reach))
-        phi -= shaping.closing * worst
-    return phi
 
 
 @inlined
@@ -713,34 +597,6 @@ def step_fields(lo, hi, live, actions, rules, shaping, missions, field, out, scr
             if taken:
                 for k in range(n_chasers):
                     captured[first + k, j] = True
-
-
-@inlined
-def pair_distance(path_a, path_b):
-    """Closest approach (m, centre to centre) of two chasers flying the sampled paths
-    ``path_a`` and ``path_b`` (K + 1, dim) over one step: the smallest distance from the origin
-    to the chords of their relative path (both are free CW bodies under constant thrust, so
-    their relative motion is sampled at the same sub-steps exactly as a chaser's relative to a
-    body, :func:`~debris_gym.swept_contacts.moving_path_touches`)."""
-    n_points, dim = path_a.shape
-    best = math.inf
-    for k in range(n_points - 1):
-        len2 = 0.0
-        dot = 0.0
-        for a in range(dim):
-            r0 = path_a[k, a] - path_b[k, a]
-            ab = path_a[k + 1, a] - path_b[k + 1, a] - r0
-            len2 += ab * ab
-            dot -= r0 * ab
-        t = dot / len2 if len2 > 0.0 else 0.0
-        t = min(max(t, 0.0), 1.0)
-        d2 = 0.0
-        for a in range(dim):
-            r0 = path_a[k, a] - path_b[k, a]
-            g = r0 + t * (path_a[k + 1, a] - path_b[k + 1, a] - r0)
-            d2 += g * g
-        best = min(best, d2)
-    return math.sqrt(best)
 
 
 @kernel

@@ -307,6 +307,34 @@ def moving_path_touches(
                     break
 
 
+@inlined
+def pair_distance(path_a, path_b):
+    """Closest approach (m, centre to centre) of two chasers flying the sampled paths
+    ``path_a`` and ``path_b`` (K + 1, dim) over one step: the smallest distance from the origin
+    to the chords of their relative path (both are free CW bodies under constant thrust, so
+    their relative motion is sampled at the same sub-steps exactly as a chaser's relative to a
+    body, :func:`~debris_gym.swept_contacts.moving_path_touches`)."""
+    n_points, dim = path_a.shape
+    best = math.inf
+    for k in range(n_points - 1):
+        len2 = 0.0
+        dot = 0.0
+        for a in range(dim):
+            r0 = path_a[k, a] - path_b[k, a]
+            ab = path_a[k + 1, a] - path_b[k + 1, a] - r0
+            len2 += ab * ab
+            dot -= r0 * ab
+        t = dot / len2 if len2 > 0.0 else 0.0
+        t = min(max(t, 0.0), 1.0)
+        d2 = 0.0
+        for a in range(dim):
+            r0 = path_a[k, a] - path_b[k, a]
+            g = r0 + t * (path_a[k + 1, a] - path_b[k + 1, a] - r0)
+            d2 += g * g
+        best = min(best, d2)
+    return math.sqrt(best)
+
+
 @kernel
 def touched_bodies(
     paths, start_gaps, inflate, centers, radii, polygon_start, n_vertices, vertices, out

@@ -127,18 +127,24 @@ def test_a_teammate_collision_ends_both_and_is_penalised():
     assert infos["chaser_0"]["min_separation"] < 2.0
 
 
+def beside_target_0(env, seed: int, options: dict | None = None) -> np.ndarray:
+    """(2, 2·dim) initial states: chaser 0 at the dock, chaser 1 parked 2 m off target 0's
+    surface (2D), moving with it, in the field of ``env.reset(seed=seed, options=options)``."""
+    env.reset(seed=seed, options=options)
+    field, d = env.core.shell.batch_in_use.field, env.config.dim
+    gap = field.radii[0, 0] + env.config.chaser_radius + 2.0
+    states = np.zeros((2, 2 * d))
+    states[1, :d] = field.centers[0, 0] + np.array([gap, 0.0])
+    states[1, d:] = field.velocities[0, 0]
+    return states
+
+
 def test_a_target_captured_by_one_chaser_is_captured_for_all():
     """Park chaser 1 beside target 0, still relative to it: it holds and captures; the capture
     shows in every chaser's captured flags, the bonus only in the holder's reward."""
     env = swarm.make(EASY, return_to_dock=False, assignment="free")
-    env.reset(seed=11)
-    m = env.core.shell.batch_in_use
+    states = beside_target_0(env, seed=11)
     d = env.config.dim
-    center, velocity = m.field.centers[0, 0], m.field.velocities[0, 0]
-    gap = m.field.radii[0, 0] + env.config.chaser_radius + 2.0
-    states = np.zeros((2, 2 * d))
-    states[1, :d] = center + np.array([gap, 0.0])
-    states[1, d:] = velocity
     env.reset(seed=11, options={"chaser_state": states})
     bonus = 0.0
     for _ in range(6):
@@ -294,14 +300,8 @@ def test_a_given_target_is_its_chasers_alone():
     nothing; beside its own it captures it, for the team; the team succeeds only when every
     target is captured."""
     env = swarm.make(EASY, assignment="given", return_to_dock=False)
-    env.reset(seed=11, options={"assignment": [[1], [0]]})
-    batch = env.core.shell.batch_in_use
+    states = beside_target_0(env, seed=11, options={"assignment": [[1], [0]]})
     d = env.config.dim
-    center, velocity = batch.field.centers[0, 0], batch.field.velocities[0, 0]
-    gap = batch.field.radii[0, 0] + env.config.chaser_radius + 2.0
-    states = np.zeros((2, 2 * d))
-    states[1, :d] = center + np.array([gap, 0.0])
-    states[1, d:] = velocity
     for owner, captures in ((0, False), (1, True)):
         env.reset(
             seed=11,

@@ -24,7 +24,7 @@ import numpy as np
 from gymnasium import spaces
 
 from debris_gym.config import EnvConfig
-from debris_gym.geometry import FieldGeometry
+from debris_gym.geometry import FieldGeometry, geometry_now
 from debris_gym.scenario import Scenario
 from debris_gym.swarm import SwarmCore
 
@@ -116,13 +116,10 @@ class ChaserView:
         scenario = self.scenario
         if scenario is None:
             raise RuntimeError("reset the swarm before reading its geometry")
-        t = self.elapsed if scenario.moving else 0.0
-        geometry = self._geometry
-        if geometry is None or geometry.time != t or geometry.scenario is not scenario:
-            geometry = self._geometry = FieldGeometry(
-                scenario, inflate=self.config.chaser_radius, time=t
-            )
-        return geometry
+        self._geometry = geometry_now(
+            self._geometry, scenario, self.elapsed, self.config.chaser_radius
+        )
+        return self._geometry
 
     # --- what a team reads besides ---------------------------------------------------------------
 

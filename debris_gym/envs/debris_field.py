@@ -20,7 +20,7 @@ from debris_gym.envs.common import (
     single_spaces,
 )
 from debris_gym.envs.shell import MissionShell, ShellView
-from debris_gym.geometry import FieldGeometry
+from debris_gym.geometry import FieldGeometry, geometry_now
 from debris_gym.goal import DOCK_GOAL, Goal, current_goal
 from debris_gym.mission_batch import MissionBatch
 from debris_gym.rewards import REWARD_TERMS
@@ -210,13 +210,10 @@ class DebrisFieldEnv(ShellView, gym.Env):
         scenario = self._shell.scenario(0)
         if scenario is None:
             raise RuntimeError("call reset() first")
-        t = self.elapsed if scenario.moving else 0.0
-        geometry = self._field_geometry
-        if geometry is None or geometry.time != t or geometry.scenario is not scenario:
-            geometry = self._field_geometry = FieldGeometry(
-                scenario, inflate=self.config.chaser_radius, time=t
-            )
-        return geometry
+        self._field_geometry = geometry_now(
+            self._field_geometry, scenario, self.elapsed, self.config.chaser_radius
+        )
+        return self._field_geometry
 
     @property
     def current_goal(self) -> Goal:

@@ -171,7 +171,7 @@ class MissionShell:
             )
         self.chasers, self.n_fields = chasers, num // chasers
         self.chaser_separation = chaser_separation
-        self.field_loop = field_loop or chasers > 1
+        self.field_loop = field_loop  # make_rules adds "or chasers > 1"
         self.dock_offsets = None if dock_offsets is None else np.asarray(dock_offsets, float)
         self.autoreset = autoreset
         self.max_episode_steps = max_episode_steps

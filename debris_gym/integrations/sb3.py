@@ -11,7 +11,6 @@ builds the native env in ``SAME_STEP`` mode and translates. Requires ``stable-ba
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from typing import Any
 
 import gymnasium as gym
@@ -19,19 +18,13 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 
 from debris_gym.envs.vector import DebrisFieldVectorEnv
-
-try:
-    from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
-except ImportError as exc:  # pragma: no cover - exercised only without SB3
-    raise ImportError(
-        "debris_gym.integrations.sb3 needs stable-baselines3: pip install 'debris-gym[rl]'"
-    ) from exc
+from debris_gym.integrations.batch_vec_env import BatchVecEnv  # names SB3 if it is missing
 
 INFO_KEYS = ("time", "delta_v", "targets_captured", "n_targets", "min_clearance", "collision",
              "out_of_bounds", "is_success")  # fmt: skip
 
 
-def make_vec_env(env_id: str, num_envs: int, **kwargs: Any) -> VecEnv:
+def make_vec_env(env_id: str, num_envs: int, **kwargs: Any) -> BatchVecEnv:
     """The SB3 training env of ``env_id``: :class:`NativeVecEnv` for the single-agent IDs,
     :class:`~debris_gym.integrations.sb3_swarm.SwarmVecEnv` (one env per chaser) for the swarm
     IDs."""
@@ -53,7 +46,7 @@ def envs_per_mission(env_id: str, **kwargs: Any) -> int:
     return int(kwargs.get("n_chasers", SWARM_SPECS[env_id]["kwargs"]["n_chasers"]))
 
 
-class NativeVecEnv(VecEnv):
+class NativeVecEnv(BatchVecEnv):
     """SB3 view of ``gym.make_vec(env_id, num_envs, vectorization_mode="vector_entry_point")``.
 
     Args:
@@ -61,6 +54,8 @@ class NativeVecEnv(VecEnv):
         num_envs: number of sub-envs.
         **kwargs: env options (any config key) and ``max_episode_steps``.
     """
+
+    _what = "the native vector env"
 
     def __init__(self, env_id: str, num_envs: int, **kwargs: Any) -> None:
         self.env_id = env_id
@@ -146,24 +141,5 @@ class NativeVecEnv(VecEnv):
     def close(self) -> None:
         self.venv.close()
 
-    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
-        value = getattr(self.venv.unwrapped, attr_name)
-        return [value for _ in self._get_indices(indices)]
-
-    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
-        raise AttributeError(f"the native vector env does not support setting {attr_name!r}")
-
-    def env_method(
-        self, method_name: str, *method_args: Any, indices: VecEnvIndices = None, **kwargs: Any
-    ) -> list[Any]:
-        method = getattr(self.venv.unwrapped, method_name)
-        result = method(*method_args, **kwargs)
-        return [result for _ in self._get_indices(indices)]
-
-    def env_is_wrapped(
-        self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None
-    ) -> list[bool]:
-        return [False for _ in self._get_indices(indices)]
-
-    def get_images(self) -> Sequence[np.ndarray | None]:
-        return [None for _ in range(self.num_envs)]
+    def _batch(self) -> Any:
+        return self.venv.unwrapped

@@ -15,32 +15,19 @@ SB3 episode is one chaser's flight and its monitor return that chaser's return. 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 from gymnasium.utils import seeding
 
+from debris_gym.integrations.batch_vec_env import BatchVecEnv
 from debris_gym.swarm import SWARM_SPECS
 from debris_gym.swarm.core import SwarmCore
 
-try:
-    from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
-except ImportError as exc:  # pragma: no cover - exercised only without SB3
-    raise ImportError(
-        "debris_gym.integrations.sb3_swarm needs stable-baselines3: pip install 'debris-gym[rl]'"
-    ) from exc
-
-__all__ = ["SwarmVecEnv", "is_swarm_id"]
+__all__ = ["SwarmVecEnv"]
 
 
-def is_swarm_id(env_id: str) -> bool:
-    """Is ``env_id`` a swarm ID (:data:`debris_gym.swarm.SWARM_SPECS`)?"""
-    return env_id in SWARM_SPECS
-
-
-class SwarmVecEnv(VecEnv):
+class SwarmVecEnv(BatchVecEnv):
     """SB3 view of ``num_envs / K`` swarm fields of the swarm ID ``env_id``, one env per chaser.
 
     Args:
@@ -52,6 +39,8 @@ class SwarmVecEnv(VecEnv):
     Raises:
         ValueError: an unknown ID, a ``num_envs`` that is not a multiple of K, a bad option.
     """
+
+    _what = "the swarm vector env"
 
     def __init__(self, env_id: str, num_envs: int, **kwargs: Any) -> None:
         spec = SWARM_SPECS.get(env_id)
@@ -138,24 +127,5 @@ class SwarmVecEnv(VecEnv):
     def close(self) -> None:
         self.core.close()
 
-    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
-        value = getattr(self.core, attr_name)
-        return [value for _ in self._get_indices(indices)]
-
-    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
-        raise AttributeError(f"the swarm vector env does not support setting {attr_name!r}")
-
-    def env_method(
-        self, method_name: str, *method_args: Any, indices: VecEnvIndices = None, **kwargs: Any
-    ) -> list[Any]:
-        method = getattr(self.core, method_name)
-        result = method(*method_args, **kwargs)
-        return [result for _ in self._get_indices(indices)]
-
-    def env_is_wrapped(
-        self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None
-    ) -> list[bool]:
-        return [False for _ in self._get_indices(indices)]
-
-    def get_images(self) -> Sequence[np.ndarray | None]:
-        return [None for _ in range(self.num_envs)]
+    def _batch(self) -> Any:
+        return self.core

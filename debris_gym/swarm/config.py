@@ -93,11 +93,6 @@ class SwarmConfig:
                            float(self.dock_spacing), float(self.reward_team),
                            str(self.assignment))  # fmt: skip
 
-    @property
-    def separation(self) -> float | None:
-        """``r_col`` (None: the default, twice the chaser radius)."""
-        return self.r_col
-
 
 def _real(value: Any) -> bool:
     return (

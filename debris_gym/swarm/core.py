@@ -17,6 +17,7 @@ from debris_gym.config import EnvConfig
 from debris_gym.envs.common import (
     DEFAULT_HORIZON_STEPS,
     checked_continuous_actions,
+    checked_discrete_action,
     discrete_action_table,
     field_spec,
     observation_names,
@@ -100,7 +101,7 @@ class SwarmCore:
         self.max_episode_steps = max_episode_steps
         self.shell = MissionShell(
             config, self.num, autoreset=Autoreset.NEVER, max_episode_steps=max_episode_steps,
-            chasers=k, chaser_separation=self.swarm.separation, dock_offsets=slots,
+            chasers=k, chaser_separation=self.swarm.r_col, dock_offsets=slots,
             field_loop=True,
         )  # fmt: skip
         if max_episode_steps is not None:
@@ -188,8 +189,6 @@ class SwarmCore:
         """One chaser's action as a normalised thrust (dim,) (raises ``ValueError`` naming
         ``action``)."""
         if self.config.action == "discrete":
-            from debris_gym.envs.common import checked_discrete_action
-
             return self._discrete[checked_discrete_action(action, len(self._discrete))]
         return checked_continuous_actions(action, (self.config.dim,))
 
@@ -211,12 +210,15 @@ class SwarmCore:
     def team_success(self) -> np.ndarray:
         """(E,) every target captured, every chaser that did not fail back at its dock slot,
         and at least one did."""
+        return self._team_success(self.team_captured())
+
+    def _team_success(self, captured: np.ndarray) -> np.ndarray:
+        """:meth:`team_success` given :meth:`team_captured`."""
         m = self.shell.batch_in_use.missions
         shape = (self.num_fields, self.chasers)
         success = m.success.reshape(shape)
         failed = (m.collision | m.out_of_bounds | m.budget_spent).reshape(shape)
-        every = self.team_captured().all(axis=1)
-        return every & np.all(success | failed, axis=1) & np.any(success, axis=1)
+        return captured.all(axis=1) & np.all(success | failed, axis=1) & np.any(success, axis=1)
 
     def team_captured(self) -> np.ndarray:
         """(E, T) bool: the targets the team has captured (a chaser's own captures; the flags
@@ -234,21 +236,28 @@ class SwarmCore:
         m = self.shell.batch_in_use.missions
         return m.separation.reshape(self.num_fields, self.chasers).min(axis=1)
 
-    def row_info(self, i: int, terms: np.ndarray, team: float) -> dict[str, Any]:
-        """Chaser ``i``'s info: the single-agent keys and :data:`TEAM_INFO_KEYS`."""
+    def row_infos(self, rows: list[int], terms: np.ndarray, team: np.ndarray) -> list[dict]:
+        """The infos of the chasers ``rows``: the single-agent keys of each (``terms`` (N, 8)
+        the step's reward terms) and :data:`TEAM_INFO_KEYS` (``team`` (N,) the team terms);
+        the team's values are computed once for all of them."""
         m = self.shell.batch_in_use.missions
-        e = i // self.chasers
-        info = self.shell.row_info(i, terms.tolist())
-        info["captured"] = self.team_captured()[e]
-        info["targets_captured"] = int(np.count_nonzero(info["captured"]))
-        info["assigned"] = m.assigned[i].copy()
-        info["team_success"] = bool(self.team_success()[e])
-        info["team_captures"] = int(self.team_captures()[e])
-        info["min_separation"] = float(self.min_separation()[e])
-        info["teammate_collision"] = bool(m.teammate_collision[i])
-        info["separation"] = float(m.separation[i])
-        info["reward_team"] = float(team)
-        return info
+        captured = self.team_captured()
+        success, separation = self._team_success(captured), self.min_separation()
+        infos = []
+        for i in rows:
+            e = i // self.chasers
+            info = self.shell.row_info(i, terms[i].tolist())
+            info["captured"] = captured[e].copy()
+            info["targets_captured"] = int(np.count_nonzero(captured[e]))
+            info["assigned"] = m.assigned[i].copy()
+            info["team_success"] = bool(success[e])
+            info["team_captures"] = info["targets_captured"]
+            info["min_separation"] = float(separation[e])
+            info["teammate_collision"] = bool(m.teammate_collision[i])
+            info["separation"] = float(m.separation[i])
+            info["reward_team"] = float(team[i])
+            infos.append(info)
+        return infos
 
     def close(self) -> None:
         """Stop the field supply's worker thread."""

@@ -121,11 +121,9 @@ class SwarmParallelEnv(ParallelEnv):
         if generator is not None:
             self._np_random = generator
         self.agents = list(self.possible_agents)
-        terms = np.zeros(len(REWARD_TERMS))
+        terms = np.zeros((self.core.num, len(REWARD_TERMS)))
         observations = self._observations(self.agents)
-        return observations, {
-            a: self.core.row_info(self._index[a], terms, 0.0) for a in self.agents
-        }
+        return observations, self._infos(self.agents, terms, np.zeros(self.core.num))
 
     def step(self, actions: dict[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
         """One step of every chaser still flying (``actions``: one per agent in
@@ -141,9 +139,7 @@ class SwarmParallelEnv(ParallelEnv):
         result = self.core.step(self._commands(actions))
         observations = self._observations(flown)
         rows = [self._index[a] for a in flown]
-        infos = {
-            a: self.core.row_info(j, result.terms[j], result.team[j]) for a, j in zip(flown, rows)
-        }
+        infos = self._infos(flown, result.terms, result.team)
         self.agents = [a for a in flown if self.core.flying[self._index[a]]]
         return (
             observations,
@@ -173,6 +169,10 @@ class SwarmParallelEnv(ParallelEnv):
         return commands
 
     # --- reading ------------------------------------------------------------------------------
+
+    def _infos(self, agents: list[str], terms: np.ndarray, team: np.ndarray) -> dict[str, dict]:
+        rows = [self._index[a] for a in agents]
+        return dict(zip(agents, self.core.row_infos(rows, terms, team)))
 
     def _observations(self, agents: list[str]) -> dict[str, np.ndarray]:
         obs = self.core.observe()
