@@ -23,6 +23,8 @@ examples:
   python train.py --algo sac --out runs/sac --set algo_kwargs.batch_size=512
   python train.py --config agents/configs/rendezvous2d_finetune.yaml --init runs/dagger \
       --out runs/ft                                      # RL fine-tuning of a DAgger policy
+  python train.py --env DebrisGym/Swarm2D-Easy-v0 --algo ppo --out runs/ippo  # one policy
+                                     # for every chaser of a swarm, n_envs counting chasers
   python train.py --resume runs/ppo                                          # after Ctrl-C
   python train.py --resume runs/ppo --timesteps 1000000                      # 1M steps more
   python evaluate.py --agents apf,ppo=runs/ppo/model.zip
