@@ -74,7 +74,15 @@ def test_the_nearest_slots_are_the_brute_force_optimum(k, seed, dim):
     assert cost == pytest.approx(best, rel=1e-12, abs=1e-9)
 
 
-@pytest.mark.parametrize("value", [[0, 0, 1], [0, 1], [0, 1, 3], [0.0, 1.0, 2.0], "abc"])
+@pytest.mark.parametrize("value", [[2, 0, 1], [[2], [0], [1]], np.eye(3, dtype=bool)[[2, 0, 1]]])
+def test_a_slot_assignment_reads_in_every_form(value):
+    np.testing.assert_array_equal(checked_slot_assignment(value, 3), [2, 0, 1])
+
+
+@pytest.mark.parametrize(
+    "value", [[0, 0, 1], [0, 1], [0, 1, 3], [0.0, 1.0, 2.0], "abc", [[0, 1], [2], []],
+              np.ones((3, 3), dtype=bool)],
+)  # fmt: skip
 def test_a_bad_slot_assignment_is_refused(value):
     with pytest.raises(ValueError, match="assignment"):
         checked_slot_assignment(value, 3)
@@ -120,6 +128,19 @@ def test_a_reset_starts_every_chaser_at_its_dock_slot_bound_for_a_clear_formatio
     assert (gaps - field.radii[0, None, 1:]).min() > reach
     assert np.abs(batch.dock[:k]).max() < env.config.field_size / 2.0 - reach
     assert np.all(field.velocities[0] == 0.0)  # frozen debris, as in the paper
+
+
+def test_every_reset_starts_the_chasers_at_their_dock_slots_again():
+    env = swarm.make(R2D)
+    for seed in (0, 0, 1):
+        env.reset(seed=seed)
+        core, batch = _field(env)
+        np.testing.assert_allclose(
+            batch.missions.state[:6, :2], swarm.dock_slots(6, core.swarm.dock_spacing, 2)
+        )
+        assert np.linalg.norm(batch.dock[:6], axis=1).min() > 100.0
+        _, _, terms, _, _ = env.step({a: np.zeros(2) for a in env.agents})
+        assert not any(terms.values())
 
 
 def test_the_moving_option_moves_the_debris():
@@ -205,3 +226,43 @@ def test_forty_eight_chasers_fit_the_3d_field():
 
 def test_pettingzoo_parallel_api_reconfigure():
     parallel_api_test(swarm.make(R2D), num_cycles=100)
+
+
+@settings(max_examples=40, deadline=None)
+@given(k=st.integers(1, 6), seed=st.integers(0, 2**31 - 1))
+def test_the_slot_rules_are_the_brute_force_optima(k, seed):
+    from agents.planners.team_assignment import TeamField, slot_assignment
+
+    rng = np.random.default_rng(seed)
+    starts = rng.integers(-5, 5, size=(k, 2)) * 10.0  # ties happen: the rules must break them
+    slots = rng.integers(-5, 5, size=(k, 2)) * 10.0
+    field = TeamField(starts, slots, np.zeros(k), False, one_each=True)
+    legs = np.linalg.norm(starts[:, None] - slots[None], axis=2)
+    perms = [list(p) for p in itertools.permutations(range(k))]
+    totals = [legs[np.arange(k), p].sum() for p in perms]
+    longest = [legs[np.arange(k), p].max() for p in perms]
+    best_total, least_longest = min(totals), min(longest)
+    for rule in ("balanced", "optimal"):
+        assert slot_assignment(rule, field).cost == pytest.approx(best_total, abs=1e-9)
+    minmax = slot_assignment("minmax", field)
+    assert minmax.longest == pytest.approx(least_longest, abs=1e-9)
+    ties = [t for t, m in zip(totals, longest) if m <= least_longest + 1e-9]
+    assert minmax.cost == pytest.approx(min(ties), abs=1e-9)
+    greedy = slot_assignment("greedy", field)
+    assert greedy.table.sum(axis=0).tolist() == [1] * k  # a matching
+    assert greedy.table.sum(axis=1).tolist() == [1] * k
+    assert greedy.cost >= best_total - 1e-9
+
+
+def test_a_team_of_singles_flies_a_reconfiguration():
+    from agents.policies.team import TeamOfSingles, start_episode
+
+    env = swarm.make(R2D, n_chasers=3)
+    team = TeamOfSingles(env, "zero", rule="minmax")
+    _, _, chosen = start_episode(env, team, seed=4)
+    core, batch = _field(env)
+    slots = batch.field.centers[0, 0] + core.formation
+    order = np.argmax(chosen.table, axis=1)
+    np.testing.assert_allclose(batch.dock[:3], slots[order])
+    starts = batch.missions.state[:3, :2]
+    assert chosen.longest == pytest.approx(np.linalg.norm(starts - slots[order], axis=1).max())

@@ -106,6 +106,7 @@ class SwarmCore:
                 f"{reach:g} m from the dock, beyond its clear zone ({clear:g} m): lower "
                 "dock_spacing or n_chasers"
             )
+        self._slots = slots
         self.max_episode_steps = max_episode_steps
         self.shell = MissionShell(
             config, self.num, autoreset=Autoreset.NEVER, max_episode_steps=max_episode_steps,
@@ -204,7 +205,10 @@ class SwarmCore:
         starts = np.zeros((len(fields) * k, 2 * dim))
         for n, e in enumerate(fields.tolist()):
             rows = slice(e * k, e * k + k)
-            start = batch.dock[rows].copy()
+            pinned = self.shell.pinned[e]
+            # the field's dock plus each chaser's dock slot (not batch.dock, which holds the
+            # last formation's slots when the shell leaves a random world as it was)
+            start = (np.zeros(dim) if pinned is None else np.asarray(pinned.dock)) + self._slots
             centre, core = batch.field.centers[e, 0], float(batch.field.radii[e, 0])
             offsets = (
                 self.formation if core == self.swarm.formation_core

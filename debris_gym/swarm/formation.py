@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -102,14 +103,20 @@ def nearest_slots(starts: np.ndarray, slots: np.ndarray) -> np.ndarray:
     return out
 
 
-def checked_slot_assignment(value: Sequence[int] | np.ndarray, k: int) -> np.ndarray:
-    """``value`` (one slot index per chaser, every slot once) as a (K,) int array.
+def checked_slot_assignment(value: Sequence[Any] | np.ndarray, k: int) -> np.ndarray:
+    """``value`` — one slot index per chaser, or one one-slot list per chaser (the form of
+    a target assignment's lists), or a (K, K) bool table (row: chaser, column: slot) — every
+    slot once, as a (K,) int array.
 
     Raises:
-        ValueError: not K integers forming a permutation of 0 … K − 1.
+        ValueError: not a permutation of 0 … K − 1 in one of those forms.
     """
     try:
         array = np.asarray(value)
+        if array.shape == (k, k) and array.dtype == bool and (array.sum(axis=1) == 1).all():
+            array = np.argmax(array, axis=1)
+        elif array.shape == (k, 1):
+            array = array[:, 0]
     except (TypeError, ValueError) as err:
         raise ValueError(f"assignment={value!r} is not a list of {k} slot indices") from err
     if (

@@ -135,7 +135,7 @@ def field_assignments(views: Any) -> dict[str, TeamAssignment]:
     """Every rule's assignment (:data:`~agents.planners.team_assignment.ASSIGNMENT_RULES`) on
     the field the views' swarm holds now."""
     team = team_field(list(views))
-    tours = tour_costs(team)
+    tours = None if team.one_each else tour_costs(team)
     return {rule: assign(rule, team, tours) for rule in ASSIGNMENT_RULES}
 
 
