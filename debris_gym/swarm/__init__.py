@@ -113,7 +113,8 @@ def checked_options(env_id: str, options: dict[str, Any]) -> tuple[EnvConfig, Sw
 
 
 def make(env_id: str = DEFAULT_SWARM, **options: Any) -> SwarmParallelEnv:
-    """The swarm env ``env_id`` (:data:`SWARM_SPECS`) with ``options`` over its own.
+    """The swarm env ``env_id`` (:data:`SWARM_SPECS`) with ``options`` over its own
+    (``max_cycles``, PettingZoo's name, sets ``max_episode_steps``).
 
     Raises:
         ValueError: an unknown ID (the message lists the known ones) or option.
@@ -123,6 +124,11 @@ def make(env_id: str = DEFAULT_SWARM, **options: Any) -> SwarmParallelEnv:
         raise ValueError(f"unknown swarm ID {env_id!r}; known: {', '.join(SWARM_SPECS)}")
     from debris_gym.swarm.parallel import SwarmParallelEnv
 
+    options = dict(options)
+    if "max_cycles" in options:  # PettingZoo's name for the time limit
+        if "max_episode_steps" in options:
+            raise ValueError("give max_cycles or max_episode_steps (the same limit), not both")
+        options["max_episode_steps"] = options.pop("max_cycles")
     kwargs = {**spec["kwargs"], **options}
     kwargs.setdefault("max_episode_steps", spec["max_episode_steps"])
     return SwarmParallelEnv(**kwargs)
