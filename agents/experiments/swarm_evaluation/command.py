@@ -5,11 +5,12 @@ Every team (:mod:`~agents.experiments.swarm_evaluation.teams`) gets its own swar
 member needs its own observation options), made with ``assignment="given"``; episode i of every
 team is reset with seed ``SEED + i`` (the same field for all: checked by its fingerprint). The
 run takes the output directory's lock, flies the teams one after another in this one process,
-and writes ``episodes.csv``, ``assignments.csv``, ``summary.json`` and ``summary.md`` as one set
-(:class:`~agents.experiments.run_directory.OutputSet`, each file written atomically). Options of
-the single-agent evaluation that do not apply (suites, the paper table, the shield, videos,
-plots, Ray, several workers, resuming) are refused with :class:`UsageError` before anything
-runs; Ctrl-C writes nothing.
+and writes ``episodes.csv``, ``assignments.csv``, ``summary.json``, ``summary.md`` and the
+trajectory plots (``--plots N``, :mod:`~agents.experiments.swarm_evaluation.recording`) as one
+set (:class:`~agents.experiments.run_directory.OutputSet`, each file written atomically);
+``--video N`` writes videos beside it. Options of the single-agent evaluation that do not apply
+(suites, the paper table, the shield, Ray, several workers, resuming) are refused with
+:class:`UsageError` before anything runs; Ctrl-C writes nothing.
 """
 
 from __future__ import annotations
@@ -19,6 +20,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from agents.experiments.evaluation.command import default_out
 from agents.experiments.evaluation.plan import UsageError
@@ -31,6 +34,15 @@ from agents.experiments.run_directory import (
     RunDirectoryLock,
 )
 from agents.experiments.swarm_evaluation.episode import TeamEpisode, fly_episode
+from agents.experiments.swarm_evaluation.recording import (
+    DEFAULT_SWARM_PLOTS,
+    PLOT_PATTERN,
+    EpisodeFrames,
+    check_video_support,
+    plot_name,
+    png_bytes,
+    write_video,
+)
 from agents.experiments.swarm_evaluation.report import (
     assignment_gaps,
     assignments_csv,
@@ -62,8 +74,6 @@ NOT_FOR_SWARMS: dict[str, tuple[str, Any]] = {
     "suite": ("--suite", None),
     "paper": ("--paper", False),
     "shield": ("--shield", False),
-    "video": ("--video", 0),
-    "plots": ("--plots", None),
     "resume": ("--resume", None),
     "address": ("--address", None),
     "backend": ("--backend", "local"),
@@ -92,6 +102,9 @@ class SwarmEvaluateOptions:
         max_steps: the time limit (steps) over the ID's own.
         reference: the team others are paired with (default: the first).
         progress: draw a progress bar on stderr.
+        plots: trajectory plots of each team's first episodes (default
+            :data:`~agents.experiments.swarm_evaluation.recording.DEFAULT_SWARM_PLOTS`).
+        video: videos of each team's first episodes (0: none).
     """
 
     env: str
@@ -103,6 +116,8 @@ class SwarmEvaluateOptions:
     max_steps: int | None = None
     reference: str | None = None
     progress: bool = True
+    plots: int | None = None
+    video: int = 0
 
     @classmethod
     def from_arguments(cls, arguments: dict[str, Any]) -> SwarmEvaluateOptions:
@@ -118,9 +133,18 @@ class SwarmEvaluateOptions:
                 raise UsageError(flag, f"does not apply to swarm IDs ({env})")
         if arguments.get("workers") not in (None, 1):
             raise UsageError("--workers", f"swarm IDs ({env}) are flown in one process: use 1")
-        names = ("agents", "episodes", "seed", "out", "env_kwargs", "max_steps", "reference")
+        names = ("agents", "episodes", "seed", "out", "env_kwargs", "max_steps", "reference",
+                 "plots")  # fmt: skip
         kwargs = {k: arguments.get(k) for k in names}
-        return cls(env=env, progress=bool(arguments.get("progress", True)), **kwargs)
+        video = int(arguments.get("video") or 0)
+        check_video_support(video)
+        return cls(env=env, progress=bool(arguments.get("progress", True)), video=video, **kwargs)
+
+    @property
+    def recorded(self) -> int:
+        """Episodes of each team that are drawn (plots or videos)."""
+        plots = DEFAULT_SWARM_PLOTS if self.plots is None else self.plots
+        return max(plots, self.video)
 
 
 @dataclass
@@ -158,6 +182,8 @@ def _build_teams(
         kwargs = _options(env_id, spec, config.dim, env_kwargs)
         if options.max_steps is not None:
             kwargs["max_episode_steps"] = options.max_steps
+        if options.recorded:
+            kwargs["render_mode"] = "rgb_array"
         try:
             env = make_swarm(env_id, **kwargs)
         except (TypeError, ValueError) as exc:
@@ -198,10 +224,17 @@ def _lock(out: Path | None) -> tuple[Path, RunDirectoryLock]:
 
 
 def _fly(
-    teams: list[_Team], episodes: int, seed: int, progress: bool
-) -> tuple[list[TeamEpisode], dict[int, tuple[int, dict[str, TeamAssignment]]]]:
+    teams: list[_Team], episodes: int, seed: int, options: SwarmEvaluateOptions, out: Path
+) -> tuple[
+    list[TeamEpisode], dict[int, tuple[int, dict[str, TeamAssignment]]], dict[str, np.ndarray]
+]:
+    """Fly every team's episodes; returns the records, every field's assignments, and the
+    trajectory plots to write (file name → frame). Videos are written as their episodes end."""
     from tqdm import tqdm
 
+    progress = options.progress
+    plots = DEFAULT_SWARM_PLOTS if options.plots is None else options.plots
+    pictures: dict[str, np.ndarray] = {}
     records: list[TeamEpisode] = []
     fields: dict[int, tuple[int, dict[str, TeamAssignment]]] = {}
     prints: dict[int, str] = {}
@@ -211,9 +244,12 @@ def _fly(
         for t in teams:
             for i in range(episodes):
                 bar.set_postfix_str(f"{t.spec.label} ep {i}")
+                frames = (
+                    EpisodeFrames(every_step=i < options.video) if i < options.recorded else None
+                )
                 try:
                     record, rules = fly_episode(
-                        t.env, t.team, t.team.views, seed + i, i, t.spec.label
+                        t.env, t.team, t.team.views, seed + i, i, t.spec.label, frames
                     )
                 except (KeyboardInterrupt, UsageError):
                     raise
@@ -229,10 +265,14 @@ def _fly(
                     )
                 fields.setdefault(i, (seed + i, rules))
                 records.append(record)
+                if frames is not None and i < plots:
+                    pictures[plot_name(i, t.spec.label)] = frames.last
+                if frames is not None and i < options.video:
+                    write_video(out, t.spec.label, i, frames.frames)
                 bar.update(1)
     finally:
         bar.close()
-    return records, fields
+    return records, fields, pictures
 
 
 def run_swarm_evaluation(options: SwarmEvaluateOptions) -> str:
@@ -259,7 +299,7 @@ def run_swarm_evaluation(options: SwarmEvaluateOptions) -> str:
     out, lock = _lock(options.out)
     try:
         start = time.perf_counter()
-        records, fields = _fly(teams, episodes, seed, options.progress)
+        records, fields, pictures = _fly(teams, episodes, seed, options, out)
         elapsed = time.perf_counter() - start
         flown = [t.spec.label for t in teams]
         summary = summarize_teams(records, flown, options.reference)
@@ -287,9 +327,11 @@ def run_swarm_evaluation(options: SwarmEvaluateOptions) -> str:
             "summary.json": to_json(summary),
             "summary.md": text,
         }
-        with OutputSet(out, owned=OUTPUTS) as files:
+        with OutputSet(out, owned=(*OUTPUTS, PLOT_PATTERN)) as files:
             for name, content in contents.items():
                 write_atomic(files.path(name), content)
+            for name, frame in pictures.items():
+                write_atomic(files.path(name), png_bytes(frame))
             written = files.commit(
                 evaluation={"env_id": env_id, "env_kwargs": kwargs, "agents": flown,
                             "episodes": episodes, "seed": seed, "max_steps": options.max_steps}

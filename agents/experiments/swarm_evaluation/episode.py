@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from agents.experiments.evaluation.records import scenario_fingerprint
+from agents.experiments.swarm_evaluation.recording import EpisodeFrames
 from agents.planners.team_assignment import ASSIGNMENT_RULES, TeamAssignment, assign, tour_costs
 from agents.policies.team import TeamPolicy, start_episode, team_field
 
@@ -140,7 +141,13 @@ def field_assignments(views: Any) -> dict[str, TeamAssignment]:
 
 
 def fly_episode(
-    env: Any, team: TeamPolicy, views: Any, seed: int, episode: int, label: str
+    env: Any,
+    team: TeamPolicy,
+    views: Any,
+    seed: int,
+    episode: int,
+    label: str,
+    frames: EpisodeFrames | None = None,
 ) -> tuple[TeamEpisode, dict[str, TeamAssignment]]:
     """Fly one episode of ``team`` on ``env`` from ``seed``.
 
@@ -150,6 +157,8 @@ def fly_episode(
         views: the team's chaser views (:class:`~agents.policies.chaser_view.ChaserView`), to
             read the field.
         seed: the reset seed; ``episode`` the episode's index; ``label`` the team's label.
+        frames: records the episode's frames (an env made with ``render_mode="rgb_array"``);
+            None: nothing drawn.
 
     Returns:
         the record, and every rule's assignment on the episode's field.
@@ -164,6 +173,8 @@ def fly_episode(
     decision_ms: list[float] = []
     steps = 0
     clock = time.perf_counter
+    if frames is not None:
+        frames.after(env)
     while env.agents:
         flying = {a: observations[a] for a in env.agents}
         start = clock()
@@ -171,6 +182,10 @@ def fly_episode(
         decision_ms.append(1000.0 * (clock() - start) / len(flying))
         observations, _, _, _, _ = env.step(actions)
         steps += 1
+        if frames is not None:
+            frames.after(env)
+    if frames is not None:
+        frames.finish(env)
     m = core.shell.batch_in_use.missions
     rows = range(core.chasers)
     own = m.captured & m.assigned
