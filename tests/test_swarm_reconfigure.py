@@ -266,3 +266,24 @@ def test_a_team_of_singles_flies_a_reconfiguration():
     np.testing.assert_allclose(batch.dock[:3], slots[order])
     starts = batch.missions.state[:3, :2]
     assert chosen.longest == pytest.approx(np.linalg.norm(starts - slots[order], axis=1).max())
+
+
+@pytest.mark.parametrize(
+    ("name", "env_id", "count", "chasers"),
+    [("swarm-2d-v0", "DebrisGym/Swarm2D-v0", 50, 3),
+     ("reconfigure-3d-v0", "DebrisGym/Reconfigure3D-v0", 20, 48)],
+)  # fmt: skip
+def test_a_swarm_suite_mission_replays_the_field_its_seed_draws(name, env_id, count, chasers):
+    from debris_gym import suites
+
+    suite = suites.load_suite(name)
+    assert suite.env_id == env_id and len(suite) == count
+    env = swarm.make(env_id, **suite.env_kwargs)
+    assert env.core.chasers == chasers
+    for mission in (suite.missions[0], suite.missions[-1]):
+        env.reset(seed=mission.seed)
+        batch = env.core.shell.batch_in_use
+        drawn = (batch.field.centers.copy(), batch.field.radii.copy(), batch.dock.copy())
+        env.reset(seed=mission.seed, options={"scenario": mission.scenario})
+        for before, after in zip(drawn, (batch.field.centers, batch.field.radii, batch.dock)):
+            np.testing.assert_allclose(after, before, atol=1e-9)

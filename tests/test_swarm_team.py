@@ -307,6 +307,26 @@ def test_evaluate_py_flies_teams_on_a_swarm_id_and_writes_the_tables(evaluate, t
     assert len(plots) == 6 and sum(name.startswith("trajectories_ep1_") for name in plots) == 3
 
 
+def test_evaluate_py_flies_a_swarm_suite(evaluate, tmp_path, capsys):
+    out = tmp_path / "suite"
+    argv = ["--suite", "swarm-2d-v0", "--episodes", "2", "--agents", "team-zero",
+            "--max-steps", "5", "--plots", "0", "--no-progress", "--out", str(out)]  # fmt: skip
+    assert evaluate.main(argv) == 0
+    assert "suite swarm-2d-v0" in capsys.readouterr().out
+    with open(out / "episodes.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["seed"] for r in rows] == ["906000000", "906000001"]
+    for extra, flag in (
+        (["--env-kwargs", '{"n_chasers": 2}'], "--env-kwargs"),
+        (["--seed", "3"], "--seed"),
+        (["--episodes", "51"], "--episodes"),
+        (["--env", "DebrisGym/Swarm3D-v0"], "--env"),
+    ):
+        with pytest.raises(SystemExit):
+            evaluate.main(["--suite", "swarm-2d-v0", "--out", str(tmp_path / "x"), *extra])
+        assert f"argument {flag}" in capsys.readouterr().err
+
+
 def test_evaluate_py_draws_and_records_swarm_episodes(evaluate, tmp_path):
     pytest.importorskip("moviepy", reason="--video needs moviepy: pip install -e '.[video]'")
     from moviepy import VideoFileClip

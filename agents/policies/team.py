@@ -215,11 +215,12 @@ class TeamOfSingles:
 
 
 def start_episode(
-    env: Any, team: TeamPolicy, seed: int
+    env: Any, team: TeamPolicy, seed: int, scenario: Any = None
 ) -> tuple[dict[str, np.ndarray], dict[str, dict[str, Any]], TeamAssignment]:
     """Reset ``env`` with ``seed``, let ``team`` choose its assignment on the field drawn, and
     reset again with the same seed and that assignment (the same field, the missions begun
-    with it).
+    with it). ``scenario``: a field to pin in both resets (a frozen suite's mission) instead
+    of the one the seed draws.
 
     Returns:
         the observations and infos of the second reset, and the assignment.
@@ -229,7 +230,8 @@ def start_episode(
     """
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
         raise ValueError(f"seed must be an integer (both resets draw the same field), got {seed!r}")
-    env.reset(seed=seed)
+    pin = {} if scenario is None else {"scenario": scenario}
+    env.reset(seed=seed, options=pin or None)
     chosen = team.choose_assignment()
-    observations, infos = env.reset(seed=seed, options={"assignment": chosen.targets()})
+    observations, infos = env.reset(seed=seed, options={**pin, "assignment": chosen.targets()})
     return observations, infos, chosen

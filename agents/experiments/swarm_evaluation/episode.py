@@ -148,6 +148,7 @@ def fly_episode(
     episode: int,
     label: str,
     frames: EpisodeFrames | None = None,
+    scenario: Any = None,
 ) -> tuple[TeamEpisode, dict[str, TeamAssignment]]:
     """Fly one episode of ``team`` on ``env`` from ``seed``.
 
@@ -159,12 +160,13 @@ def fly_episode(
         seed: the reset seed; ``episode`` the episode's index; ``label`` the team's label.
         frames: records the episode's frames (an env made with ``render_mode="rgb_array"``);
             None: nothing drawn.
+        scenario: the field to pin (a frozen suite's mission); None: the one ``seed`` draws.
 
     Returns:
         the record, and every rule's assignment on the episode's field.
     """
     began = time.perf_counter()
-    observations, _, chosen = start_episode(env, team, seed)
+    observations, _, chosen = start_episode(env, team, seed, scenario)
     rules = field_assignments(views)
     scenario = views[0].scenario
     if scenario is None:
