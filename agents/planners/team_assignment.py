@@ -21,6 +21,8 @@ chaser's):
 * :func:`greedy_assignment` — the floor: the chasers in turn (0, 1, …, K − 1, 0, …) each take
   the unassigned target nearest the end of their tour so far (their slot at first), until none
   is left;
+* :func:`auction_assignment` — a decentralised auction (CBBA, :mod:`agents.planners.auction`):
+  at most ⌈T / K⌉ targets each, every chaser bidding on its own route;
 * the env's balanced rule, :func:`debris_gym.swarm.assignment.balanced_assignment` (at most
   ⌈T / K⌉ targets each, least total slot-to-surface distance), judged by the same cost
   (:func:`assignment_cost`).
@@ -41,6 +43,7 @@ from scipy.optimize import linear_sum_assignment
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import maximum_bipartite_matching
 
+from agents.planners.auction import cbba
 from debris_gym.swarm.assignment import balanced_assignment
 
 __all__ = [
@@ -50,6 +53,7 @@ __all__ = [
     "TeamField",
     "assign",
     "assignment_cost",
+    "auction_assignment",
     "greedy_assignment",
     "minmax_assignment",
     "optimal_assignment",
@@ -57,7 +61,7 @@ __all__ = [
     "tour_costs",
 ]
 
-ASSIGNMENT_RULES = ("balanced", "greedy", "optimal", "minmax")
+ASSIGNMENT_RULES = ("balanced", "greedy", "optimal", "minmax", "auction")
 """The rules :func:`assign` knows."""
 
 MAX_PARTITIONS = 1_000_000
@@ -308,6 +312,18 @@ def greedy_assignment(field: TeamField, tours: np.ndarray | None = None) -> Team
     return TeamAssignment("greedy", table, cost, per)
 
 
+def auction_assignment(field: TeamField, tours: np.ndarray | None = None) -> TeamAssignment:
+    """The targets auctioned among the chasers by CBBA (:func:`~agents.planners.auction.cbba`,
+    at most ⌈T / K⌉ each; one each on a ``one_each`` field), judged by the stated cost."""
+    if field.one_each:
+        won = cbba(field.dock_legs(), field.target_legs(), False, max_bundle=1).table
+        legs = field.dock_legs()[won]
+        return TeamAssignment("auction", won, float(legs.sum()), legs)
+    table = cbba(field.dock_legs(), field.target_legs(), field.return_to_dock).table
+    cost, per = assignment_cost(table, field, tours)
+    return TeamAssignment("auction", table, cost, per)
+
+
 def _matching(cost: np.ndarray) -> np.ndarray:
     """(K,) the column of each row in the least-total perfect matching of ``cost`` (K, K)."""
     rows, cols = linear_sum_assignment(cost)
@@ -349,6 +365,8 @@ def slot_assignment(rule: str, field: TeamField) -> TeamAssignment:
         raise ValueError("slot_assignment needs a field with one target each (one_each=True)")
     legs = field.dock_legs()
     k = field.n_chasers
+    if rule == "auction":
+        return auction_assignment(field)
     if rule in ("balanced", "optimal"):
         order = _matching(legs)
     elif rule == "minmax":
@@ -383,6 +401,8 @@ def assign(rule: str, field: TeamField, tours: np.ndarray | None = None) -> Team
         return minmax_assignment(field, tours)
     if rule == "greedy":
         return greedy_assignment(field, tours)
+    if rule == "auction":
+        return auction_assignment(field, tours)
     if rule == "balanced":
         table = balanced_assignment(field.docks, field.centers, field.radii)
         cost, per = assignment_cost(table, field, tours)
