@@ -52,3 +52,24 @@ def test_ppo_trains_one_iteration_on_an_env_runner_with_the_native_vector_env():
         ray.shutdown()
     assert summary.env_steps >= 400
     assert summary.episodes >= 1 and math.isfinite(summary.episode_return_mean)
+
+
+def test_multi_agent_ppo_trains_one_iteration_on_a_swarm():
+    pytest.importorskip("ray.rllib")
+    pytest.importorskip("pettingzoo")
+    from agents.experiments.distributed.rllib import swarm_ppo_config, train_ppo
+
+    with pytest.raises(ValueError, match="must be a swarm ID"):
+        swarm_ppo_config("DebrisGym/Rendezvous2D-v2")
+    config = swarm_ppo_config(
+        "DebrisGym/Swarm2D-Easy-v0", train_batch_size=400, minibatch_size=100, num_epochs=1,
+        hidden=(32, 32),
+    )  # fmt: skip
+    import ray
+
+    ray.init(num_cpus=2, include_dashboard=False, logging_level="WARNING")
+    try:
+        (summary,) = train_ppo(config, 1)
+    finally:
+        ray.shutdown()
+    assert summary.env_steps >= 400

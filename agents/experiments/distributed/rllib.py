@@ -10,6 +10,10 @@ package's native vector env (``vectorization_mode="vector_entry_point"``: every 
 in one compiled call, Gymnasium's ``NEXT_STEP`` autoreset, as RLlib's ``sync`` mode), or with
 ``vectorize="sync"`` through gymnasium's ``SyncVectorEnv`` of single envs.
 
+The swarm IDs go through RLlib's multi-agent API (:func:`swarm_ppo_config`: RLlib's
+``ParallelPettingZooEnv`` around :func:`debris_gym.swarm.make`, one policy shared by every
+chaser).
+
 ``examples/rllib_ppo.py`` runs it; docs/distributed.md shows a measured run.
 """
 
@@ -112,6 +116,83 @@ def ppo_config(
     if seed is not None:
         config = config.debugging(seed=seed)
     return config
+
+
+SWARM_PREFIX = "debris_swarm:"
+"""Prefix of the RLlib env names :func:`swarm_ppo_config` registers for swarm IDs."""
+
+
+def _swarm_env(config: Any) -> Any:
+    """RLlib's env creator of a swarm: ``config["env_id"]`` with the other keys as options, as
+    RLlib's ``ParallelPettingZooEnv`` (imported here: only RLlib's processes need it)."""
+    from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
+
+    from debris_gym import swarm
+
+    options = dict(config)
+    return ParallelPettingZooEnv(swarm.make(options.pop("env_id"), **options))
+
+
+def swarm_ppo_config(
+    env_id: str = "DebrisGym/Swarm2D-Easy-v0",
+    env_kwargs: dict[str, Any] | None = None,
+    *,
+    num_env_runners: int = 0,
+    train_batch_size: int = 4000,
+    minibatch_size: int = 500,
+    num_epochs: int = 5,
+    lr: float = 3e-4,
+    gamma: float = 0.995,
+    hidden: tuple[int, ...] = (128, 128),
+    seed: int | None = 0,
+) -> Any:
+    """A multi-agent PPO ``AlgorithmConfig`` (new API stack, torch) for a swarm ID: one policy
+    shared by every chaser (IPPO), through RLlib's PettingZoo wrapper; the env is registered
+    as ``debris_swarm:<ID>``.
+
+    Args: as :func:`ppo_config` (``num_env_runners`` 0: sample in the driver's process).
+
+    Raises:
+        ImportError: Ray RLlib or PettingZoo is not installed.
+        ValueError: not a swarm ID.
+    """
+    require_ray("RLlib training", "ray.rllib")
+    from ray.rllib.algorithms.ppo import PPOConfig
+    from ray.rllib.core.rl_module.default_model_config import DefaultModelConfig
+    from ray.tune.registry import register_env
+
+    from debris_gym.swarm import SWARM_SPECS
+
+    if env_id not in SWARM_SPECS:
+        raise ValueError(f"env_id must be a swarm ID ({', '.join(SWARM_SPECS)}), got {env_id!r}")
+    name = SWARM_PREFIX + env_id
+    register_env(name, _swarm_env)
+    config = (
+        PPOConfig()
+        .environment(name, env_config={"env_id": env_id, **dict(env_kwargs or {})})
+        .multi_agent(policies={"shared"}, policy_mapping_fn=_shared_policy)
+        .env_runners(num_env_runners=num_env_runners)
+        .training(
+            train_batch_size_per_learner=train_batch_size,
+            minibatch_size=min(minibatch_size, train_batch_size),
+            num_epochs=num_epochs,
+            lr=lr,
+            gamma=gamma,
+        )
+        .rl_module(
+            model_config=DefaultModelConfig(
+                fcnet_hiddens=list(hidden), fcnet_activation="tanh", vf_share_layers=False
+            )
+        )
+    )
+    if seed is not None:
+        config = config.debugging(seed=seed)
+    return config
+
+
+def _shared_policy(agent_id: Any, *args: Any, **kwargs: Any) -> str:
+    """Every chaser flies the one shared policy."""
+    return "shared"
 
 
 @dataclass(frozen=True)
