@@ -8,7 +8,9 @@ the trajectory programme. Agent i keeps a graph G^i = (V^i, E^i) of body-free sp
 * each iteration (lines 7–27), every agent in turn of the same round: the other agents' new
   nodes of the previous iteration join V^i (``AllAgentCommunicate``; the first iteration has
   none); the other agents' current positions Y^ℓ become spheres of radius r_col + r_max added
-  to the bodies, so every node radius of V^i shrinks to its distance to them (lines 8–16); a
+  to the bodies, so every node radius of V^i shrinks to its distance to them (lines 8–16; a
+  teammate already closer than r_col + r_max — agents that start tighter than the paper's
+  eq. 1 allows — is a sphere reaching to ``min_radius`` short of the agent); a
   sample is drawn uniformly in the bounds, the nearest node of V^i found, and the new node is
   the sample if it lies in that node's sphere, else the point of the sphere's surface nearest
   the sample (``Steer``, lines 17–19); it joins V^i with its radius (``MinDistObs``, line 20);
@@ -316,15 +318,28 @@ class SwarmGraphs:
         )
         return SphereGraph(centers.copy(), radius, adjacency, False, self.iterations)
 
+    def teammate_radii(self, agent: int) -> np.ndarray:
+        """(N,) radius (m) of each agent's sphere in G^agent: r_col + r_max, or for a teammate
+        already closer than that (starts tighter than the paper's eq. 1) its distance less
+        ``min_radius``, so the agent stays outside it and may move away; 0 for the agent
+        itself and the absent."""
+        gaps = np.linalg.norm(self.positions - self.positions[agent], axis=1)
+        least = self.params.expansion.min_radius
+        radii = np.clip(np.minimum(self.params.teammate_radius, gaps - least), 0.0, None)
+        radii[agent] = 0.0
+        radii[~self.present] = 0.0
+        return radii
+
     def _teammate_gap(self, agent: int, points: np.ndarray) -> np.ndarray:
-        """(P,) distance (m) from ``points`` to the nearest other present agent's sphere of
-        radius r_col + r_max (inf when there is none)."""
+        """(P,) distance (m) from ``points`` to the nearest other present agent's sphere
+        (:meth:`teammate_radii`; inf when there is none)."""
         others = self.present.copy()
         others[agent] = False
         if not others.any():
             return np.full(len(points), np.inf)
+        radii = self.teammate_radii(agent)[others]
         gaps = np.linalg.norm(points[:, None, :] - self.positions[others][None], axis=-1)
-        return gaps.min(axis=1) - self.params.teammate_radius
+        return (gaps - radii[None]).min(axis=1)
 
     def path_costs(self, agent: int, source: int | None = None) -> np.ndarray:
         """(N,) least path cost (m) in G^agent from ``source`` (default: the agent's start) to

@@ -27,11 +27,13 @@ The targets are shared out among the chasers by the ``rule`` of
 :mod:`agents.planners.team_assignment` (``optimal`` by default), as a team of single agents
 does (:class:`~agents.policies.team.TeamOfSingles`).
 
-r_max, "the maximum distance an agent travels in one time instant", is a bound the chasers
-must keep: by default it is derived from the field (the paper's eq. 1–2 asks every two starts
-and every two goals to be r_col + r_max apart: r_max is the closest such pair less r_col, at
-least ``min_r_max``), and the programme's cruise speed is capped so that a chaser flying it
-moves about r_max / 2 between two re-plans (the tracker may overshoot the plan).
+r_max, "the maximum distance an agent travels in one time instant", is by default the
+distance the programme's cruise speed covers between two plans. The paper asks every two starts
+and every two goals to be r_col + r_max apart (its eq. 1–2); the swarm envs' dock lattice is
+tighter (5 m against 12 m at 1 m/s and 10 s steps), so a teammate already closer than
+r_col + r_max is a sphere reaching to ``min_radius`` short of the chaser: it may move away, not
+closer. The programme's speed is not capped: r_max is the plan's cruise, not a hard bound, and
+the MPC tracker may fly faster for a while.
 """
 
 from __future__ import annotations
@@ -64,20 +66,20 @@ class TeammateSpheres:
     Args:
         base: the field's geometry (``dim``, ``n_bodies``, ``signed_distance``).
         centers: (P, dim) sphere centres (m).
-        radius: the spheres' radius (m).
+        radii: (P,) the spheres' radii (m).
     """
 
-    def __init__(self, base: Any, centers: np.ndarray, radius: float) -> None:
+    def __init__(self, base: Any, centers: np.ndarray, radii: np.ndarray) -> None:
         self.base = base
         self.dim = base.dim
         self.centers = np.asarray(centers, dtype=float).reshape(-1, base.dim)
-        self.radius = float(radius)
+        self.radii = np.asarray(radii, dtype=float).reshape(len(self.centers))
         self.n_bodies = base.n_bodies + len(self.centers)
 
     def signed_distance(self, points: np.ndarray) -> np.ndarray:
         """(M, n_bodies) signed distance (m) of each point to each body, then each sphere."""
         pts = np.asarray(points, dtype=float).reshape(-1, self.dim)
-        mates = np.linalg.norm(pts[:, None] - self.centers[None], axis=-1) - self.radius
+        mates = np.linalg.norm(pts[:, None] - self.centers[None], axis=-1) - self.radii[None]
         return np.hstack([self.base.signed_distance(pts), mates])
 
 
@@ -154,15 +156,17 @@ class SwarmMember(SESCPAgent):
         team, floor = self.team, self.expansion_params.min_radius
         mates = team.teammates(self.index)
         rho = team.params.teammate_radius if team.params is not None else 0.0
+        # a teammate already closer than r_col + r_max reaches to ``floor`` short of the chaser
+        radii = np.clip(np.minimum(rho, np.linalg.norm(mates - start, axis=1) - floor), 0, None)
         if len(mates):
-            gap = float(np.min(np.linalg.norm(mates - start, axis=1))) - rho
+            gap = float(np.min(np.linalg.norm(mates - start, axis=1) - radii))
             start_radius = max(min(start_radius, gap), floor)
-            goal_gap = float(np.min(np.linalg.norm(mates - goal.point, axis=1))) - rho
+            goal_gap = float(np.min(np.linalg.norm(mates - goal.point, axis=1) - radii))
             goal_radius = max(min(goal_radius, goal_gap), floor)
         if goal.kind == "dock" and team.graphs is not None:
             chain, nodes = team.graphs.chain_to(self.index, self.index, floor)
         else:
-            spheres = TeammateSpheres(geometry, mates, rho)
+            spheres = TeammateSpheres(geometry, mates, radii)
             margins = np.concatenate([margins, np.zeros(len(mates))])
             chain, nodes = super().sphere_chain(
                 start, goal, spheres, margins, low, high, start_radius, goal_radius
@@ -193,9 +197,8 @@ class MASESCPTeam:
         rule: the target assignment rule (one of
             :data:`~agents.planners.team_assignment.ASSIGNMENT_RULES`).
         replan_every: decisions between two plans of a chaser (≥ 1; 1: the paper).
-        r_max: farthest a chaser travels between two plans (m); None: derived from the field
-            (module docstring).
-        min_r_max: least derived r_max (m).
+        r_max: farthest a chaser travels between two plans (m); None: the programme's cruise
+            speed times ``replan_every`` env steps.
         share_nodes: share new nodes (the paper); False flies with each chaser's own graph.
         max_iterations: cap on the exploration's iterations.
         measure_alone: also run the exploration without sharing, for the record.
@@ -218,7 +221,6 @@ class MASESCPTeam:
         *,
         replan_every: int = 1,
         r_max: float | None = None,
-        min_r_max: float = 1.0,
         share_nodes: bool = True,
         max_iterations: int = 300,
         measure_alone: bool = True,
@@ -243,12 +245,10 @@ class MASESCPTeam:
             raise ValueError(f"replan_every must be an integer >= 1, got {replan_every!r}")
         if r_max is not None and not (math.isfinite(r_max) and r_max >= 0):
             raise ValueError(f"r_max must be finite and >= 0 m or None, got {r_max!r}")
-        if not (math.isfinite(min_r_max) and min_r_max > 0):
-            raise ValueError(f"min_r_max must be finite and > 0 m, got {min_r_max!r}")
         if not (isinstance(seed, int) and seed >= 0):
             raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
         self.env, self.rule = env, rule
-        self.replan_every, self.r_max, self.min_r_max = replan_every, r_max, float(min_r_max)
+        self.replan_every, self.r_max = replan_every, r_max
         self.share_nodes, self.max_iterations = bool(share_nodes), int(max_iterations)
         self.measure_alone, self.seed = bool(measure_alone), seed
         self.agents: list[str] = list(env.possible_agents)
@@ -324,27 +324,27 @@ class MASESCPTeam:
     # --- the exploration ----------------------------------------------------------------------
 
     def _start(self, scenario: Any) -> None:
-        """A new episode: r_max, the cruise speed, and (frozen field) the exploration."""
+        """A new episode: r_max, the teammate spheres and (frozen field) the exploration."""
         self._rng = np.random.default_rng(self.seed)
         cfg = self.views[0].config
         core = self.env.core
         r_col = float(core.swarm.r_col if core.swarm.r_col is not None else 2 * cfg.chaser_radius)
         starts = self.positions()
         goals = np.array([v.scenario.dock for v in self.views], dtype=float)
+        # r_max: one env step at the programme's cruise speed (the paper: the farthest an
+        # agent travels in one time instant), times the steps between two plans
         r_max = self.r_max
         if r_max is None:
-            r_max = max(_closest(starts, goals) - r_col, self.min_r_max)
-        # a chaser flying the plan moves about r_max / 2 between two plans
-        speed = min(self.scp_base.cruise_speed, 0.5 * r_max / (self.replan_every * scenario.dt))
-        scp = dataclasses.replace(self.scp_base, cruise_speed=speed)
-        for member in self.members:
-            member.scp_params = scp
+            r_max = self.scp_base.cruise_speed * scenario.dt * self.replan_every
         member0 = self.members[0]
         ex = dataclasses.replace(member0.expansion_params, goal_bias=0.0, max_nodes=20_000)
         self.params = SwarmParams(r_col, r_max, self.share_nodes, self.max_iterations, ex)
         self.graphs = None
         self.last_exploration = None
-        if scenario.moving:
+        # the shared graph holds while the bodies stand still; a chaser whose final goal is
+        # where it starts (the capture missions' dock slots) has nothing to explore toward it
+        away = np.linalg.norm(goals - starts, axis=1).min()
+        if scenario.moving or away <= self.params.teammate_radius:
             return
         began = time.perf_counter()
         # the keep-out "se-scp" gives its spheres: the MPC tracker's default, 0.2 % of the field
@@ -374,13 +374,3 @@ class MASESCPTeam:
 
     def __repr__(self) -> str:
         return f"MASESCPTeam(rule={self.rule!r}, replan_every={self.replan_every})"
-
-
-def _closest(starts: np.ndarray, goals: np.ndarray) -> float:
-    """The least distance (m) between two starts or two goals (inf for one chaser)."""
-    best = math.inf
-    for points in (starts, goals):
-        if len(points) > 1:
-            gaps = np.linalg.norm(points[:, None] - points[None], axis=-1)
-            best = min(best, float(gaps[np.triu_indices(len(points), 1)].min()))
-    return best
