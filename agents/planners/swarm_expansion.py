@@ -180,6 +180,8 @@ class SwarmGraphs:
         """(N, dim) the agents' current positions Y^ℓ (m)."""
         self.present = np.ones(n, dtype=bool)
         """(N,) the agents whose positions are spheres to the others."""
+        self.assigned: np.ndarray | None = None
+        """(N,) each agent's goal once assigned (None before)."""
         self.iterations = 0
         cap = 2 * n + 64
         self._centers = np.empty((cap, d))
@@ -321,9 +323,13 @@ class SwarmGraphs:
     def teammate_radii(self, agent: int) -> np.ndarray:
         """(N,) radius (m) of each agent's sphere in G^agent: r_col + r_max, or for a teammate
         already closer than that (starts tighter than the paper's eq. 1) its distance less
-        ``min_radius``, so the agent stays outside it and may move away; 0 for the agent
-        itself and the absent."""
+        ``min_radius``, so the agent stays outside it and may move away; likewise a teammate
+        closer than that to the agent's assigned goal (:attr:`assigned`; goals tighter than
+        the paper's eq. 2); 0 for the agent itself and the absent."""
         gaps = np.linalg.norm(self.positions - self.positions[agent], axis=1)
+        if self.assigned is not None:  # nor over the agent's own goal (the paper's eq. 2)
+            goal = self._centers[self.goal_nodes[self.assigned[agent]]]
+            gaps = np.minimum(gaps, np.linalg.norm(self.positions - goal, axis=1))
         least = self.params.expansion.min_radius
         radii = np.clip(np.minimum(self.params.teammate_radius, gaps - least), 0.0, None)
         radii[agent] = 0.0

@@ -24,16 +24,18 @@ swarm adds:
   the shared graph was grown on the field at t = 0 and holds only while the bodies stand still.
 
 The targets are shared out among the chasers by the ``rule`` of
-:mod:`agents.planners.team_assignment` (``optimal`` by default), as a team of single agents
-does (:class:`~agents.policies.team.TeamOfSingles`).
+:mod:`agents.planners.team_assignment`, as a team of single agents
+does (:class:`~agents.policies.team.TeamOfSingles`); the default is the envs' balanced rule
+(at most ⌈T / K⌉ targets each): the total-cost optimum often sends one chaser to every target.
 
 r_max, "the maximum distance an agent travels in one time instant", is by default the
 distance the programme's cruise speed covers between two plans. The paper asks every two starts
 and every two goals to be r_col + r_max apart (its eq. 1–2); the swarm envs' dock lattice is
 tighter (5 m against 12 m at 1 m/s and 10 s steps), so a teammate already closer than
-r_col + r_max is a sphere reaching to ``min_radius`` short of the chaser: it may move away, not
-closer. The programme's speed is not capped: r_max is the plan's cruise, not a hard bound, and
-the MPC tracker may fly faster for a while.
+r_col + r_max to the chaser, or to the chaser's goal, is a sphere reaching to ``min_radius``
+short of it: the chaser may move away, not closer, and can still reach its goal. The
+programme's speed is not capped: r_max is the plan's cruise, not a hard bound, and the MPC
+tracker may fly faster for a while.
 """
 
 from __future__ import annotations
@@ -156,8 +158,12 @@ class SwarmMember(SESCPAgent):
         team, floor = self.team, self.expansion_params.min_radius
         mates = team.teammates(self.index)
         rho = team.params.teammate_radius if team.params is not None else 0.0
-        # a teammate already closer than r_col + r_max reaches to ``floor`` short of the chaser
-        radii = np.clip(np.minimum(rho, np.linalg.norm(mates - start, axis=1) - floor), 0, None)
+        # a teammate already closer than r_col + r_max to the chaser or its goal reaches to
+        # ``floor`` short of it
+        near = np.minimum(
+            np.linalg.norm(mates - start, axis=1), np.linalg.norm(mates - goal.point, axis=1)
+        )
+        radii = np.clip(np.minimum(rho, near - floor), 0.0, None)
         if len(mates):
             gap = float(np.min(np.linalg.norm(mates - start, axis=1) - radii))
             start_radius = max(min(start_radius, gap), floor)
@@ -217,7 +223,7 @@ class MASESCPTeam:
     def __init__(
         self,
         env: Any,
-        rule: str = "optimal",
+        rule: str = "balanced",
         *,
         replan_every: int = 1,
         r_max: float | None = None,
@@ -358,6 +364,7 @@ class MASESCPTeam:
             rng = np.random.default_rng(self.seed)
             runs[share] = explore(geometry, starts, goals, margins, rng, p, low=low, high=high)
         self.graphs = runs[self.share_nodes].graphs
+        self.graphs.assigned = np.arange(len(starts))  # each chaser's goal: its own slot
         shared, alone = runs.get(True), runs.get(False)
         self.last_exploration = ExplorationRecord(
             agents=len(starts),

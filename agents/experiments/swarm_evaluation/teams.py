@@ -5,7 +5,7 @@ A team is named ``team-AGENT@RULE``: AGENT a single-agent baseline (:data:`agent
 policy trained by train.py), flown on every chaser; RULE the assignment rule
 (:data:`~agents.planners.team_assignment.ASSIGNMENT_RULES`), ``balanced`` (the env's own rule)
 when left out. A multi-agent method (:data:`TEAM_POLICIES`) is named by its own name,
-``ma-se-scp[@RULE]`` (``optimal`` when left out).
+``ma-se-scp[@RULE]`` (``balanced`` when left out).
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ DEFAULT_RULE = "balanced"
 """The rule of a team named without ``@RULE``: the swarm env's own."""
 
 TEAM_POLICIES: dict[str, tuple[str, str]] = {
-    "ma-se-scp": ("agents.policies.ma_se_scp:MASESCPTeam", "optimal"),
+    "ma-se-scp": ("agents.policies.ma_se_scp:MASESCPTeam", "balanced"),
 }
 """Multi-agent team policies by name → (``module:Class`` built as ``Class(env, rule)``, the
 rule of a name given without ``@RULE``); imported on first use."""
