@@ -9,7 +9,9 @@ import pytest
 
 from agents.experiments.swarm_evaluation.report import exploration_lines
 from agents.experiments.swarm_evaluation.teams import make_team, parse_teams
+from agents.planners.spherical_expansion import SphereChain
 from agents.policies.ma_se_scp import MASESCPTeam, TeammateSpheres
+from agents.policies.se_scp import SESCPAgent
 from agents.policies.team import start_episode
 from debris_gym import swarm
 
@@ -104,3 +106,27 @@ def test_the_report_states_both_connectivity_figures_beside_the_paper():
     (line,) = exploration_lines({"ma-se-scp@optimal": entry, "team-zero@balanced": {}})
     assert "with sharing 31.5" in line and "without 300" in line
     assert "connected in 0/2" in line and "N = 48: 25" in line
+
+
+def test_a_moving_field_falls_back_to_the_bodies_alone_with_their_own_margins(monkeypatch):
+    """When no chain clears the teammates in a moving field, the "se-scp" chain among the
+    bodies alone is flown: its margins are one per body (not the teammate-extended ones)."""
+    env = swarm.make("DebrisGym/Swarm2D-Easy-v0")
+    team = MASESCPTeam(env)
+    observations, _, _ = start_episode(env, team, 0)
+    calls = []
+    original = SESCPAgent.sphere_chain
+
+    def failing_with_teammates(self, start, goal, geometry, margins, *rest):
+        calls.append((geometry.n_bodies, len(margins)))
+        if isinstance(geometry, TeammateSpheres):
+            d = len(start)
+            return SphereChain(False, np.zeros(0, int), np.zeros((0, d)), np.zeros(0), np.inf), 2
+        return original(self, start, goal, geometry, margins, *rest)
+
+    monkeypatch.setattr(SESCPAgent, "sphere_chain", failing_with_teammates)
+    team.predict({a: observations[a] for a in env.agents})
+    assert len(calls) == 4  # two chasers, each: with teammates, then alone
+    assert all(bodies == margins for bodies, margins in calls)
+    assert [m.stats["teammate_fallbacks"] for m in team.members] == [1, 1]
+    env.close()

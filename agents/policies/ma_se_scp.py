@@ -173,10 +173,10 @@ class SwarmMember(SESCPAgent):
             chain, nodes = team.graphs.chain_to(self.index, self.index, floor)
         else:
             spheres = TeammateSpheres(geometry, mates, radii)
-            margins = np.concatenate([margins, np.zeros(len(mates))])
             chain, nodes = super().sphere_chain(
-                start, goal, spheres, margins, low, high, start_radius, goal_radius
-            )
+                start, goal, spheres, np.concatenate([margins, np.zeros(len(mates))]),
+                low, high, start_radius, goal_radius,
+            )  # fmt: skip
         if not chain.success and self.motion is not None:
             # a moving field: a chain held in the goal's frame would drift with the goal; fly
             # the "se-scp" chain among the bodies alone, the teammates left to the re-plans
