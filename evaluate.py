@@ -322,9 +322,9 @@ def main(argv: list[str] | None = None) -> int:
         UsageError,
         run_evaluation,
     )
-    from agents.experiments.swarm_evaluation import is_swarm_id
+    from agents.experiments.swarm_evaluation import is_swarm_id, is_swarm_suite
 
-    if is_swarm_id(args.env):
+    if is_swarm_id(args.env) or (args.env is None and is_swarm_suite(args.suite)):
         return _swarm(parser, args)
     options = EvaluateOptions(**vars(args))  # the parser's destinations are the option names
     try:

@@ -127,6 +127,8 @@ class MissionBatch:
             collide (default: twice the chaser radius).
         field_loop: step field by field (:func:`~debris_gym.mission_step.step_fields`) even
             with one chaser per field (always with several).
+        arrived_stay: a chaser that succeeded stays in its field as a body held where it
+            ended (:attr:`~debris_gym.mission_data.Rules.arrived_stay`).
 
     Per-mission arrays (row i = mission i; SI units): ``state`` (N, 2·dim) LVLH position and
     velocity, ``time`` (N,) s, ``steps`` (N,), ``delta_v`` (N,) m/s spent, ``captured`` (N, T),
@@ -153,6 +155,7 @@ class MissionBatch:
         chasers: int = 1,
         chaser_separation: float | None = None,
         field_loop: bool = False,
+        arrived_stay: bool = False,
     ) -> None:
         n, d, t = num, cfg.dim, n_targets
         if chasers < 1 or num % chasers:
@@ -176,7 +179,7 @@ class MissionBatch:
             cfg, t, step_matrix_t, dt=dt, max_accel=max_accel, max_episode_steps=max_episode_steps,
             body_matrix_t=np.ascontiguousarray(check_transition(model.ad).T),
             reach=body_reach(sub, d), n_chasers=chasers, chaser_separation=chaser_separation,
-            field_loop=field_loop,
+            field_loop=field_loop, arrived_stay=arrived_stay,
         )  # fmt: skip
         self._turn_angles = (dt, dt / cfg.collision_substeps)
         self.shaping = make_shaping(cfg)

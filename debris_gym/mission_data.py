@@ -86,6 +86,10 @@ class Rules(NamedTuple):
     field_loop: bool
     """Step field by field (:func:`~debris_gym.mission_step.step_fields`, the swarms' loop),
     not row by row (the single-agent loop, one chaser per field)."""
+    arrived_stay: bool
+    """A chaser that succeeded stays in its field as a body held where it ended: the chasers
+    still flying are checked against it like against a teammate (the formation slots of a
+    reconfiguration); otherwise an ended chaser leaves the field."""
     gamma: float
     """Discount of the potential-based shaping."""
     tour_potential: bool
@@ -265,11 +269,12 @@ def make_rules(
     n_chasers: int = 1,
     chaser_separation: float | None = None,
     field_loop: bool = False,
+    arrived_stay: bool = False,
 ) -> Rules:
     """The :class:`Rules` of ``cfg`` for fields of ``n_targets`` targets and the given physics
     (``body_matrix_t`` and ``reach``: see :class:`Rules`), ``n_chasers`` chasers per field that
     collide within ``chaser_separation`` (m, centre to centre; default: touching, twice the
-    chaser radius)."""
+    chaser radius); with ``arrived_stay`` a chaser that succeeded stays a body in its field."""
     return Rules(
         dt=float(dt),
         max_accel=float(max_accel),
@@ -294,6 +299,7 @@ def make_rules(
         max_steps=-1 if max_episode_steps is None else int(max_episode_steps),
         n_chasers=int(n_chasers),
         field_loop=bool(field_loop or n_chasers > 1),
+        arrived_stay=bool(arrived_stay),
         chaser_separation=(
             2.0 * float(cfg.chaser_radius)
             if chaser_separation is None

@@ -551,11 +551,13 @@ def step_fields(lo, hi, live, actions, rules, shaping, missions, field, out, scr
     collision for both), then every chaser is measured, judged and rewarded; last, the field's
     captures are shared (a target captured by one chaser is captured for all; the capture
     bonus goes to the chaser that held it; only the targets assigned to a chaser,
-    :attr:`Missions.assigned`, are its to capture). With K = 1 this is :func:`step_rows`, phase
-    for phase."""
+    :attr:`Missions.assigned`, are its to capture). With :attr:`Rules.arrived_stay`, a chaser
+    that succeeded stays in the pair checks, held where it ended (a contact with it is a
+    collision for the chaser flying). With K = 1 this is :func:`step_rows`, phase for phase."""
     n_chasers = rules.n_chasers
     dvs, mates, separation = scratch.dvs, scratch.mates, missions.separation
-    captured, assigned = missions.captured, missions.assigned
+    captured, assigned, success = missions.captured, missions.assigned, missions.success
+    state, dim = missions.state, field.dock.shape[1]
     for f in range(lo, hi):
         first = f * n_chasers
         flying = False
@@ -572,11 +574,21 @@ def step_fields(lo, hi, live, actions, rules, shaping, missions, field, out, scr
         if rules.moving:
             move_bodies(f, rules.body_matrix_t, field.centers, field.velocities, field.attitude,
                         field.turns)  # fmt: skip
+        if rules.arrived_stay:  # the arrived chasers' paths: held where they ended
+            for k in range(n_chasers):
+                i = first + k
+                if not live[i] and success[i]:
+                    for p in range(scratch.path.shape[1]):
+                        for a in range(dim):
+                            scratch.path[k, p, a] = state[i, a]
         for k in range(n_chasers):
-            if not live[first + k]:
+            present_k = live[first + k] or (rules.arrived_stay and success[first + k])
+            if not present_k:
                 continue
             for q in range(k + 1, n_chasers):
-                if not live[first + q]:
+                if not live[first + k] and not live[first + q]:
+                    continue  # two held chasers: neither moves
+                if not (live[first + q] or (rules.arrived_stay and success[first + q])):
                     continue
                 closest = pair_distance(scratch.path[k], scratch.path[q])
                 separation[first + k] = min(separation[first + k], closest)

@@ -403,9 +403,11 @@ def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
 @inlined
 def _teammates(i, f, rules, layout, missions, field, inv_l, inv_v, mates, mate_d2, out):
     """The teammates block of row ``i`` (field ``f``): per slot, the nearest other chasers of
-    the field still flying (ties by row), relative position / L, relative velocity / V, the
+    the field still flying (and, with :attr:`~debris_gym.mission_data.Rules.arrived_stay`,
+    those held at their slots; ties by row), relative position / L, relative velocity / V, the
     vector from it to the goal it heads for / L (:func:`~debris_gym.goal.current_goal`), and
-    1; empty slots 0. ``mates`` (int64) and ``mate_d2`` are scratch of the slot count."""
+    1 if it flies (0 if held); empty slots 0. ``mates`` (int64) and ``mate_d2`` are scratch of
+    the slot count."""
     state, dock, centers = missions.state, field.dock, field.centers
     # the flags read once here, not through the record in the loop (each read of a record's
     # array inside the loop costs a reference-count update)
@@ -417,7 +419,9 @@ def _teammates(i, f, rules, layout, missions, field, inv_l, inv_v, mates, mate_d
     count = 0
     first = f * rules.n_chasers
     for j in range(first, first + rules.n_chasers):
-        if j == i or success[j] or collision[j] or out_of_bounds[j] or budget_spent[j]:
+        if j == i or collision[j] or out_of_bounds[j] or budget_spent[j]:
+            continue
+        if success[j] and not rules.arrived_stay:
             continue
         d2 = 0.0
         for a in range(dim):
@@ -445,7 +449,7 @@ def _teammates(i, f, rules, layout, missions, field, inv_l, inv_v, mates, mate_d
             elif goal == DOCK_GOAL:
                 heading = dock[j, a] - state[j, a]
             k = _put(out, i, k, heading * inv_l)
-        k = _put(out, i, k, 1.0)
+        k = _put(out, i, k, 0.0 if success[j] else 1.0)
 
 
 @inlined

@@ -14,7 +14,14 @@ from hypothesis import strategies as st
 
 pytest.importorskip("pettingzoo")
 
-from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test
+from pettingzoo.test import (
+    api_test,
+    max_cycles_test,
+    parallel_api_test,
+    parallel_seed_test,
+    render_test,
+    state_test,
+)
 
 from debris_gym import swarm
 from debris_gym.swarm.assignment import balanced_assignment
@@ -242,6 +249,60 @@ def test_pettingzoo_parallel_seed():
 
 def test_pettingzoo_aec_api():
     api_test(swarm.env(n_chasers=2, n_targets=2, n_obstacles=5), num_cycles=100)
+
+
+class _GentleEasy:
+    """The Easy rung as a module for PettingZoo's max_cycles_test, with a thrust too weak to
+    reach anything within the test's few cycles (it flies random actions and needs every chaser
+    alive until the time limit): 0.001 m/s² moves a chaser at most 0.5 · 0.001 · (40 s)² =
+    0.8 m in 4 steps, and the chasers start 5 m apart, 3 m more than their contact distance."""
+
+    @staticmethod
+    def parallel_env(**options):
+        return swarm.make(EASY, max_accel=0.001, **options)
+
+    @staticmethod
+    def env(**options):
+        from pettingzoo.utils.conversions import parallel_to_aec
+
+        return parallel_to_aec(_GentleEasy.parallel_env(**options))
+
+
+def test_pettingzoo_max_cycles():
+    max_cycles_test(_GentleEasy)
+    assert swarm.make(EASY, max_cycles=7).max_episode_steps == 7
+    with pytest.raises(ValueError, match="max_cycles or max_episode_steps"):
+        swarm.make(EASY, max_cycles=7, max_episode_steps=8)
+
+
+def test_pettingzoo_state():
+    state_test(swarm.env(), swarm.parallel_env(), num_cycles=20)
+
+
+@pytest.mark.filterwarnings("ignore::debris_gym.envs.rendering.NoDisplayWarning")
+def test_pettingzoo_render():
+    render_test(lambda render_mode=None: swarm.env(render_mode=render_mode))
+
+
+def test_a_frame_shows_every_chaser_with_its_path():
+    # dock slots 30 m apart: about 14 pixels on the 480-pixel panel of a 1 km field
+    env = swarm.make("DebrisGym/Swarm2D-v0", render_mode="rgb_array", dock_spacing=30.0)
+    env.reset(seed=0)
+    for _ in range(4):
+        env.step({a: np.array([0.0, 0.2]) for a in env.agents})  # gently along-track
+    assert len(env.agents) == 3
+    trails = env.trails
+    assert [len(t) for t in trails] == [5, 5, 5]
+    np.testing.assert_allclose(trails[1][0, :2], [30.0, 0.0])  # each path from its own slot
+    frame = env.render()
+    assert frame.shape[2] == 3 and frame.dtype == np.uint8
+    chaser = np.array([0x1F, 0x5F, 0xD0])  # the chaser marker colour
+    ys, xs = np.nonzero(np.all(np.abs(frame.astype(int) - chaser) <= 8, axis=2))
+    assert len(xs) > 0
+    # the markers apart: their pixels span more than one marker's width (about 9 pixels)
+    assert max(xs.max() - xs.min(), ys.max() - ys.min()) > 12
+    with pytest.raises(ValueError, match="render_mode='ansi'"):
+        swarm.make(EASY, render_mode="ansi")
 
 
 def test_state_is_every_observation_in_agent_order():

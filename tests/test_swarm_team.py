@@ -302,6 +302,49 @@ def test_evaluate_py_flies_teams_on_a_swarm_id_and_writes_the_tables(evaluate, t
         (e, rule) for e in ("0", "1") for rule in ASSIGNMENT_RULES
     ]
     assert {p.name for p in out.iterdir()} >= {"summary.json", "summary.md", "manifest.json"}
+    # the default --plots (3): each team's two episodes drawn, every chaser's path on them
+    plots = sorted(p.name for p in out.glob("trajectories_ep*.png"))
+    assert len(plots) == 6 and sum(name.startswith("trajectories_ep1_") for name in plots) == 3
+
+
+def test_evaluate_py_flies_a_swarm_suite(evaluate, tmp_path, capsys):
+    out = tmp_path / "suite"
+    argv = ["--suite", "swarm-2d-v0", "--episodes", "2", "--agents", "team-zero",
+            "--max-steps", "5", "--plots", "0", "--no-progress", "--out", str(out)]  # fmt: skip
+    assert evaluate.main(argv) == 0
+    assert "suite swarm-2d-v0" in capsys.readouterr().out
+    with open(out / "episodes.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["seed"] for r in rows] == ["906000000", "906000001"]
+    for extra, flag in (
+        (["--env-kwargs", '{"n_chasers": 2}'], "--env-kwargs"),
+        (["--seed", "3"], "--seed"),
+        (["--episodes", "51"], "--episodes"),
+        (["--env", "DebrisGym/Swarm3D-v0"], "--env"),
+    ):
+        with pytest.raises(SystemExit):
+            evaluate.main(["--suite", "swarm-2d-v0", "--out", str(tmp_path / "x"), *extra])
+        assert f"argument {flag}" in capsys.readouterr().err
+
+
+def test_evaluate_py_draws_and_records_swarm_episodes(evaluate, tmp_path):
+    pytest.importorskip("moviepy", reason="--video needs moviepy: pip install -e '.[video]'")
+    from moviepy import VideoFileClip
+
+    out = tmp_path / "eval"
+    status = evaluate.main([
+        "--env", SWARM, "--env-kwargs", '{"n_targets": 2, "n_obstacles": 2}', "--max-steps",
+        "12", "--episodes", "2", "--no-progress", "--out", str(out), "--agents", "team-zero",
+        "--plots", "1", "--video", "1",
+    ])  # fmt: skip
+    assert status == 0
+    plots = [p.name for p in out.glob("trajectories_ep*.png")]
+    assert len(plots) == 1 and plots[0].startswith("trajectories_ep0_team-zero_balanced")
+    videos = list((out / "videos").glob("*/episode-*.mp4"))
+    assert [v.name for v in videos] == ["episode-0.mp4"]
+    with VideoFileClip(str(videos[0])) as clip:
+        frames = sum(1 for _ in clip.iter_frames())
+    assert 12 <= frames <= 13  # the reset frame and one per step (moviepy may drop the last)
 
 
 @pytest.mark.parametrize(
@@ -309,7 +352,7 @@ def test_evaluate_py_flies_teams_on_a_swarm_id_and_writes_the_tables(evaluate, t
     [
         (["--shield"], "--shield"),
         (["--workers", "2"], "--workers"),
-        (["--plots", "1"], "--plots"),
+        (["--resume", "somewhere"], "--resume"),
         (["--agents", "apf-mpc"], "--agents"),
         (["--env-kwargs", '{"assignment": "free"}'], "--env-kwargs"),
         (["--env-kwargs", '{"n_chasers": 0}'], "--env-kwargs"),

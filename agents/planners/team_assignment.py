@@ -21,9 +21,15 @@ chaser's):
 * :func:`greedy_assignment` — the floor: the chasers in turn (0, 1, …, K − 1, 0, …) each take
   the unassigned target nearest the end of their tour so far (their slot at first), until none
   is left;
+* :func:`auction_assignment` — a decentralised auction (CBBA, :mod:`agents.planners.auction`):
+  at most ⌈T / K⌉ targets each, every chaser bidding on its own route;
 * the env's balanced rule, :func:`debris_gym.swarm.assignment.balanced_assignment` (at most
   ⌈T / K⌉ targets each, least total slot-to-surface distance), judged by the same cost
   (:func:`assignment_cost`).
+
+A reconfiguration gives every chaser exactly one target, a formation slot (a
+:class:`TeamField` with ``one_each``): the same rule names are then matchings judged by the
+legs alone (:func:`slot_assignment`).
 """
 
 from __future__ import annotations
@@ -33,7 +39,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import linear_sum_assignment
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import maximum_bipartite_matching
 
+from agents.planners.auction import cbba
 from debris_gym.swarm.assignment import balanced_assignment
 
 __all__ = [
@@ -43,13 +53,15 @@ __all__ = [
     "TeamField",
     "assign",
     "assignment_cost",
+    "auction_assignment",
     "greedy_assignment",
     "minmax_assignment",
     "optimal_assignment",
+    "slot_assignment",
     "tour_costs",
 ]
 
-ASSIGNMENT_RULES = ("balanced", "greedy", "optimal", "minmax")
+ASSIGNMENT_RULES = ("balanced", "greedy", "optimal", "minmax", "auction")
 """The rules :func:`assign` knows."""
 
 MAX_PARTITIONS = 1_000_000
@@ -74,6 +86,9 @@ class TeamField:
     centers: np.ndarray
     radii: np.ndarray
     return_to_dock: bool = True
+    one_each: bool = False
+    """Every chaser takes exactly one target (K = T: a reconfiguration's formation slots, radii
+    0); the rules are then matchings (:func:`slot_assignment`)."""
 
     def __post_init__(self) -> None:
         docks, centers = np.asarray(self.docks, float), np.asarray(self.centers, float)
@@ -91,6 +106,11 @@ class TeamField:
                 raise ValueError(f"{name} must be finite")
         if np.any(radii < 0):
             raise ValueError("radii must be >= 0 m")
+        if self.one_each and centers.shape[0] != docks.shape[0]:
+            raise ValueError(
+                f"one target each needs as many targets as chasers, got {centers.shape[0]} "
+                f"for {docks.shape[0]}"
+            )
         object.__setattr__(self, "docks", docks)
         object.__setattr__(self, "centers", centers)
         object.__setattr__(self, "radii", radii)
@@ -292,12 +312,88 @@ def greedy_assignment(field: TeamField, tours: np.ndarray | None = None) -> Team
     return TeamAssignment("greedy", table, cost, per)
 
 
+def auction_assignment(field: TeamField, tours: np.ndarray | None = None) -> TeamAssignment:
+    """The targets auctioned among the chasers by CBBA (:func:`~agents.planners.auction.cbba`,
+    at most ⌈T / K⌉ each; one each on a ``one_each`` field), judged by the stated cost."""
+    if field.one_each:
+        won = cbba(field.dock_legs(), field.target_legs(), False, max_bundle=1).table
+        legs = field.dock_legs()[won]
+        return TeamAssignment("auction", won, float(legs.sum()), legs)
+    table = cbba(field.dock_legs(), field.target_legs(), field.return_to_dock).table
+    cost, per = assignment_cost(table, field, tours)
+    return TeamAssignment("auction", table, cost, per)
+
+
+def _matching(cost: np.ndarray) -> np.ndarray:
+    """(K,) the column of each row in the least-total perfect matching of ``cost`` (K, K)."""
+    rows, cols = linear_sum_assignment(cost)
+    out = np.empty(cost.shape[0], dtype=np.int64)
+    out[rows] = cols
+    return out
+
+
+def _bottleneck(legs: np.ndarray) -> np.ndarray:
+    """The matching with the least longest leg, ties by the least total: the smallest
+    threshold that leaves a perfect matching (bisection over the sorted legs), then the
+    least-total matching with every longer leg forbidden."""
+    values = np.unique(legs)
+    lo, hi = 0, len(values) - 1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        allowed = csr_matrix(legs <= values[mid])
+        if (maximum_bipartite_matching(allowed, perm_type="column") >= 0).all():
+            hi = mid
+        else:
+            lo = mid + 1
+    limit = values[lo]
+    penalty = (legs.sum() + 1.0) * (legs > limit)
+    return _matching(legs + penalty)
+
+
+def slot_assignment(rule: str, field: TeamField) -> TeamAssignment:
+    """``rule`` on a field where every chaser takes exactly one target (``one_each``), judged
+    by the chasers' legs (slot → target's surface; no tours):
+
+    * ``balanced`` and ``optimal`` — the least total (Hungarian: ``linear_sum_assignment``);
+    * ``minmax`` — the least longest leg, ties by the least total (:func:`_bottleneck`);
+    * ``greedy`` — the chasers in turn each take the free target nearest them.
+
+    Raises:
+        ValueError: an unknown rule, or a field that is not ``one_each``.
+    """
+    if not field.one_each:
+        raise ValueError("slot_assignment needs a field with one target each (one_each=True)")
+    legs = field.dock_legs()
+    k = field.n_chasers
+    if rule == "auction":
+        return auction_assignment(field)
+    if rule in ("balanced", "optimal"):
+        order = _matching(legs)
+    elif rule == "minmax":
+        order = _bottleneck(legs)
+    elif rule == "greedy":
+        order = np.empty(k, dtype=np.int64)
+        free = np.ones(k, dtype=bool)
+        for c in range(k):
+            order[c] = int(np.argmin(np.where(free, legs[c], np.inf)))
+            free[order[c]] = False
+    else:
+        raise ValueError(f"unknown assignment rule {rule!r}; known: {', '.join(ASSIGNMENT_RULES)}")
+    table = np.zeros((k, k), dtype=bool)
+    table[np.arange(k), order] = True
+    per = legs[np.arange(k), order]
+    return TeamAssignment(rule, table, float(per.sum()), per)
+
+
 def assign(rule: str, field: TeamField, tours: np.ndarray | None = None) -> TeamAssignment:
-    """The assignment of ``rule`` (:data:`ASSIGNMENT_RULES`) on ``field``.
+    """The assignment of ``rule`` (:data:`ASSIGNMENT_RULES`) on ``field`` (a ``one_each``
+    field: :func:`slot_assignment`, ``tours`` unused).
 
     Raises:
         ValueError: an unknown rule (the message lists the known ones).
     """
+    if field.one_each:
+        return slot_assignment(rule, field)
     tours = tour_costs(field) if tours is None else tours
     if rule == "optimal":
         return optimal_assignment(field, tours)
@@ -305,6 +401,8 @@ def assign(rule: str, field: TeamField, tours: np.ndarray | None = None) -> Team
         return minmax_assignment(field, tours)
     if rule == "greedy":
         return greedy_assignment(field, tours)
+    if rule == "auction":
+        return auction_assignment(field, tours)
     if rule == "balanced":
         table = balanced_assignment(field.docks, field.centers, field.radii)
         cost, per = assignment_cost(table, field, tours)

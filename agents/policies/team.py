@@ -34,7 +34,6 @@ from agents.planners.team_assignment import (
     TeamAssignment,
     TeamField,
     assign,
-    tour_costs,
 )
 from agents.policies.base import unwrap
 from agents.policies.chaser_view import ChaserView
@@ -95,7 +94,8 @@ def team_options(agent: str, dim: int) -> dict[str, Any]:
 
 def team_field(views: list[ChaserView]) -> TeamField:
     """What an assignment rule reads of the views' field, at t = 0: each chaser's dock slot,
-    the targets' centres and radii, and whether the tours return.
+    the targets' centres and radii, and whether the tours return (a reconfiguration: each
+    chaser's start and the formation's slots, one each).
 
     Raises:
         RuntimeError: the swarm has not been reset.
@@ -103,6 +103,12 @@ def team_field(views: list[ChaserView]) -> TeamField:
     scenarios = [v.scenario for v in views]
     if any(s is None for s in scenarios):
         raise RuntimeError("reset the swarm before choosing an assignment")
+    core = views[0].core
+    if core.formation is not None:  # a reconfiguration: from the starts to the formation slots
+        batch = core.shell.batch_in_use
+        starts = np.array([v.chaser_state[: v.dim] for v in views])
+        slots = batch.field.centers[views[0].field, 0] + core.formation
+        return TeamField(starts, slots, np.zeros(len(slots)), False, one_each=True)
     first = scenarios[0]
     assert first is not None
     docks = np.array([s.dock for s in scenarios if s is not None], dtype=float)
@@ -180,8 +186,7 @@ class TeamOfSingles:
     def choose_assignment(self) -> TeamAssignment:
         """The rule's assignment on the field the swarm holds now (after a reset, before the
         missions begin), with its cost (:func:`~agents.planners.team_assignment.assign`)."""
-        field = team_field(self.views)
-        return assign(self.rule, field, tour_costs(field))
+        return assign(self.rule, team_field(self.views))
 
     def predict(
         self, observations: dict[str, np.ndarray], deterministic: bool = True
@@ -211,11 +216,12 @@ class TeamOfSingles:
 
 
 def start_episode(
-    env: Any, team: TeamPolicy, seed: int
+    env: Any, team: TeamPolicy, seed: int, scenario: Any = None
 ) -> tuple[dict[str, np.ndarray], dict[str, dict[str, Any]], TeamAssignment]:
     """Reset ``env`` with ``seed``, let ``team`` choose its assignment on the field drawn, and
     reset again with the same seed and that assignment (the same field, the missions begun
-    with it).
+    with it). ``scenario``: a field to pin in both resets (a frozen suite's mission) instead
+    of the one the seed draws.
 
     Returns:
         the observations and infos of the second reset, and the assignment.
@@ -225,7 +231,8 @@ def start_episode(
     """
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
         raise ValueError(f"seed must be an integer (both resets draw the same field), got {seed!r}")
-    env.reset(seed=seed)
+    pin = {} if scenario is None else {"scenario": scenario}
+    env.reset(seed=seed, options=pin or None)
     chosen = team.choose_assignment()
-    observations, infos = env.reset(seed=seed, options={"assignment": chosen.targets()})
+    observations, infos = env.reset(seed=seed, options={**pin, "assignment": chosen.targets()})
     return observations, infos, chosen

@@ -160,6 +160,7 @@ class _Panel:
         self.trail: Any = None
         self.arrow: Any = None
         self.chaser: Any = None
+        self.goals: Any = None  # several chasers: each one's goal slot
 
     def xy(self, points: Any) -> tuple[Any, Any]:
         points = np.asarray(points, dtype=float)
@@ -189,9 +190,9 @@ class _Panel:
     def dynamic(self) -> tuple[Any, ...]:
         """The artists drawn on every frame, bottom first."""
         if self.debris is None:
-            return (self.targets, self.rings, self.trail, self.arrow, self.chaser)
-        return (self.debris, self.targets, self.rings, self.numbers, self.trail, self.arrow,
-                self.chaser)  # fmt: skip
+            return (self.targets, self.rings, self.goals, self.trail, self.arrow, self.chaser)
+        return (self.debris, self.targets, self.rings, self.numbers, self.goals, self.trail,
+                self.arrow, self.chaser)  # fmt: skip
 
     def remove_field(self) -> None:
         """Take the previous scenario's artists off the axes."""
@@ -256,21 +257,26 @@ class Renderer:
         scenario: Scenario,
         chaser_state: np.ndarray,
         captured: np.ndarray,
-        trail: np.ndarray,
+        trail: np.ndarray | list[np.ndarray],
         accel: np.ndarray,
         time: float,
         delta_v: float,
+        goals: np.ndarray | None = None,
     ) -> np.ndarray:
         """Render one frame: an (H, W, 3) uint8 RGB array (also shown on screen if human).
 
         Args:
             scenario: the field; its static part is drawn once and reused while it is the same.
-            chaser_state: LVLH state, position then velocity, length 2·dim (m, m/s).
+            chaser_state: LVLH state, position then velocity, length 2·dim (m, m/s); several
+                chasers: (K, 2·dim), one row each (the status then gives the fastest speed).
             captured: one flag per target.
-            trail: past chaser positions, shape (n, dim) (m).
-            accel: commanded acceleration of the last step, length dim (m/s²).
+            trail: past chaser positions, shape (n, dim) (m); several chasers: one such array
+                per chaser.
+            accel: commanded acceleration of the last step, length dim (m/s²); several
+                chasers: (K, dim), not drawn.
             time: elapsed time (s), >= 0; a moving field's bodies are drawn where they are then.
-            delta_v: Δv spent so far (m/s).
+            delta_v: Δv spent so far (m/s; several chasers: by all of them).
+            goals: several chasers: (K, dim) each one's own slot (m), marked; None: none.
 
         Raises:
             ValueError: ``time`` is negative or not finite.
@@ -280,31 +286,38 @@ class Renderer:
             raise ValueError(f"time must be a finite number of s >= 0, got {time!r}")
         self._ensure_scene(scenario, time)
         d = scenario.dim
-        state = np.asarray(chaser_state, dtype=float).reshape(2 * d)
-        pos, vel = state[:d], state[d:]
+        states = np.asarray(chaser_state, dtype=float).reshape(-1, 2 * d)
+        pos, speeds = states[:, :d], np.linalg.norm(states[:, d:], axis=1)
         captured = np.asarray(captured, dtype=bool).reshape(len(scenario.targets))
-        trail = np.asarray(trail, dtype=float).reshape(-1, d)
-        accel = np.asarray(accel, dtype=float).reshape(d)
+        if isinstance(trail, (list, tuple)):  # one path per chaser, apart: NaN rows between
+            gap = np.full((1, d), np.nan)
+            parts = [np.asarray(t, dtype=float).reshape(-1, d) for t in trail]
+            trail = np.concatenate([x for t in parts for x in (t, gap)][:-1] or [gap])
+        path = np.asarray(trail, dtype=float).reshape(-1, d)
+        thrust_of = np.asarray(accel, dtype=float).reshape(-1, d)[0] if len(states) == 1 else None
+        marks = np.empty((0, d)) if goals is None else np.asarray(goals, float).reshape(-1, d)
 
         if self._bodies is not None:
             self._place_bodies(self._bodies, scenario, time)
         colours = np.where(captured[:, None], self._rgba_done, self._rgba_open)
-        thrust = float(np.linalg.norm(accel)) / scenario.max_accel
-        arrow = accel / scenario.max_accel * (ARROW_FRACTION * scenario.size)
         for panel in self._panels:
             panel.targets.set_facecolor(colours)
             panel.rings.set_edgecolor(colours)
-            panel.trail.set_data(*panel.xy(trail))
+            panel.trail.set_data(*panel.xy(path))
+            panel.goals.set_data(*panel.xy(marks))
             x, y = panel.xy(pos)
-            panel.chaser.set_data([x], [y])
-            dx, dy = panel.xy(arrow)
+            panel.chaser.set_data(x, y)
+            panel.arrow.set_visible(False)
+            if thrust_of is None:
+                continue
+            thrust = float(np.linalg.norm(thrust_of)) / scenario.max_accel
+            dx, dy = panel.xy(thrust_of / scenario.max_accel * (ARROW_FRACTION * scenario.size))
             if thrust > 1e-9 and (dx != 0.0 or dy != 0.0):
-                panel.arrow.set_positions((x, y), (x + dx, y + dy))
+                panel.arrow.set_positions((x[0], y[0]), (x[0] + dx, y[0] + dy))
                 panel.arrow.set_mutation_scale(5.0 + 7.0 * min(thrust, 1.0))  # head size (pt)
                 panel.arrow.set_visible(True)
-            else:
-                panel.arrow.set_visible(False)
-        values = (time, delta_v, float(np.linalg.norm(vel)), int(captured.sum()))
+        fastest = float(speeds.max()) if len(speeds) else 0.0
+        values = (time, delta_v, fastest, int(captured.sum()))
         for text, field, value in zip(self._status, STATUS_FIELDS, values, strict=True):
             text.set_text(field[1].format(value, n=captured.size))
 
@@ -388,6 +401,12 @@ class Renderer:
                     [], [], marker="o", markersize=6.5, markerfacecolor=CHASER,
                     markeredgecolor="white", markeredgewidth=1.0, linestyle="none", zorder=7,
                     animated=True,
+                )
+            )  # fmt: skip
+            panel.goals = ax.add_line(
+                Line2D(
+                    [], [], marker="x", markersize=5, markeredgecolor=DOCK,
+                    markeredgewidth=1.0, linestyle="none", zorder=2, animated=True,
                 )
             )  # fmt: skip
             self._panels.append(panel)

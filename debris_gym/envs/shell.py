@@ -137,6 +137,8 @@ class MissionShell:
             default: all at the dock).
         field_loop: step field by field, as swarms do, even with one chaser per field (the
             results are those of the row loop: what the swarm's one-chaser test checks).
+        arrived_stay: a chaser that succeeded stays in its field as a body held where it
+            ended (a reconfiguration's formation slots).
 
     Raises:
         ValueError: a random-field config whose fields can never be placed; a bad ``threads``
@@ -156,6 +158,7 @@ class MissionShell:
         chaser_separation: float | None = None,
         dock_offsets: np.ndarray | None = None,
         field_loop: bool = False,
+        arrived_stay: bool = False,
     ) -> None:
         self.threads = check_threads(threads)
         self.made_config = self.config = config
@@ -172,6 +175,7 @@ class MissionShell:
         self.chasers, self.n_fields = chasers, num // chasers
         self.chaser_separation = chaser_separation
         self.field_loop = field_loop  # make_rules adds "or chasers > 1"
+        self.arrived_stay = arrived_stay
         self.dock_offsets = None if dock_offsets is None else np.asarray(dock_offsets, float)
         self.autoreset = autoreset
         self.max_episode_steps = max_episode_steps
@@ -190,9 +194,16 @@ class MissionShell:
         self._obs_size = len(observation_names(config))
         self._all_rows = np.arange(num, dtype=np.int64)
         self._all_fields = np.arange(fields, dtype=np.int64)
-        self.on_install: Callable[[np.ndarray], None] | None = None
+        self.on_install: Callable[[np.ndarray], np.ndarray | None] | None = None
         """Called with the fields (indices) that a reset or restart has just installed, before
-        their missions begin (a swarm assigns its targets there)."""
+        their missions begin (a swarm assigns its targets there). It may return the initial
+        chaser states of those fields' rows, (R, 2·dim), in row order (a reconfiguration
+        starts its chasers away from their slots); None: every chaser at rest at its dock. A
+        reset's ``chaser_state`` option overrides them."""
+        self.on_draw: Callable[[FieldArrays], None] | None = None
+        """Called with every batch of drawn fields before they are checked and installed; it
+        may edit their arrays in place (a reconfiguration shrinks the place the generator kept
+        for its formation to the body at the formation's centre)."""
         self._live = np.ones(num, dtype=bool)
 
     # --- reading ------------------------------------------------------------------------------
@@ -341,7 +352,7 @@ class MissionShell:
                 steps = self.max_episode_steps or self.horizon  # its motion is checked so long
                 pinned = self._checked_pinned(as_scenario(pinned, horizon_steps=steps))
             else:
-                fields = self.supply.take(fields_rows)
+                fields = self._take(fields_rows)
                 if fields is None:
                     self._fit(self._shape_of(self.supply.paper_field()))
                 else:
@@ -362,7 +373,9 @@ class MissionShell:
         else:
             self._install(fields_rows, fields)
         if self.on_install is not None:
-            self.on_install(fields_rows)
+            starts = self.on_install(fields_rows)
+            if states is None:
+                states = starts
         self.batch_in_use.begin(rows, states)
         self._restart[:] = False
         if pinned is None:
@@ -448,10 +461,18 @@ class MissionShell:
             polygon_start=0 if shape.polygon_targets else None,
             max_episode_steps=self.max_episode_steps, threads=self.threads,
             chasers=self.chasers, chaser_separation=self.chaser_separation,
-            field_loop=self.field_loop,
+            field_loop=self.field_loop, arrived_stay=self.arrived_stay,
         )  # fmt: skip
         self._random_world[:] = False
         return self.batch
+
+    def _take(self, rows: np.ndarray) -> FieldArrays | None:
+        """The next drawn fields of the fields ``rows`` from the supply, passed through
+        :attr:`on_draw` (None: the paper world)."""
+        fields = self.supply.take(rows)
+        if fields is not None and self.on_draw is not None:
+            self.on_draw(fields)
+        return fields
 
     def _install(self, rows: np.ndarray, fields: FieldArrays | None) -> None:
         """Load the drawn ``fields`` (None: the paper world) into the fields ``rows``."""
@@ -523,17 +544,17 @@ class MissionShell:
     def restart(self, mask: np.ndarray) -> None:
         """New episodes in the fields in ``mask`` (F,) (an autoreset; with one chaser per field
         the rows): in a field pinned by the last reset again, else in the next field of each
-        field's supply; every chaser of the field at rest at its dock."""
+        field's supply; every chaser of the field at rest at its dock (or where
+        :attr:`on_install` starts it)."""
         fields = np.flatnonzero(mask)
         k = self.chasers
         rows = fields if k == 1 else (fields[:, None] * k + np.arange(k)).ravel()
         if self._pin is not None:
             self._install_scenario(fields, self._pin)
         else:
-            self._install(fields, self.supply.take(fields))
-        if self.on_install is not None:
-            self.on_install(fields)
-        self.batch_in_use.begin(rows)
+            self._install(fields, self._take(fields))
+        starts = None if self.on_install is None else self.on_install(fields)
+        self.batch_in_use.begin(rows, starts)
         if self._pin is None:
             self.supply.draw_ahead(fields)
 

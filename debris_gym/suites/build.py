@@ -84,6 +84,23 @@ STANDARD_SUITES: dict[str, StandardSuite] = {
         "field, 3 targets, 20 obstacles, return to dock; capture is a hold), drawn from reset "
         "seeds 903000000-903000099",
     ),
+    "swarm-2d-v0": StandardSuite(
+        env_id="DebrisGym/Swarm2D-v0",
+        first_seed=906_000_000,
+        count=50,
+        description="50 missions of DebrisGym/Swarm2D-v0 as registered (3 chasers share 6 "
+        "targets among 20 other debris, moving CWH field, each back at its own dock slot), "
+        "drawn from reset seeds 906000000-906000049",
+    ),
+    "reconfigure-3d-v0": StandardSuite(
+        env_id="DebrisGym/Reconfigure3D-v0",
+        first_seed=907_000_000,
+        count=20,
+        description="20 missions of DebrisGym/Reconfigure3D-v0 with 48 chasers (the swarm of "
+        "[Bandyopadhyay17]: 48 formation slots on shells around a body, 20 frozen debris), "
+        "drawn from reset seeds 907000000-907000019",
+        env_kwargs=(("n_chasers", 48),),
+    ),
 }
 """The standard suites, by name."""
 
@@ -105,14 +122,44 @@ def git_commit() -> str:
     return out.stdout.strip() or "unknown"
 
 
+def _swarm_missions(recipe: StandardSuite) -> list[Mission]:
+    """The fields a swarm ID draws from the recipe's seeds (its PettingZoo env: the
+    ``multiagent`` extra)."""
+    from debris_gym import swarm
+
+    env = swarm.make(recipe.env_id, **dict(recipe.env_kwargs))
+    try:
+        missions = []
+        for i in range(recipe.count):
+            seed = recipe.first_seed + i
+            env.reset(seed=seed)
+            scenario = env.core.shell.scenario(0)
+            if scenario is None:
+                raise RuntimeError(f"{recipe.env_id} has no field after reset(seed={seed})")
+            missions.append(Mission(seed, scenario))
+    finally:
+        env.close()
+    return missions
+
+
 def build_suite(name: str, recipe: StandardSuite, command: str) -> Suite:
     """Draw ``recipe``'s fields from its env and return them as suite ``name``."""
     import gymnasium as gym
 
     import debris_gym  # noqa: F401  (registers the IDs)
     from debris_gym.envs import DebrisFieldEnv
+    from debris_gym.swarm import SWARM_SPECS
 
     kwargs = dict(recipe.env_kwargs)
+    if recipe.env_id in SWARM_SPECS:
+        return Suite(
+            name=name,
+            env_id=recipe.env_id,
+            description=recipe.description,
+            env_kwargs=kwargs,
+            missions=tuple(_swarm_missions(recipe)),
+            provenance={"command": command, "git": git_commit()},
+        )
     env = gym.make(recipe.env_id, **kwargs)
     try:
         field_env = env.unwrapped

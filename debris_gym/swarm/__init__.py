@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 from debris_gym.config import EnvConfig
 from debris_gym.registration import V2_WORLD
-from debris_gym.swarm.config import SwarmConfig, dock_slots, split_options
+from debris_gym.swarm.config import SwarmConfig, dock_slots, mission_config, split_options
 from debris_gym.swarm.core import TEAM_INFO_KEYS, SwarmCore
 
 if TYPE_CHECKING:
@@ -49,6 +49,19 @@ remaining target: in a team that tour is not one chaser's task, and its exact se
 targets (720 orders) would cost about 20 times the rest of a chaser's step
 (docs/benchmarks.md)."""
 
+_RECONFIGURATION: dict[str, object] = {
+    "mission": "reconfigure",
+    "assignment": "given",
+    "n_chasers": 6,
+    "n_targets": 1,
+    "n_obstacles": 20,
+    "debris_motion": "frozen",
+    "shaping_potential": "goal",
+}
+"""The reconfiguration of [Bandyopadhyay17]: six chasers from their dock slots to six formation
+slots around a body among twenty other debris, one slot each, the debris frozen as in the paper
+(``debris_motion="bounded"`` moves them)."""
+
 SWARM_SPECS: dict[str, dict[str, Any]] = {
     "DebrisGym/Swarm2D-v0": {"max_episode_steps": 1000,
                              "kwargs": {"dim": 2, **V2_WORLD, **_CAPTURE_MISSION}},
@@ -59,11 +72,16 @@ SWARM_SPECS: dict[str, dict[str, Any]] = {
         "kwargs": {"dim": 2, **V2_WORLD, "n_chasers": 2, "n_targets": 2, "n_obstacles": 5,
                    "return_to_dock": False, "assignment": "given"},
     },
+    "DebrisGym/Reconfigure2D-v0": {"max_episode_steps": 1000,
+                                   "kwargs": {"dim": 2, **V2_WORLD, **_RECONFIGURATION}},
+    "DebrisGym/Reconfigure3D-v0": {"max_episode_steps": 1000,
+                                   "kwargs": {"dim": 3, **V2_WORLD, **_RECONFIGURATION}},
 }  # fmt: skip
 """Every swarm ID with its time limit (steps) and options: the v2 world of the single-agent
 IDs with several chasers. The Easy rung, for learners, gives each chaser its own target (the
 balanced rule of :func:`~debris_gym.swarm.assignment.balanced_assignment`): what is left to
-learn is the flight and the teammate; choosing targets is the task of the full IDs."""
+learn is the flight and the teammate; choosing targets is the task of the full IDs. The
+Reconfigure IDs fly every chaser to its own formation slot (:mod:`debris_gym.swarm.formation`)."""
 
 
 def __getattr__(name: str) -> Any:
@@ -90,11 +108,13 @@ def checked_options(env_id: str, options: dict[str, Any]) -> tuple[EnvConfig, Sw
     merged.pop("max_episode_steps", None)
     env_options, swarm = split_options(merged)
     config = EnvConfig.from_kwargs(**env_options)
-    return config, swarm.checked(config)
+    swarm = swarm.checked(config)
+    return mission_config(config, swarm), swarm
 
 
 def make(env_id: str = DEFAULT_SWARM, **options: Any) -> SwarmParallelEnv:
-    """The swarm env ``env_id`` (:data:`SWARM_SPECS`) with ``options`` over its own.
+    """The swarm env ``env_id`` (:data:`SWARM_SPECS`) with ``options`` over its own
+    (``max_cycles``, PettingZoo's name, sets ``max_episode_steps``).
 
     Raises:
         ValueError: an unknown ID (the message lists the known ones) or option.
@@ -104,6 +124,11 @@ def make(env_id: str = DEFAULT_SWARM, **options: Any) -> SwarmParallelEnv:
         raise ValueError(f"unknown swarm ID {env_id!r}; known: {', '.join(SWARM_SPECS)}")
     from debris_gym.swarm.parallel import SwarmParallelEnv
 
+    options = dict(options)
+    if "max_cycles" in options:  # PettingZoo's name for the time limit
+        if "max_episode_steps" in options:
+            raise ValueError("give max_cycles or max_episode_steps (the same limit), not both")
+        options["max_episode_steps"] = options.pop("max_cycles")
     kwargs = {**spec["kwargs"], **options}
     kwargs.setdefault("max_episode_steps", spec["max_episode_steps"])
     return SwarmParallelEnv(**kwargs)

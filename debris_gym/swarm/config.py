@@ -8,6 +8,7 @@ collide, where their dock slots are and how much of the team's reward each one g
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -15,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from debris_gym.config import MAX_WEIGHT, EnvConfig
+from debris_gym.swarm.formation import formation_slots, outer_radius
 
 MAX_CHASERS = 256
 """Most chasers in one field."""
@@ -23,12 +25,25 @@ MAX_TEAMMATE_SLOTS = 4
 """Teammate slots of the observation when ``obs_teammates`` is not given: the nearest four
 other chasers (or all of them in a smaller swarm)."""
 
-SWARM_KEYS = ("n_chasers", "r_col", "dock_spacing", "reward_team", "assignment")
+SWARM_KEYS = (
+    "n_chasers",
+    "r_col",
+    "dock_spacing",
+    "reward_team",
+    "assignment",
+    "mission",
+    "slot_spacing",
+    "formation_core",
+)
+"""The options a swarm adds to the single-agent ones."""
 
 ASSIGNMENTS = ("free", "given")
 """``free``: every chaser may capture every target; ``given``: every target is one chaser's
 (:mod:`debris_gym.swarm.assignment`)."""
-"""The options a swarm adds to the single-agent ones."""
+
+MISSIONS = ("capture", "reconfigure")
+"""``capture``: the targets shared by the team, then every chaser back at its dock slot;
+``reconfigure``: every chaser to its own formation slot (:mod:`debris_gym.swarm.formation`)."""
 
 
 @dataclass(frozen=True)
@@ -46,7 +61,15 @@ class SwarmConfig:
             mean, over the chasers, of the step's capture and success terms (0 = off).
         assignment: ``"free"`` (any chaser captures any target) or ``"given"`` (each target is
             one chaser's: by the reset option ``assignment``, else the balanced nearest rule of
-            :func:`~debris_gym.swarm.assignment.balanced_assignment`).
+            :func:`~debris_gym.swarm.assignment.balanced_assignment`; in a reconfiguration each
+            slot is one chaser's: by the reset option, else the least total straight-line
+            distance, :func:`~debris_gym.swarm.formation.nearest_slots`).
+        mission: ``"capture"`` or ``"reconfigure"`` (:data:`MISSIONS`).
+        slot_spacing: distance (m) between neighbouring formation slots and between the
+            formation's shells (a reconfiguration); None = 2 · (capture_radius +
+            chaser_radius), the least at which two chasers inside their slots' zones never
+            touch.
+        formation_core: radius (m) of the body at the formation's centre (a reconfiguration).
     """
 
     n_chasers: int = 3
@@ -54,6 +77,20 @@ class SwarmConfig:
     dock_spacing: float = 5.0
     reward_team: float = 0.0
     assignment: str = "free"
+    mission: str = "capture"
+    slot_spacing: float | None = None
+    formation_core: float = 5.0
+
+    @property
+    def reconfigure(self) -> bool:
+        """The mission flies chasers to formation slots."""
+        return self.mission == "reconfigure"
+
+    def spacing(self, env: EnvConfig) -> float:
+        """The formation's slot spacing (m) under ``env``."""
+        if self.slot_spacing is not None:
+            return float(self.slot_spacing)
+        return 2.0 * (env.capture_radius + env.chaser_radius)
 
     def checked(self, env: EnvConfig) -> SwarmConfig:
         """This config validated against ``env``'s (raises ``ValueError`` naming the key and
@@ -84,14 +121,73 @@ class SwarmConfig:
                 f"assignment={self.assignment!r} is not allowed; allowed: one of "
                 f"{', '.join(map(repr, ASSIGNMENTS))}"
             )
+        if self.mission not in MISSIONS:
+            raise ValueError(
+                f"mission={self.mission!r} is not allowed; allowed: one of "
+                f"{', '.join(map(repr, MISSIONS))}"
+            )
+        least = 2.0 * (env.capture_radius + env.chaser_radius)
+        if self.slot_spacing is not None and not (
+            _real(self.slot_spacing) and least <= self.slot_spacing <= env.field_size
+        ):
+            raise ValueError(
+                f"slot_spacing={self.slot_spacing!r} m is out of range; allowed: [{least:g}, "
+                f"{env.field_size:g}] m (two chasers inside their slots' capture zones must "
+                "not touch) or None"
+            )
+        if not (_real(self.formation_core) and 0.1 <= self.formation_core <= env.field_size / 4):
+            raise ValueError(
+                f"formation_core={self.formation_core!r} m is out of range; allowed: "
+                f"[0.1, {env.field_size / 4:g}] m"
+            )
+        if self.reconfigure and self.assignment != "given":
+            raise ValueError(
+                f"assignment={self.assignment!r} is not allowed with mission='reconfigure'; "
+                "allowed: 'given' (each formation slot is one chaser's)"
+            )
         if env.obs_teammates > k - 1:
             raise ValueError(
                 f"obs_teammates={env.obs_teammates} is out of range for {k} chasers; "
                 f"allowed: [0, {k - 1}]"
             )
-        return SwarmConfig(int(k), None if self.r_col is None else float(self.r_col),
-                           float(self.dock_spacing), float(self.reward_team),
-                           str(self.assignment))  # fmt: skip
+        return SwarmConfig(
+            int(k), None if self.r_col is None else float(self.r_col), float(self.dock_spacing),
+            float(self.reward_team), str(self.assignment), str(self.mission),
+            None if self.slot_spacing is None else float(self.slot_spacing),
+            float(self.formation_core),
+        )  # fmt: skip
+
+
+def mission_config(env: EnvConfig, swarm: SwarmConfig) -> EnvConfig:
+    """The single-agent config a swarm's fields are drawn and flown with: ``env`` itself for a
+    capture mission; for a reconfiguration, one target (the formation's place: the generator
+    keeps its ball free and reachable, :func:`~debris_gym.swarm.formation.outer_radius` wide;
+    the body left at its centre is ``formation_core`` wide) — ``target_radius_min`` and
+    ``target_radius_max`` are set from the formation.
+
+    Raises:
+        ValueError: ``n_targets`` other than 1 in a reconfiguration, or a formation the field
+            cannot hold (the message names ``n_chasers`` and ``slot_spacing``).
+    """
+    if not swarm.reconfigure:
+        return env
+    if env.n_targets != 1:
+        raise ValueError(
+            f"n_targets={env.n_targets} is not allowed with mission='reconfigure'; allowed: 1 "
+            "(the body at the formation's centre)"
+        )
+    slots = formation_slots(swarm.n_chasers, swarm.formation_core, swarm.spacing(env), env.dim)
+    reach = outer_radius(slots, env.capture_radius, env.chaser_radius)
+    try:
+        return EnvConfig.from_kwargs(
+            **{**dataclasses.asdict(env), "target_radius_min": reach, "target_radius_max": reach}
+        )
+    except ValueError as err:
+        raise ValueError(
+            f"a formation of n_chasers={swarm.n_chasers} at slot_spacing="
+            f"{swarm.spacing(env):g} m reaches {reach:g} m from its centre, more than "
+            f"field_size={env.field_size:g} m holds ({err}); lower n_chasers or slot_spacing"
+        ) from err
 
 
 def _real(value: Any) -> bool:

@@ -24,9 +24,11 @@ from debris_gym.envs.common import (
     single_spaces,
 )
 from debris_gym.envs.shell import Autoreset, MissionShell
+from debris_gym.field_spec import FieldArrays
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.swarm.assignment import balanced_assignment, checked_assignment
-from debris_gym.swarm.config import SwarmConfig, dock_slots, split_options
+from debris_gym.swarm.config import SwarmConfig, dock_slots, mission_config, split_options
+from debris_gym.swarm.formation import checked_slot_assignment, formation_slots, nearest_slots
 
 __all__ = ["TEAM_INFO_KEYS", "SwarmCore", "SwarmStep"]
 
@@ -84,9 +86,15 @@ class SwarmCore:
         **options: Any,
     ) -> None:  # fmt: skip
         env_options, swarm = split_options(options)
-        self.config = config = EnvConfig.from_kwargs(**env_options)
-        self.swarm: SwarmConfig = swarm.checked(config)
+        made = EnvConfig.from_kwargs(**env_options)
+        self.swarm: SwarmConfig = swarm.checked(made)
+        self.config = config = mission_config(made, self.swarm)
         k = self.chasers = self.swarm.n_chasers
+        if self.swarm.reconfigure and config.scenario != "random":
+            raise ValueError(
+                f"scenario={config.scenario!r} is not allowed with mission='reconfigure'; "
+                "allowed: 'random' (a field of the reset option 'scenario' may be pinned)"
+            )
         self.num_fields = num_fields
         self.num = num_fields * k
         slots = dock_slots(k, self.swarm.dock_spacing, config.dim)
@@ -98,11 +106,12 @@ class SwarmCore:
                 f"{reach:g} m from the dock, beyond its clear zone ({clear:g} m): lower "
                 "dock_spacing or n_chasers"
             )
+        self._slots = slots
         self.max_episode_steps = max_episode_steps
         self.shell = MissionShell(
             config, self.num, autoreset=Autoreset.NEVER, max_episode_steps=max_episode_steps,
             chasers=k, chaser_separation=self.swarm.r_col, dock_offsets=slots,
-            field_loop=True,
+            field_loop=True, arrived_stay=self.swarm.reconfigure,
         )  # fmt: skip
         if max_episode_steps is not None:
             self.shell.horizon = max_episode_steps
@@ -112,8 +121,17 @@ class SwarmCore:
         self._obs = np.zeros((self.num, len(self.obs_names)), dtype=np.float32)
         self.flying = np.zeros(self.num, dtype=bool)
         """(N,) the chasers that have not ended."""
-        self._given: np.ndarray | None = None  # the reset option "assignment", (K, T) bool
-        self.shell.on_install = self._assign
+        self._given: np.ndarray | None = None  # the reset option "assignment": (K, T) bool,
+        # or (K,) slot indices in a reconfiguration
+        self.formation = (
+            formation_slots(k, self.swarm.formation_core, self.swarm.spacing(config), config.dim)
+            if self.swarm.reconfigure else None
+        )  # fmt: skip
+        """(K, dim) the formation's slot offsets (m) from its centre (a reconfiguration), or
+        None."""
+        self.shell.on_install = self._place_formation if self.swarm.reconfigure else self._assign
+        if self.swarm.reconfigure:
+            self.shell.on_draw = self._shrink_core
 
     # --- episodes -----------------------------------------------------------------------------
 
@@ -132,11 +150,12 @@ class SwarmCore:
             given = options.pop("assignment")
             if given is not None and self.swarm.assignment != "given":
                 raise ValueError("options['assignment'] needs an env made with assignment='given'")
-            n_targets = self.config.n_targets
-            self._given = (
-                None if given is None
-                else checked_assignment(given, self.chasers, n_targets)
-            )  # fmt: skip
+            if given is None:
+                self._given = None
+            elif self.swarm.reconfigure:
+                self._given = checked_slot_assignment(given, self.chasers)
+            else:
+                self._given = checked_assignment(given, self.chasers, self.config.n_targets)
         try:
             self.shell.reset(generators, options)
         except BaseException:
@@ -166,6 +185,41 @@ class SwarmCore:
                     batch.dock[rows], batch.field.centers[e, :t], batch.field.radii[e, :t]
                 )
             )  # fmt: skip
+
+    def _shrink_core(self, fields: FieldArrays) -> None:
+        """Drawn fields of a reconfiguration: the first body, the place the generator kept free
+        for the formation (:func:`~debris_gym.swarm.config.mission_config`), shrunk to the
+        body at its centre."""
+        fields.radii[:, 0] = self.swarm.formation_core
+
+    def _place_formation(self, fields: np.ndarray) -> np.ndarray:
+        """A reconfiguration's fields just installed: the formation around the first body
+        (a pinned field's slots stand off from its own radius), each chaser's dock moved to
+        its slot (the reset option
+        ``assignment``, else :func:`~debris_gym.swarm.formation.nearest_slots`), the body
+        assigned to no chaser; returns the chasers' start states: at rest at the dock slots
+        the shell set."""
+        batch = self.shell.batch_in_use
+        k, dim = self.chasers, self.config.dim
+        spacing = self.swarm.spacing(self.config)
+        starts = np.zeros((len(fields) * k, 2 * dim))
+        for n, e in enumerate(fields.tolist()):
+            rows = slice(e * k, e * k + k)
+            pinned = self.shell.pinned[e]
+            # the field's dock plus each chaser's dock slot (not batch.dock, which holds the
+            # last formation's slots when the shell leaves a random world as it was)
+            start = (np.zeros(dim) if pinned is None else np.asarray(pinned.dock)) + self._slots
+            centre, core = batch.field.centers[e, 0], float(batch.field.radii[e, 0])
+            offsets = (
+                self.formation if core == self.swarm.formation_core
+                else formation_slots(k, core, spacing, dim)
+            )  # fmt: skip
+            slots = centre + offsets
+            order = self._given if self._given is not None else nearest_slots(start, slots)
+            batch.dock[rows] = slots[order]
+            batch.missions.assigned[rows] = False
+            starts[n * k : n * k + k, :dim] = start
+        return starts
 
     def restart(self, fields: np.ndarray) -> None:
         """New episodes in the fields in the mask ``fields`` (E,), every chaser at its slot."""
@@ -208,8 +262,8 @@ class SwarmCore:
         return self.shell.observe(self._obs)
 
     def team_success(self) -> np.ndarray:
-        """(E,) every target captured, every chaser that did not fail back at its dock slot,
-        and at least one did."""
+        """(E,) a capture mission: every target captured, every chaser that did not fail back
+        at its dock slot, and at least one did; a reconfiguration: every chaser at its slot."""
         return self._team_success(self.team_captured())
 
     def _team_success(self, captured: np.ndarray) -> np.ndarray:
@@ -217,6 +271,8 @@ class SwarmCore:
         m = self.shell.batch_in_use.missions
         shape = (self.num_fields, self.chasers)
         success = m.success.reshape(shape)
+        if self.swarm.reconfigure:
+            return np.all(success, axis=1)
         failed = (m.collision | m.out_of_bounds | m.budget_spent).reshape(shape)
         return captured.all(axis=1) & np.all(success | failed, axis=1) & np.any(success, axis=1)
 

@@ -12,7 +12,8 @@ left or at the time limit.
 from __future__ import annotations
 
 import warnings
-from typing import Any
+from collections import deque
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from gymnasium import spaces
@@ -20,8 +21,12 @@ from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
 
 from debris_gym.envs.common import DEFAULT_HORIZON_STEPS, RESET_OPTIONS, checked_seed
+from debris_gym.envs.debris_field import TRAIL_LENGTH
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.swarm.core import SwarmCore
+
+if TYPE_CHECKING:  # matplotlib is imported when an env first renders
+    from debris_gym.envs.rendering import Renderer
 
 __all__ = ["SwarmParallelEnv"]
 
@@ -31,7 +36,9 @@ class SwarmParallelEnv(ParallelEnv):
 
     Args:
         max_episode_steps: the time limit (steps) that truncates every chaser; None for none.
-        render_mode: not supported yet (None).
+        render_mode: ``"rgb_array"`` (``render()`` returns a frame) or ``"human"`` (every
+            reset and step also shows one), as the single-agent env draws them, with every
+            chaser still in the field, its path and its goal slot; None: no rendering.
         **options: every single-agent option (:data:`debris_gym.config.OPTIONS`) plus the
             swarm's (:class:`~debris_gym.swarm.config.SwarmConfig`: ``n_chasers``, ``r_col``,
             ``dock_spacing``, ``reward_team``); ``obs_teammates`` defaults to the nearest
@@ -43,7 +50,12 @@ class SwarmParallelEnv(ParallelEnv):
     centralised critic's input).
     """
 
-    metadata = {"name": "debris_swarm_v0", "render_modes": [], "is_parallelizable": True}
+    metadata: dict[str, Any] = {
+        "name": "debris_swarm_v0",
+        "render_modes": ["human", "rgb_array"],
+        "render_fps": 15,
+        "is_parallelizable": True,
+    }
 
     def __init__(
         self,
@@ -51,11 +63,18 @@ class SwarmParallelEnv(ParallelEnv):
         render_mode: str | None = None,
         **options: Any,
     ) -> None:
-        if render_mode is not None:
-            raise ValueError(f"render_mode={render_mode!r} is not supported by swarm envs yet")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"render_mode={render_mode!r} is not supported; use one of "
+                f"{self.metadata['render_modes']} or None"
+            )
         self.core = core = SwarmCore(1, max_episode_steps, **options)
         self.config, self.swarm = core.config, core.swarm
-        self.render_mode = None
+        self.render_mode = render_mode
+        self._renderer: Renderer | None = None
+        self._trails: list[deque[np.ndarray]] = [
+            deque(maxlen=TRAIL_LENGTH) for _ in range(core.chasers)
+        ]
         self.max_episode_steps = max_episode_steps
         self.possible_agents = [f"chaser_{j}" for j in range(core.chasers)]
         self.agents: list[str] = []
@@ -123,6 +142,12 @@ class SwarmParallelEnv(ParallelEnv):
         self.agents = list(self.possible_agents)
         terms = np.zeros((self.core.num, len(REWARD_TERMS)))
         observations = self._observations(self.agents)
+        positions = self._positions()
+        for trail, position in zip(self._trails, positions):
+            trail.clear()
+            trail.append(position.copy())
+        if self.render_mode == "human":
+            self.render()
         return observations, self._infos(self.agents, terms, np.zeros(self.core.num))
 
     def step(self, actions: dict[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
@@ -141,6 +166,11 @@ class SwarmParallelEnv(ParallelEnv):
         rows = [self._index[a] for a in flown]
         infos = self._infos(flown, result.terms, result.team)
         self.agents = [a for a in flown if self.core.flying[self._index[a]]]
+        positions = self._positions()
+        for j in rows:
+            self._trails[j].append(positions[j].copy())
+        if self.render_mode == "human":
+            self.render()
         return (
             observations,
             {a: float(result.reward[j]) for a, j in zip(flown, rows)},
@@ -183,10 +213,53 @@ class SwarmParallelEnv(ParallelEnv):
         (at least one such chaser)."""
         return bool(self.core.team_success()[0])
 
+    def _positions(self) -> np.ndarray:
+        return self.core.shell.batch_in_use.missions.state[:, : self.config.dim]
+
+    @property
+    def trails(self) -> list[np.ndarray]:
+        """Each chaser's positions this episode (its last ``TRAIL_LENGTH``), (n, dim) m."""
+        return [np.asarray(t) for t in self._trails]
+
+    def render(self) -> np.ndarray | None:
+        """Draw the field with every chaser still in it (flying, or held at its slot or dock),
+        each one's path and goal slot: ``rgb_array`` returns an (H, W, 3) uint8 image,
+        ``human`` shows it. The status line gives the time, the team's Δv, the fastest
+        chaser's speed and the team's captures."""
+        if self.render_mode is None:
+            warnings.warn(
+                "render() called without a render_mode; pass render_mode= to make()",
+                stacklevel=2,
+            )
+            return None
+        batch, scenario = self.core.shell.batch, self.core.shell.scenario(0)
+        if batch is None or scenario is None:
+            raise RuntimeError("call reset() before render()")
+        from debris_gym.envs.rendering import Renderer
+
+        if self._renderer is None:
+            self._renderer = Renderer(self.render_mode, fps=self.metadata["render_fps"])
+        m = batch.missions
+        present = self.core.flying | m.success
+        frame = self._renderer.draw(
+            scenario=scenario,
+            chaser_state=m.state[present],
+            captured=self.core.team_captured()[0],
+            trail=self.trails,
+            accel=m.accel[present],
+            time=float(m.time.max()),
+            delta_v=float(m.delta_v.sum()),
+            goals=batch.dock,
+        )
+        return frame if self.render_mode == "rgb_array" else None
+
     def state(self) -> np.ndarray:
         """Every agent's observation, in agent order, as one vector (:attr:`state_space`)."""
         return self.core.observe().ravel().copy()
 
     def close(self) -> None:
-        """Stop the field supply's worker thread."""
+        """Stop the field supply's worker thread and close the renderer."""
         self.core.close()
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None

@@ -10,6 +10,7 @@ from agents.experiments.swarm_evaluation.command import (
     DEFAULT_SWARM_OUT,
     SwarmEvaluateOptions,
     is_swarm_id,
+    is_swarm_suite,
     run_swarm_evaluation,
 )
 from agents.experiments.swarm_evaluation.episode import TeamEpisode, fly_episode
@@ -24,6 +25,7 @@ __all__ = [
     "TeamSpec",
     "fly_episode",
     "is_swarm_id",
+    "is_swarm_suite",
     "parse_teams",
     "run_swarm_evaluation",
 ]

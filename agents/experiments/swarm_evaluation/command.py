@@ -5,20 +5,24 @@ Every team (:mod:`~agents.experiments.swarm_evaluation.teams`) gets its own swar
 member needs its own observation options), made with ``assignment="given"``; episode i of every
 team is reset with seed ``SEED + i`` (the same field for all: checked by its fingerprint). The
 run takes the output directory's lock, flies the teams one after another in this one process,
-and writes ``episodes.csv``, ``assignments.csv``, ``summary.json`` and ``summary.md`` as one set
-(:class:`~agents.experiments.run_directory.OutputSet`, each file written atomically). Options of
-the single-agent evaluation that do not apply (suites, the paper table, the shield, videos,
-plots, Ray, several workers, resuming) are refused with :class:`UsageError` before anything
-runs; Ctrl-C writes nothing.
+and writes ``episodes.csv``, ``assignments.csv``, ``summary.json``, ``summary.md`` and the
+trajectory plots (``--plots N``, :mod:`~agents.experiments.swarm_evaluation.recording`) as one
+set (:class:`~agents.experiments.run_directory.OutputSet`, each file written atomically);
+``--video N`` writes videos beside it. Options of the single-agent evaluation that do not apply
+(suites, the paper table, the shield, Ray, several workers, resuming) are refused with
+:class:`UsageError` before anything runs; Ctrl-C writes nothing.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
+
+import numpy as np
 
 from agents.experiments.evaluation.command import default_out
 from agents.experiments.evaluation.plan import UsageError
@@ -31,6 +35,15 @@ from agents.experiments.run_directory import (
     RunDirectoryLock,
 )
 from agents.experiments.swarm_evaluation.episode import TeamEpisode, fly_episode
+from agents.experiments.swarm_evaluation.recording import (
+    DEFAULT_SWARM_PLOTS,
+    PLOT_PATTERN,
+    EpisodeFrames,
+    check_video_support,
+    plot_name,
+    png_bytes,
+    write_video,
+)
 from agents.experiments.swarm_evaluation.report import (
     assignment_gaps,
     assignments_csv,
@@ -47,6 +60,8 @@ from agents.experiments.swarm_evaluation.teams import (
 from agents.planners.team_assignment import TeamAssignment
 from agents.policies.team import TeamPolicy, team_options
 from debris_gym.files import write_atomic
+from debris_gym.scenario import Scenario
+from debris_gym.suites import list_suites, load_suite
 from debris_gym.swarm import SWARM_SPECS, checked_options
 from debris_gym.swarm import make as make_swarm
 
@@ -56,6 +71,7 @@ __all__ = [
     "NOT_FOR_SWARMS",
     "SwarmEvaluateOptions",
     "is_swarm_id",
+    "is_swarm_suite",
     "run_swarm_evaluation",
 ]
 
@@ -64,11 +80,8 @@ DEFAULT_SWARM_EPISODES = 20
 OUTPUTS = ("episodes.csv", "assignments.csv", "summary.json", "summary.md")
 
 NOT_FOR_SWARMS: dict[str, tuple[str, Any]] = {
-    "suite": ("--suite", None),
     "paper": ("--paper", False),
     "shield": ("--shield", False),
-    "video": ("--video", 0),
-    "plots": ("--plots", None),
     "resume": ("--resume", None),
     "address": ("--address", None),
     "backend": ("--backend", "local"),
@@ -80,6 +93,44 @@ their default."""
 def is_swarm_id(env_id: str | None) -> bool:
     """Whether ``env_id`` is a swarm ID (:data:`debris_gym.swarm.SWARM_SPECS`)."""
     return env_id is not None and env_id.rpartition(":")[2] in SWARM_SPECS
+
+
+def is_swarm_suite(name: str | None) -> bool:
+    """Whether ``name`` is a shipped suite of a swarm ID."""
+    return name in list_suites() and is_swarm_id(load_suite(name).env_id)
+
+
+class _Episode(NamedTuple):
+    """One episode of every team: its reset seed and the field pinned (None: the seed's)."""
+
+    seed: int
+    scenario: Scenario | None
+
+
+def _suite_plan(options: SwarmEvaluateOptions) -> tuple[str, dict[str, Any], list[_Episode]]:
+    """The env, options and missions of ``options.suite`` (its first ``episodes``).
+
+    Raises:
+        UsageError: an unknown suite, or an option that would change its missions.
+    """
+    try:
+        suite = load_suite(str(options.suite))
+    except ValueError as exc:
+        raise UsageError("--suite", str(exc)) from exc
+    if not is_swarm_id(suite.env_id):
+        raise UsageError("--suite", f"{suite.name} is a single-agent suite ({suite.env_id})")
+    if options.env not in (None, suite.env_id):
+        raise UsageError("--env", f"{suite.name} flies {suite.env_id}, not {options.env}")
+    for flag, value in (("--env-kwargs", options.env_kwargs), ("--seed", options.seed)):
+        if value is not None:
+            raise UsageError(flag, f"a frozen suite fixes it ({suite.name})")
+    count = len(suite.missions) if options.episodes is None else options.episodes
+    if count > len(suite.missions):
+        raise UsageError(
+            "--episodes", f"{suite.name} has {len(suite.missions)} missions, not {count}"
+        )
+    missions = [_Episode(m.seed, m.scenario) for m in suite.missions[:count]]
+    return suite.env_id, dict(suite.env_kwargs), missions
 
 
 @dataclass(frozen=True)
@@ -97,9 +148,14 @@ class SwarmEvaluateOptions:
         max_steps: the time limit (steps) over the ID's own.
         reference: the team others are paired with (default: the first).
         progress: draw a progress bar on stderr.
+        plots: trajectory plots of each team's first episodes (default
+            :data:`~agents.experiments.swarm_evaluation.recording.DEFAULT_SWARM_PLOTS`).
+        video: videos of each team's first episodes (0: none).
+        suite: a frozen suite of a swarm ID (:mod:`debris_gym.suites`): its env, options,
+            seeds and pinned fields (its first ``episodes`` missions); None: seeded fields.
     """
 
-    env: str
+    env: str | None
     agents: str | None = None
     episodes: int | None = None
     seed: int | None = None
@@ -108,6 +164,9 @@ class SwarmEvaluateOptions:
     max_steps: int | None = None
     reference: str | None = None
     progress: bool = True
+    plots: int | None = None
+    video: int = 0
+    suite: str | None = None
 
     @classmethod
     def from_arguments(cls, arguments: dict[str, Any]) -> SwarmEvaluateOptions:
@@ -123,9 +182,18 @@ class SwarmEvaluateOptions:
                 raise UsageError(flag, f"does not apply to swarm IDs ({env})")
         if arguments.get("workers") not in (None, 1):
             raise UsageError("--workers", f"swarm IDs ({env}) are flown in one process: use 1")
-        names = ("agents", "episodes", "seed", "out", "env_kwargs", "max_steps", "reference")
+        names = ("agents", "episodes", "seed", "out", "env_kwargs", "max_steps", "reference",
+                 "plots", "suite")  # fmt: skip
         kwargs = {k: arguments.get(k) for k in names}
-        return cls(env=env, progress=bool(arguments.get("progress", True)), **kwargs)
+        video = int(arguments.get("video") or 0)
+        check_video_support(video)
+        return cls(env=env, progress=bool(arguments.get("progress", True)), video=video, **kwargs)
+
+    @property
+    def recorded(self) -> int:
+        """Episodes of each team that are drawn (plots or videos)."""
+        plots = DEFAULT_SWARM_PLOTS if self.plots is None else self.plots
+        return max(plots, self.video)
 
 
 @dataclass
@@ -163,6 +231,8 @@ def _build_teams(
         kwargs = _options(env_id, spec, config.dim, env_kwargs)
         if options.max_steps is not None:
             kwargs["max_episode_steps"] = options.max_steps
+        if options.recorded:
+            kwargs["render_mode"] = "rgb_array"
         try:
             env = make_swarm(env_id, **kwargs)
         except (TypeError, ValueError) as exc:
@@ -203,28 +273,39 @@ def _lock(out: Path | None) -> tuple[Path, RunDirectoryLock]:
 
 
 def _fly(
-    teams: list[_Team], episodes: int, seed: int, progress: bool
-) -> tuple[list[TeamEpisode], dict[int, tuple[int, dict[str, TeamAssignment]]]]:
+    teams: list[_Team], missions: list[_Episode], options: SwarmEvaluateOptions, out: Path
+) -> tuple[
+    list[TeamEpisode], dict[int, tuple[int, dict[str, TeamAssignment]]], dict[str, np.ndarray]
+]:
+    """Fly every team's episodes; returns the records, every field's assignments, and the
+    trajectory plots to write (file name → frame). Videos are written as their episodes end.
+    A mission without a scenario is the field its seed draws."""
     from tqdm import tqdm
 
+    progress = options.progress
+    plots = DEFAULT_SWARM_PLOTS if options.plots is None else options.plots
+    pictures: dict[str, np.ndarray] = {}
     records: list[TeamEpisode] = []
     fields: dict[int, tuple[int, dict[str, TeamAssignment]]] = {}
     prints: dict[int, str] = {}
-    bar = tqdm(total=len(teams) * episodes, desc="swarm episodes", unit="ep", disable=not progress,
-               file=sys.stderr, dynamic_ncols=True)  # fmt: skip
+    bar = tqdm(total=len(teams) * len(missions), desc="swarm episodes", unit="ep",
+               disable=not progress, file=sys.stderr, dynamic_ncols=True)  # fmt: skip
     try:
         for t in teams:
-            for i in range(episodes):
+            for i, (seed, scenario) in enumerate(missions):
                 bar.set_postfix_str(f"{t.spec.label} ep {i}")
+                frames = (
+                    EpisodeFrames(every_step=i < options.video) if i < options.recorded else None
+                )
                 try:
                     record, rules = fly_episode(
-                        t.env, t.team, t.team.views, seed + i, i, t.spec.label
+                        t.env, t.team, t.team.views, seed, i, t.spec.label, frames, scenario
                     )
                 except (KeyboardInterrupt, UsageError):
                     raise
                 except Exception as exc:
                     raise RuntimeError(
-                        f"{t.spec.label} failed in episode {i} (seed {seed + i}): "
+                        f"{t.spec.label} failed in episode {i} (seed {seed}): "
                         f"{type(exc).__name__}: {exc}"
                     ) from exc
                 if prints.setdefault(i, record.field_hash) != record.field_hash:
@@ -232,12 +313,16 @@ def _fly(
                         f"{t.spec.label} flew another field in episode {i} than the first team "
                         "(the seeded fields must be the same for every team)"
                     )
-                fields.setdefault(i, (seed + i, rules))
+                fields.setdefault(i, (seed, rules))
                 records.append(record)
+                if frames is not None and i < plots:
+                    pictures[plot_name(i, t.spec.label)] = frames.last
+                if frames is not None and i < options.video:
+                    write_video(out, t.spec.label, i, frames.frames)
                 bar.update(1)
     finally:
         bar.close()
-    return records, fields
+    return records, fields, pictures
 
 
 def run_swarm_evaluation(options: SwarmEvaluateOptions) -> str:
@@ -248,9 +333,20 @@ def run_swarm_evaluation(options: SwarmEvaluateOptions) -> str:
         UsageError: a bad option (before anything runs).
         RuntimeError: a team failed mid-run (nothing is written).
     """
-    env_id = options.env.rpartition(":")[2]
-    if env_id not in SWARM_SPECS:
-        raise UsageError("--env", f"unknown swarm ID {env_id!r}; known: {', '.join(SWARM_SPECS)}")
+    suite_hash = None
+    if options.suite is not None:
+        env_id, suite_kwargs, missions = _suite_plan(options)
+        suite_hash = load_suite(options.suite).content_hash
+        options = dataclasses.replace(options, env=env_id, env_kwargs=suite_kwargs)
+    else:
+        env_id = (options.env or "").rpartition(":")[2]
+        if env_id not in SWARM_SPECS:
+            raise UsageError(
+                "--env", f"unknown swarm ID {env_id!r}; known: {', '.join(SWARM_SPECS)}"
+            )
+        first = 0 if options.seed is None else options.seed
+        count = DEFAULT_SWARM_EPISODES if options.episodes is None else options.episodes
+        missions = [_Episode(first + i, None) for i in range(count)]
     try:
         specs = parse_teams(options.agents)
     except ValueError as exc:
@@ -258,23 +354,29 @@ def run_swarm_evaluation(options: SwarmEvaluateOptions) -> str:
     labels = [s.label for s in specs]
     if options.reference is not None and options.reference not in labels:
         raise UsageError("--reference", f"{options.reference!r} is not one of {labels}")
-    episodes = DEFAULT_SWARM_EPISODES if options.episodes is None else options.episodes
-    seed = 0 if options.seed is None else options.seed
+    episodes, seed = len(missions), missions[0].seed
     teams, skipped = _build_teams(options, env_id, specs, named=options.agents is not None)
     out, lock = _lock(options.out)
     try:
         start = time.perf_counter()
-        records, fields = _fly(teams, episodes, seed, options.progress)
+        records, fields, pictures = _fly(teams, missions, options, out)
         elapsed = time.perf_counter() - start
         flown = [t.spec.label for t in teams]
         summary = summarize_teams(records, flown, options.reference)
         kwargs = dict(options.env_kwargs or {})
         steps = "" if options.max_steps is None else f", max_steps {options.max_steps}"
+        where = (
+            f"suite {options.suite} ({suite_hash}), its first {episodes} missions"
+            if options.suite is not None
+            else f"seeds {seed}…{seed + episodes - 1}"
+        )
         summary.update(
             title=(
                 f"{env_id}{' ' + to_json(kwargs).strip() if kwargs else ''}: {episodes} episodes "
-                f"per team, seeds {seed}…{seed + episodes - 1}{steps}, one process"
+                f"per team, {where}{steps}, one process"
             ),
+            suite=options.suite,
+            suite_hash=suite_hash,
             env_id=env_id,
             env_kwargs=kwargs,
             episodes=episodes,
@@ -292,12 +394,15 @@ def run_swarm_evaluation(options: SwarmEvaluateOptions) -> str:
             "summary.json": to_json(summary),
             "summary.md": text,
         }
-        with OutputSet(out, owned=OUTPUTS) as files:
+        with OutputSet(out, owned=(*OUTPUTS, PLOT_PATTERN)) as files:
             for name, content in contents.items():
                 write_atomic(files.path(name), content)
+            for name, frame in pictures.items():
+                write_atomic(files.path(name), png_bytes(frame))
             written = files.commit(
                 evaluation={"env_id": env_id, "env_kwargs": kwargs, "agents": flown,
-                            "episodes": episodes, "seed": seed, "max_steps": options.max_steps}
+                            "episodes": episodes, "seed": seed, "max_steps": options.max_steps,
+                            "suite": options.suite, "suite_hash": suite_hash}
             )  # fmt: skip
     finally:
         lock.release()

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from agents.experiments.evaluation.records import scenario_fingerprint
+from agents.experiments.swarm_evaluation.recording import EpisodeFrames
 from agents.planners.team_assignment import ASSIGNMENT_RULES, TeamAssignment, assign, tour_costs
 from agents.policies.team import TeamPolicy, start_episode, team_field
 
@@ -140,7 +141,7 @@ def field_assignments(views: Any) -> dict[str, TeamAssignment]:
     """Every rule's assignment (:data:`~agents.planners.team_assignment.ASSIGNMENT_RULES`) on
     the field the views' swarm holds now."""
     team = team_field(list(views))
-    tours = tour_costs(team)
+    tours = None if team.one_each else tour_costs(team)
     return {rule: assign(rule, team, tours) for rule in ASSIGNMENT_RULES}
 
 
@@ -150,7 +151,14 @@ def _exploration(team: Any) -> dict[str, Any] | None:
 
 
 def fly_episode(
-    env: Any, team: TeamPolicy, views: Any, seed: int, episode: int, label: str
+    env: Any,
+    team: TeamPolicy,
+    views: Any,
+    seed: int,
+    episode: int,
+    label: str,
+    frames: EpisodeFrames | None = None,
+    scenario: Any = None,
 ) -> tuple[TeamEpisode, dict[str, TeamAssignment]]:
     """Fly one episode of ``team`` on ``env`` from ``seed``.
 
@@ -160,12 +168,15 @@ def fly_episode(
         views: the team's chaser views (:class:`~agents.policies.chaser_view.ChaserView`), to
             read the field.
         seed: the reset seed; ``episode`` the episode's index; ``label`` the team's label.
+        frames: records the episode's frames (an env made with ``render_mode="rgb_array"``);
+            None: nothing drawn.
+        scenario: the field to pin (a frozen suite's mission); None: the one ``seed`` draws.
 
     Returns:
         the record, and every rule's assignment on the episode's field.
     """
     began = time.perf_counter()
-    observations, _, chosen = start_episode(env, team, seed)
+    observations, _, chosen = start_episode(env, team, seed, scenario)
     rules = field_assignments(views)
     scenario = views[0].scenario
     if scenario is None:
@@ -174,6 +185,8 @@ def fly_episode(
     decision_ms: list[float] = []
     steps = 0
     clock = time.perf_counter
+    if frames is not None:
+        frames.after(env)
     while env.agents:
         flying = {a: observations[a] for a in env.agents}
         start = clock()
@@ -181,6 +194,10 @@ def fly_episode(
         decision_ms.append(1000.0 * (clock() - start) / len(flying))
         observations, _, _, _, _ = env.step(actions)
         steps += 1
+        if frames is not None:
+            frames.after(env)
+    if frames is not None:
+        frames.finish(env)
     m = core.shell.batch_in_use.missions
     rows = range(core.chasers)
     own = m.captured & m.assigned
