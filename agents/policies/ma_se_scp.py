@@ -51,8 +51,14 @@ import numpy as np
 from agents.planners.mission import Goal
 from agents.planners.scp import SCPParams
 from agents.planners.spherical_expansion import ExpansionParams, SphereChain
-from agents.planners.swarm_expansion import Exploration, SwarmGraphs, SwarmParams, explore
-from agents.planners.team_assignment import ASSIGNMENT_RULES, TeamAssignment, assign, tour_costs
+from agents.planners.swarm_expansion import (
+    Exploration,
+    SwarmGraphs,
+    SwarmParams,
+    assign_goals,
+    explore,
+)
+from agents.planners.team_assignment import ASSIGNMENT_RULES, TeamAssignment, assign
 from agents.policies.chaser_view import ChaserView
 from agents.policies.se_scp import SESCPAgent
 from agents.policies.team import team_field
@@ -170,7 +176,9 @@ class SwarmMember(SESCPAgent):
             goal_gap = float(np.min(np.linalg.norm(mates - goal.point, axis=1) - radii))
             goal_radius = max(min(goal_radius, goal_gap), floor)
         if goal.kind == "dock" and team.graphs is not None:
-            chain, nodes = team.graphs.chain_to(self.index, self.index, floor)
+            assert team.graphs.assigned is not None
+            slot = int(team.graphs.assigned[self.index])
+            chain, nodes = team.graphs.chain_to(self.index, slot, floor)
         else:
             spheres = TeammateSpheres(geometry, mates, radii)
             chain, nodes = super().sphere_chain(
@@ -270,14 +278,39 @@ class MASESCPTeam:
         self.last_exploration: ExplorationRecord | None = None
         """The exploration before the last episode's first step (None on a moving field)."""
         self._episode: tuple[int, float] | None = None
+        self._prepared: (
+            tuple[np.ndarray, np.ndarray, SwarmGraphs, ExplorationRecord | None] | None
+        ) = None
         self._rng = np.random.default_rng(seed)
 
     # --- the TeamPolicy protocol -------------------------------------------------------------
 
     def choose_assignment(self) -> TeamAssignment:
-        """The rule's target assignment on the field the swarm holds now."""
+        """The assignment on the field the swarm holds now. A reconfiguration on a frozen
+        field under a least-total rule (``balanced``, ``optimal``): the exploration runs here
+        and the slots go by the optimal assignment of its graph path costs
+        (:func:`~agents.planners.swarm_expansion.assign_goals`; its cost is still reported on
+        the straight legs, as the other teams'); otherwise the rule's own assignment."""
         field = team_field(self.views)
-        return assign(self.rule, field, tour_costs(field))
+        scenario = self.views[0].scenario
+        self._prepared = None
+        if not field.one_each or self.rule not in ("balanced", "optimal") or scenario.moving:
+            return assign(self.rule, field)
+        self._setup(scenario)
+        graphs, record = self._explore(scenario, field.docks, field.centers)
+        if graphs is None:
+            return assign(self.rule, field)
+        costs = np.array([graphs.path_costs(k) for k in range(field.n_chasers)])
+        order, total = assign_goals(costs)
+        if not math.isfinite(total):  # some chaser reaches no free slot yet: the straight legs
+            return assign(self.rule, field)
+        graphs.assigned = order
+        self._prepared = (field.docks.copy(), field.centers[order].copy(), graphs, record)
+        k = field.n_chasers
+        table = np.zeros((k, k), dtype=bool)
+        table[np.arange(k), order] = True
+        legs = field.dock_legs()[np.arange(k), order]
+        return TeamAssignment(self.rule, table, float(legs.sum()), legs)
 
     def predict(
         self, observations: dict[str, np.ndarray], deterministic: bool = True
@@ -329,30 +362,31 @@ class MASESCPTeam:
 
     # --- the exploration ----------------------------------------------------------------------
 
-    def _start(self, scenario: Any) -> None:
-        """A new episode: r_max, the teammate spheres and (frozen field) the exploration."""
-        self._rng = np.random.default_rng(self.seed)
+    def _setup(self, scenario: Any) -> None:
+        """r_max and the teammate spheres for an episode on ``scenario``."""
         cfg = self.views[0].config
         core = self.env.core
         r_col = float(core.swarm.r_col if core.swarm.r_col is not None else 2 * cfg.chaser_radius)
-        starts = self.positions()
-        goals = np.array([v.scenario.dock for v in self.views], dtype=float)
         # r_max: one env step at the programme's cruise speed (the paper: the farthest an
         # agent travels in one time instant), times the steps between two plans
         r_max = self.r_max
         if r_max is None:
             r_max = self.scp_base.cruise_speed * scenario.dt * self.replan_every
-        member0 = self.members[0]
-        ex = dataclasses.replace(member0.expansion_params, goal_bias=0.0, max_nodes=20_000)
+        ex = dataclasses.replace(self.members[0].expansion_params, goal_bias=0.0, max_nodes=20_000)
         self.params = SwarmParams(r_col, r_max, self.share_nodes, self.max_iterations, ex)
-        self.graphs = None
-        self.last_exploration = None
-        # the shared graph holds while the bodies stand still; a chaser whose final goal is
-        # where it starts (the capture missions' dock slots) has nothing to explore toward it
-        away = np.linalg.norm(goals - starts, axis=1).min()
+
+    def _explore(
+        self, scenario: Any, starts: np.ndarray, goals: np.ndarray
+    ) -> tuple[SwarmGraphs | None, ExplorationRecord | None]:
+        """The exploration from ``starts`` to ``goals`` (with sharing and, for the record,
+        without), or nothing where the shared graph would not hold (a moving field) or a
+        chaser's goal is its start (the capture missions' dock slots)."""
+        assert self.params is not None
+        away = np.linalg.norm(goals[: len(starts)] - starts, axis=1).min()
         if scenario.moving or away <= self.params.teammate_radius:
-            return
+            return None, None
         began = time.perf_counter()
+        cfg, member0 = self.views[0].config, self.members[0]
         # the keep-out "se-scp" gives its spheres: the MPC tracker's default, 0.2 % of the field
         margin = member0.margin if member0.margin is not None else 0.002 * scenario.size
         geometry = self.views[0].geometry
@@ -363,10 +397,8 @@ class MASESCPTeam:
             p = dataclasses.replace(self.params, share_nodes=share)
             rng = np.random.default_rng(self.seed)
             runs[share] = explore(geometry, starts, goals, margins, rng, p, low=low, high=high)
-        self.graphs = runs[self.share_nodes].graphs
-        self.graphs.assigned = np.arange(len(starts))  # each chaser's goal: its own slot
         shared, alone = runs.get(True), runs.get(False)
-        self.last_exploration = ExplorationRecord(
+        record = ExplorationRecord(
             agents=len(starts),
             iterations_shared=None if shared is None else shared.iterations,
             connected_shared=None if shared is None else shared.connected,
@@ -374,10 +406,30 @@ class MASESCPTeam:
             connected_alone=None if alone is None else alone.connected,
             nodes_shared=None if shared is None else tuple(map(int, shared.nodes_per_agent)),
             nodes_alone=None if alone is None else tuple(map(int, alone.nodes_per_agent)),
-            r_col=r_col,
-            r_max=float(r_max),
+            r_col=self.params.r_col,
+            r_max=float(self.params.r_max),
             wall_s=time.perf_counter() - began,
         )
+        return runs[self.share_nodes].graphs, record
+
+    def _start(self, scenario: Any) -> None:
+        """A new episode: r_max, the teammate spheres and (frozen field) the graphs, reused
+        from :meth:`choose_assignment` when it explored this field."""
+        self._rng = np.random.default_rng(self.seed)
+        starts = self.positions()
+        goals = np.array([v.scenario.dock for v in self.views], dtype=float)
+        prepared, self._prepared = self._prepared, None
+        if (
+            prepared is not None
+            and np.allclose(prepared[0], starts)
+            and np.allclose(prepared[1], goals)
+        ):
+            self.graphs, self.last_exploration = prepared[2], prepared[3]
+            return
+        self._setup(scenario)
+        self.graphs, self.last_exploration = self._explore(scenario, starts, goals)
+        if self.graphs is not None:
+            self.graphs.assigned = np.arange(len(starts))  # each chaser's goal: its own slot
 
     def __repr__(self) -> str:
         return f"MASESCPTeam(rule={self.rule!r}, replan_every={self.replan_every})"
