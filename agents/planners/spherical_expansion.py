@@ -38,6 +38,7 @@ __all__ = [
     "chain_waypoints",
     "edge_cost",
     "expand_spheres",
+    "joinable",
     "node_radii",
     "shortest_chain",
 ]
@@ -192,13 +193,20 @@ class _UnionFind:
         self.size[ra] += self.size[rb]
 
 
+def joinable(
+    dist: np.ndarray, r_a: np.ndarray, r_b: np.ndarray, params: ExpansionParams
+) -> np.ndarray:
+    """Whether two spheres of radii ``r_a`` and ``r_b`` (m) whose centres are ``dist`` (m)
+    apart overlap enough to be joined by an edge: ``d ≤ κ (r_a + r_b) − min_overlap``."""
+    return dist <= params.polytope_factor * (r_a + r_b) - params.min_overlap
+
+
 def joined(
     centers: np.ndarray, radii: np.ndarray, i: int, others: np.ndarray, params: ExpansionParams
 ) -> np.ndarray:
     """Mask over ``others`` of the nodes whose spheres overlap node ``i``'s enough to join."""
     dist = np.linalg.norm(centers[others] - centers[i], axis=1)
-    reach = params.polytope_factor * (radii[others] + radii[i]) - params.min_overlap
-    return dist <= reach
+    return joinable(dist, radii[others], radii[i], params)
 
 
 def expand_spheres(

@@ -43,6 +43,7 @@ from agents.planners.result import PlanResult
 from agents.planners.scp import SCPParams, SCPResult, scp_trajectory
 from agents.planners.spherical_expansion import (
     ExpansionParams,
+    SphereChain,
     chain_waypoints,
     expand_spheres,
     node_radii,
@@ -151,6 +152,10 @@ class SESCPAgent(MPCPathAgent):
 
     name = "se-scp"
 
+    keep_arrival = True
+    """Whether a re-plan toward the same goal keeps the arrival time of the first plan (a
+    shrinking horizon) instead of a fresh time allocation."""
+
     def __init__(
         self,
         env: Any,
@@ -236,14 +241,12 @@ class SESCPAgent(MPCPathAgent):
         floor = self.expansion_params.min_radius
         start_radius = max(start_radius, floor)
         goal_radius = max(float(node_radii(geometry, goal.point, margins, low, high)), floor)
-        graph = expand_spheres(
-            geometry, start, goal.point, margins, self._rng, self.expansion_params,
-            low=low, high=high, start_radius=start_radius, goal_radius=goal_radius,
-        )  # fmt: skip
-        chain = shortest_chain(graph)
+        chain, nodes = self.sphere_chain(
+            start, goal, geometry, margins, low, high, start_radius, goal_radius
+        )
         if not chain.success or np.any(chain.radii <= 0):
             self.stats["chain_failures"] += 1
-            return PlanResult(False, start[None].copy(), 0.0, {"nodes": graph.n_nodes})
+            return PlanResult(False, start[None].copy(), 0.0, {"nodes": nodes})
         waypoints = chain_waypoints(chain, self.expansion_params.polytope_factor)
         # the chaser's state and the chain in the goal's frame
         frame = np.zeros(2 * d)
@@ -255,7 +258,7 @@ class SESCPAgent(MPCPathAgent):
         now, step = self.env.elapsed, self._scp_step
         key = (goal.kind, goal.index)
         steps = None
-        if self._arrival is not None and self._arrival[0] == key:
+        if self.keep_arrival and self._arrival is not None and self._arrival[0] == key:
             left = self._arrival[1] - now
             steps = max(math.ceil(left / step - 1e-9), 1) if left >= step else None
         result = scp_trajectory(
@@ -265,7 +268,7 @@ class SESCPAgent(MPCPathAgent):
             waypoints=waypoints - frame[:d], steps=steps,
         )  # fmt: skip
         self.last_scp = result
-        info = {"nodes": graph.n_nodes, "chain": len(chain.radii)}
+        info = {"nodes": nodes, "chain": len(chain.radii)}
         if not result.success:
             self.stats["scp_failures"] += 1
             return PlanResult(True, waypoints, PlanResult.path_length(waypoints), info)
@@ -275,6 +278,27 @@ class SESCPAgent(MPCPathAgent):
         self._trajectory = self._fine_states(state, result.controls)
         path = self._trajectory[:, :d] + frame[:d]
         return PlanResult(True, path, PlanResult.path_length(path), info)
+
+    def sphere_chain(
+        self,
+        start: np.ndarray,
+        goal: Goal,
+        geometry: Any,
+        margins: np.ndarray,
+        low: np.ndarray,
+        high: np.ndarray,
+        start_radius: float,
+        goal_radius: float,
+    ) -> tuple[SphereChain, int]:
+        """The chain of spheres start → ``goal.point`` the programme keeps its trajectory in,
+        and the nodes of the graph it was found in: a spherical expansion grown for this plan
+        (``geometry`` and ``margins`` as :func:`~agents.planners.spherical_expansion.node_radii`
+        takes them; the start and goal spheres given their radii, m)."""
+        graph = expand_spheres(
+            geometry, start, goal.point, margins, self._rng, self.expansion_params,
+            low=low, high=high, start_radius=start_radius, goal_radius=goal_radius,
+        )  # fmt: skip
+        return shortest_chain(graph), graph.n_nodes
 
     def plan_expired(self, now: float) -> bool:
         """Re-plan when the planned trajectory, flown from now on, would come closer to a body

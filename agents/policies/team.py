@@ -56,11 +56,12 @@ __all__ = [
 
 
 class TeamPolicy(Protocol):
-    """What the swarm evaluation flies: a name, an assignment per episode and a joint
-    ``predict``."""
+    """What the swarm evaluation flies: a name, the chasers' views, an assignment per episode
+    and a joint ``predict``."""
 
     name: str
     rule: str
+    views: list[ChaserView]
 
     def choose_assignment(self) -> TeamAssignment:
         """The assignment for the field the env holds now (before its missions begin)."""

@@ -76,6 +76,10 @@ class MPCPathAgent(ClassicalAgent):
 
     name = "mpc-path"
 
+    replans_frozen_field = False
+    """Whether :meth:`plan_expired` is asked in a frozen field too (a subclass whose plans
+    age for another reason than the bodies' motion: teammates that move)."""
+
     def __init__(
         self,
         env: Any,
@@ -200,7 +204,7 @@ class MPCPathAgent(ClassicalAgent):
             self._goal = goal or self.mission.current_goal(captured, pos, now)
             self.tracker.reset()
             self._new_path(pos)
-        elif self.motion is not None and self.plan_expired(elapsed):
+        elif (self.motion is not None or self.replans_frozen_field) and self.plan_expired(elapsed):
             self._new_path(pos)
         elif self._ref is not None and self._ref.deviation > self._replan_distance:
             self.stats["replans"] += 1

@@ -51,9 +51,14 @@ from agents.experiments.swarm_evaluation.report import (
     summarize_teams,
     summary_markdown,
 )
-from agents.experiments.swarm_evaluation.teams import DEFAULT_TEAMS, TeamSpec, parse_teams
+from agents.experiments.swarm_evaluation.teams import (
+    DEFAULT_TEAMS,
+    TeamSpec,
+    make_team,
+    parse_teams,
+)
 from agents.planners.team_assignment import TeamAssignment
-from agents.policies.team import TeamOfSingles, team_options
+from agents.policies.team import TeamPolicy, team_options
 from debris_gym.files import write_atomic
 from debris_gym.scenario import Scenario
 from debris_gym.suites import list_suites, load_suite
@@ -195,7 +200,7 @@ class SwarmEvaluateOptions:
 class _Team:
     spec: TeamSpec
     env: Any
-    team: TeamOfSingles
+    team: TeamPolicy
 
 
 def _options(env_id: str, spec: TeamSpec, dim: int, env_kwargs: dict[str, Any]) -> dict[str, Any]:
@@ -233,7 +238,7 @@ def _build_teams(
         except (TypeError, ValueError) as exc:
             raise UsageError("--env-kwargs", f"{spec.label}: {exc}") from exc
         try:
-            team = TeamOfSingles(env, spec.agent, spec.rule)
+            team = make_team(spec, env)
         except (ValueError, FileNotFoundError) as exc:
             env.close()
             if named:

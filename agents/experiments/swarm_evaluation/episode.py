@@ -7,6 +7,7 @@ flying. Each step times the team's ``predict`` and counts the time per chaser th
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -76,6 +77,9 @@ class TeamEpisode:
         minmax_longest: the least longest tour on this field (the ``minmax`` rule), m.
         decision_ms: team decision time per chaser deciding, one per step (ms).
         wall_s: the episode's wall-clock time, both resets included (s).
+        exploration: what the team explored before the first step, when it does
+            (``team.last_exploration`` as a dict: :class:`~agents.policies.ma_se_scp.
+            ExplorationRecord`); None otherwise.
     """
 
     agent: str
@@ -100,6 +104,7 @@ class TeamEpisode:
     minmax_longest: float
     decision_ms: tuple[float, ...] = field(repr=False, default=())
     wall_s: float = 0.0
+    exploration: dict[str, Any] | None = None
 
     @property
     def n_chasers(self) -> int:
@@ -138,6 +143,11 @@ def field_assignments(views: Any) -> dict[str, TeamAssignment]:
     team = team_field(list(views))
     tours = None if team.one_each else tour_costs(team)
     return {rule: assign(rule, team, tours) for rule in ASSIGNMENT_RULES}
+
+
+def _exploration(team: Any) -> dict[str, Any] | None:
+    record = getattr(team, "last_exploration", None)
+    return None if record is None else dataclasses.asdict(record)
 
 
 def fly_episode(
@@ -214,5 +224,6 @@ def fly_episode(
         minmax_longest=rules["minmax"].longest,
         decision_ms=tuple(decision_ms),
         wall_s=time.perf_counter() - began,
+        exploration=_exploration(team),
     )
     return record, rules

@@ -157,6 +157,9 @@ def summarize_teams(
         ):
             entry[key], entry[f"{key}_ci95"] = _mean_ci(values, lo, hi)
         entry["min_separation_min"] = float(min(r.min_separation for r in recs))
+        explored = [r.exploration for r in recs if r.exploration is not None]
+        if explored:
+            entry["exploration"] = _exploration_summary(explored)
         entry["wall_s_mean"] = float(np.mean([r.wall_s for r in recs]))
         entry["decision_ms_p50"] = float(np.percentile(ms, 50)) if ms.size else None
         entry["decision_ms_p95"] = float(np.percentile(ms, 95)) if ms.size else None
@@ -173,6 +176,54 @@ def summarize_teams(
             c = sum(o and not a for a, o in pairs)
             paired[label] = {"n": len(pairs), "b": b, "c": c, "p_value": mcnemar_exact(b, c)}
     return {"teams": teams, "reference": ref, "paired_team_success": paired}
+
+
+PAPER_CONNECTIVITY = "paper (Fig. 4, N = 6: about 30; Fig. 7, N = 48: 25)"
+"""The iterations until every agent's graph is connected that [Bandyopadhyay17] shows."""
+
+
+def _exploration_summary(explored: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """Means over the episodes of the exploration before the first step (iterations until
+    every graph is connected, with and without node sharing; nodes per agent)."""
+    first = explored[0]
+    out: dict[str, Any] = {"episodes": len(explored)}
+    out.update({key: first[key] for key in ("agents", "r_col", "r_max")})
+    for mode in ("shared", "alone"):
+        runs = [e for e in explored if e[f"iterations_{mode}"] is not None]
+        if not runs:
+            continue
+        out[f"iterations_{mode}_mean"] = float(np.mean([e[f"iterations_{mode}"] for e in runs]))
+        out[f"iterations_{mode}_max"] = int(max(e[f"iterations_{mode}"] for e in runs))
+        out[f"connected_{mode}"] = int(sum(bool(e[f"connected_{mode}"]) for e in runs))
+        out[f"runs_{mode}"] = len(runs)
+        out[f"nodes_{mode}_mean"] = float(np.mean([np.mean(e[f"nodes_{mode}"]) for e in runs]))
+    out["wall_s_mean"] = float(np.mean([e["wall_s"] for e in explored]))
+    return out
+
+
+def exploration_lines(teams: dict[str, Any]) -> list[str]:
+    """The connectivity measurement of the teams that explore, one line each, beside the
+    paper's figure."""
+    lines = []
+    for label, entry in teams.items():
+        e = entry.get("exploration")
+        if not e:
+            continue
+        parts = []
+        for mode, text in (("shared", "with sharing"), ("alone", "without")):
+            if f"iterations_{mode}_mean" in e:
+                parts.append(
+                    f"{text} {format_number(e[f'iterations_{mode}_mean'])} (max "
+                    f"{e[f'iterations_{mode}_max']}; connected in {e[f'connected_{mode}']}/"
+                    f"{e[f'runs_{mode}']}; nodes per agent "
+                    f"{format_number(e[f'nodes_{mode}_mean'])})"
+                )
+        lines.append(
+            f"- {markdown_cell(label)}, N = {e['agents']} (r_col {format_number(e['r_col'])} m, "
+            f"r_max {format_number(e['r_max'])} m): iterations until every graph is connected: "
+            f"{'; '.join(parts)}; {PAPER_CONNECTIVITY}."
+        )
+    return lines
 
 
 def assignment_gaps(fields: dict[int, tuple[int, dict[str, TeamAssignment]]]) -> dict[str, Any]:
@@ -242,6 +293,9 @@ def summary_markdown(summary: dict[str, Any]) -> str:
             f"{format_number(e['decision_ms_p50'])} / {format_number(e['decision_ms_p95'])} | "
             f"{format_number(e['wall_s_mean'])} |"
         )
+    explored = exploration_lines(teams)
+    if explored:
+        lines += ["", "Exploration before the first step (mean over the episodes):", "", *explored]
     paired = summary.get("paired_team_success") or {}
     if paired:
         lines += [

@@ -4,22 +4,40 @@ A team is named ``team-AGENT@RULE``: AGENT a single-agent baseline (:data:`agent
 ``pretrained`` (the single-agent policy shipped for the swarm's world) or ``ALGO:PATH`` (a
 policy trained by train.py), flown on every chaser; RULE the assignment rule
 (:data:`~agents.planners.team_assignment.ASSIGNMENT_RULES`), ``balanced`` (the env's own rule)
-when left out.
+when left out. A multi-agent method (:data:`TEAM_POLICIES`) is named by its own name,
+``ma-se-scp[@RULE]`` (``balanced`` when left out).
 """
 
 from __future__ import annotations
 
+import importlib
 from dataclasses import dataclass
+from typing import Any
 
 from agents.planners.team_assignment import ASSIGNMENT_RULES
 from agents.policies.learned import LEARNED_ALGOS, PRETRAINED
 from agents.policies.registry import BASELINES
+from agents.policies.team import TeamOfSingles
 
-__all__ = ["DEFAULT_RULE", "DEFAULT_TEAMS", "TEAM_PREFIX", "TeamSpec", "parse_teams"]
+__all__ = [
+    "DEFAULT_RULE",
+    "DEFAULT_TEAMS",
+    "TEAM_POLICIES",
+    "TEAM_PREFIX",
+    "TeamSpec",
+    "make_team",
+    "parse_teams",
+]
 
 TEAM_PREFIX = "team-"
 DEFAULT_RULE = "balanced"
 """The rule of a team named without ``@RULE``: the swarm env's own."""
+
+TEAM_POLICIES: dict[str, tuple[str, str]] = {
+    "ma-se-scp": ("agents.policies.ma_se_scp:MASESCPTeam", "balanced"),
+}
+"""Multi-agent team policies by name → (``module:Class`` built as ``Class(env, rule)``, the
+rule of a name given without ``@RULE``); imported on first use."""
 
 DEFAULT_TEAMS = (
     *(f"team-apf-mpc@{rule}" for rule in ASSIGNMENT_RULES),
@@ -66,11 +84,24 @@ def parse_teams(text: str | None) -> list[TeamSpec]:
         raise ValueError(f"empty team name in {text!r}; e.g. team-apf-mpc@optimal,team-zero")
     specs: list[TeamSpec] = []
     for name in names:
+        head, sep, tail = name.partition("@")
+        if head in TEAM_POLICIES:
+            rule = tail if sep else TEAM_POLICIES[head][1]
+            if rule not in ASSIGNMENT_RULES:
+                raise ValueError(
+                    f"{name!r}: unknown assignment rule {rule!r}; known: "
+                    f"{', '.join(ASSIGNMENT_RULES)}"
+                )
+            label = f"{head}@{rule}"
+            if any(s.label == label for s in specs):
+                raise ValueError(f"{label!r} is named twice")
+            specs.append(TeamSpec(label, head, rule))
+            continue
         if not name.startswith(TEAM_PREFIX):
             raise ValueError(
                 f"{name!r}: swarm IDs fly teams, named team-AGENT@RULE (e.g. team-apf-mpc@"
-                f"optimal, team-pretrained@minmax, team-zero); rules: "
-                f"{', '.join(ASSIGNMENT_RULES)}"
+                f"optimal, team-pretrained@minmax, team-zero) or {', '.join(TEAM_POLICIES)}; "
+                f"rules: {', '.join(ASSIGNMENT_RULES)}"
             )
         body = name[len(TEAM_PREFIX) :]
         agent, sep, rule = body.rpartition("@")
@@ -86,3 +117,12 @@ def parse_teams(text: str | None) -> list[TeamSpec]:
             raise ValueError(f"{label!r} is named twice")
         specs.append(TeamSpec(label, agent, rule))
     return specs
+
+
+def make_team(spec: TeamSpec, env: Any) -> Any:
+    """The team policy of ``spec`` on ``env``: a :data:`TEAM_POLICIES` class, else a
+    :class:`~agents.policies.team.TeamOfSingles`."""
+    if spec.agent in TEAM_POLICIES:
+        module_name, class_name = TEAM_POLICIES[spec.agent][0].split(":")
+        return getattr(importlib.import_module(module_name), class_name)(env, spec.rule)
+    return TeamOfSingles(env, spec.agent, spec.rule)

@@ -1,0 +1,435 @@
+"""The "ma-se-scp" team: Multi-Agent SE–SCP ([Bandyopadhyay17] Algorithm 1) on a swarm.
+
+Each chaser is a :class:`SwarmMember`: the single-agent "se-scp" machinery
+(:class:`~agents.policies.se_scp.SESCPAgent`: a chain of spheres, the trajectory programme of
+:func:`~agents.planners.scp.scp_trajectory`, tracked by the shared MPC) with what the paper's
+swarm adds:
+
+* **exploration before the first step** (lines 1–38): on a frozen field (the paper's stationary
+  obstacles) the team grows every chaser's graph with node sharing
+  (:class:`~agents.planners.swarm_expansion.SwarmGraphs`) from the chasers' positions to every
+  chaser's final goal (its own dock slot, which the swarm envs name ``batch.dock[row]``) until
+  every graph connects its start to every goal, and records the iterations; the same
+  exploration without node sharing, from the same seed, is run beside it for the measurement
+  only (:attr:`MASESCPTeam.last_exploration`);
+* **teammates as spheres** (lines 8–16): every plan sees the other chasers' current positions
+  as spheres of radius r_col + r_max; a chain toward the final goal is the Dijkstra path in the
+  chaser's own graph (lines 40–45), which keeps growing by one sample per chaser and decision
+  (the paper's expansion step runs every iteration) and keeps sharing;
+* **re-plan every** ``replan_every`` **decisions** (lines 45–52; 1 = the paper's every step),
+  each time from the chaser's state, with a fresh time allocation;
+* targets (the capture missions ``DebrisGym/Swarm2D-v0`` …, where the chasers have targets
+  before their slots) and every goal in a moving field are planned as "se-scp" plans them — a
+  spherical expansion grown for that plan — with the teammates' spheres added to the bodies:
+  the shared graph was grown on the field at t = 0 and holds only while the bodies stand still.
+
+The targets are shared out among the chasers by the ``rule`` of
+:mod:`agents.planners.team_assignment`, as a team of single agents
+does (:class:`~agents.policies.team.TeamOfSingles`); the default is the envs' balanced rule
+(at most ⌈T / K⌉ targets each): the total-cost optimum often sends one chaser to every target.
+
+r_max, "the maximum distance an agent travels in one time instant", is by default the
+distance the programme's cruise speed covers between two plans. The paper asks every two starts
+and every two goals to be r_col + r_max apart (its eq. 1–2); the swarm envs' dock lattice is
+tighter (5 m against 12 m at 1 m/s and 10 s steps), so a teammate already closer than
+r_col + r_max to the chaser, or to the chaser's goal, is a sphere reaching to ``min_radius``
+short of it: the chaser may move away, not closer, and can still reach its goal. The
+programme's speed is not capped: r_max is the plan's cruise, not a hard bound, and the MPC
+tracker may fly faster for a while.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from agents.planners.mission import Goal
+from agents.planners.scp import SCPParams
+from agents.planners.spherical_expansion import ExpansionParams, SphereChain
+from agents.planners.swarm_expansion import (
+    Exploration,
+    SwarmGraphs,
+    SwarmParams,
+    assign_goals,
+    explore,
+)
+from agents.planners.team_assignment import ASSIGNMENT_RULES, TeamAssignment, assign
+from agents.policies.chaser_view import ChaserView
+from agents.policies.se_scp import SESCPAgent
+from agents.policies.team import team_field
+
+__all__ = ["ExplorationRecord", "MASESCPTeam", "SwarmMember", "TeammateSpheres"]
+
+
+class TeammateSpheres:
+    """A field's geometry with extra spheres (the teammates), for
+    :func:`~agents.planners.spherical_expansion.node_radii`: the bodies' signed distances, then
+    one column per sphere, |p − c| − radius (m).
+
+    Args:
+        base: the field's geometry (``dim``, ``n_bodies``, ``signed_distance``).
+        centers: (P, dim) sphere centres (m).
+        radii: (P,) the spheres' radii (m).
+    """
+
+    def __init__(self, base: Any, centers: np.ndarray, radii: np.ndarray) -> None:
+        self.base = base
+        self.dim = base.dim
+        self.centers = np.asarray(centers, dtype=float).reshape(-1, base.dim)
+        self.radii = np.asarray(radii, dtype=float).reshape(len(self.centers))
+        self.n_bodies = base.n_bodies + len(self.centers)
+
+    def signed_distance(self, points: np.ndarray) -> np.ndarray:
+        """(M, n_bodies) signed distance (m) of each point to each body, then each sphere."""
+        pts = np.asarray(points, dtype=float).reshape(-1, self.dim)
+        mates = np.linalg.norm(pts[:, None] - self.centers[None], axis=-1) - self.radii[None]
+        return np.hstack([self.base.signed_distance(pts), mates])
+
+
+@dataclass(frozen=True)
+class ExplorationRecord:
+    """The exploration before an episode's first step (the paper's Fig. 4 and 7 measurement).
+
+    Attributes:
+        agents: N, the chasers.
+        iterations_shared: iterations until every graph connected its start to every goal,
+            with node sharing (the cap when ``connected_shared`` is False); None when not run.
+        connected_shared: whether that happened within the cap.
+        iterations_alone, connected_alone: the same without node sharing (same seed); None
+            when not run.
+        nodes_shared, nodes_alone: (N,) nodes per agent's graph at the end.
+        r_col, r_max: the teammate spheres' parts (m).
+        wall_s: wall-clock time of both explorations (s).
+    """
+
+    agents: int
+    iterations_shared: int | None
+    connected_shared: bool | None
+    iterations_alone: int | None
+    connected_alone: bool | None
+    nodes_shared: tuple[int, ...] | None
+    nodes_alone: tuple[int, ...] | None
+    r_col: float
+    r_max: float
+    wall_s: float
+
+
+class SwarmMember(SESCPAgent):
+    """One chaser of a :class:`MASESCPTeam`: "se-scp" with the teammates as spheres, the
+    team's graph toward its final goal, and a re-plan every ``team.replan_every`` decisions.
+
+    Args:
+        view: the chaser's :class:`~agents.policies.chaser_view.ChaserView`.
+        team: the team (its graphs, the teammates' positions, r_col + r_max).
+        **params: :class:`~agents.policies.se_scp.SESCPAgent` parameters.
+    """
+
+    name = "ma-se-scp"
+    keep_arrival = False
+    replans_frozen_field = True
+
+    def __init__(self, view: ChaserView, team: MASESCPTeam, **params: Any) -> None:
+        super().__init__(view, **params)
+        self.team = team
+        self.index = view.chaser
+
+    def plan_expired(self, now: float) -> bool:
+        """Every ``team.replan_every`` decisions (the paper: every step); in a moving field
+        also when "se-scp" would (the plan meets a body)."""
+        if self._since_plan >= self.team.replan_every:
+            return True
+        return self.motion is not None and super().plan_expired(now)
+
+    def sphere_chain(
+        self,
+        start: np.ndarray,
+        goal: Goal,
+        geometry: Any,
+        margins: np.ndarray,
+        low: np.ndarray,
+        high: np.ndarray,
+        start_radius: float,
+        goal_radius: float,
+    ) -> tuple[SphereChain, int]:
+        """Toward the final goal on a frozen field: the path in the chaser's own graph from its
+        position (lines 40–45); otherwise a spherical expansion for this plan among the bodies
+        and the teammates' spheres. No path: on a frozen field a one-sphere chain at the
+        chaser (stop and wait for the teammates to move; the next decision re-plans); on a
+        moving field the "se-scp" chain among the bodies alone."""
+        team, floor = self.team, self.expansion_params.min_radius
+        mates = team.teammates(self.index)
+        rho = team.params.teammate_radius if team.params is not None else 0.0
+        # a teammate already closer than r_col + r_max to the chaser or its goal reaches to
+        # ``floor`` short of it
+        near = np.minimum(
+            np.linalg.norm(mates - start, axis=1), np.linalg.norm(mates - goal.point, axis=1)
+        )
+        radii = np.clip(np.minimum(rho, near - floor), 0.0, None)
+        if len(mates):
+            gap = float(np.min(np.linalg.norm(mates - start, axis=1) - radii))
+            start_radius = max(min(start_radius, gap), floor)
+            goal_gap = float(np.min(np.linalg.norm(mates - goal.point, axis=1) - radii))
+            goal_radius = max(min(goal_radius, goal_gap), floor)
+        if goal.kind == "dock" and team.graphs is not None:
+            assert team.graphs.assigned is not None
+            slot = int(team.graphs.assigned[self.index])
+            chain, nodes = team.graphs.chain_to(self.index, slot, floor)
+        else:
+            spheres = TeammateSpheres(geometry, mates, radii)
+            chain, nodes = super().sphere_chain(
+                start, goal, spheres, np.concatenate([margins, np.zeros(len(mates))]),
+                low, high, start_radius, goal_radius,
+            )  # fmt: skip
+        if not chain.success and self.motion is not None:
+            # a moving field: a chain held in the goal's frame would drift with the goal; fly
+            # the "se-scp" chain among the bodies alone, the teammates left to the re-plans
+            self.stats["teammate_fallbacks"] = self.stats.get("teammate_fallbacks", 0) + 1
+            return super().sphere_chain(
+                start, goal, geometry, margins, low, high, start_radius, goal_radius
+            )
+        if not chain.success:
+            self.stats["holds"] = self.stats.get("holds", 0) + 1
+            d = len(start)
+            chain = SphereChain(
+                True, np.zeros(1, dtype=np.int64), np.asarray(start, float).reshape(1, d),
+                np.array([start_radius]), 0.0,
+            )  # fmt: skip
+        return chain, nodes
+
+
+class MASESCPTeam:
+    """Multi-Agent SE–SCP on a swarm env made with ``assignment="given"`` (a
+    :class:`~agents.policies.team.TeamPolicy`).
+
+    Args:
+        env: the swarm env (:class:`~debris_gym.swarm.parallel.SwarmParallelEnv`).
+        rule: the target assignment rule (one of
+            :data:`~agents.planners.team_assignment.ASSIGNMENT_RULES`).
+        replan_every: decisions between two plans of a chaser (≥ 1; 1: the paper).
+        r_max: farthest a chaser travels between two plans (m); None: the programme's cruise
+            speed times ``replan_every`` env steps.
+        share_nodes: share new nodes (the paper); False flies with each chaser's own graph.
+        max_iterations: cap on the exploration's iterations.
+        measure_alone: also run the exploration without sharing, for the record.
+        seed: seed of every sampler (chaser k's own expansions: ``seed + k``).
+        expansion: spherical-expansion tunables (``min_radius`` and the edge rule are used
+            by the team's graph too); None: the "se-scp" defaults.
+        scp: trajectory-programme tunables; None: the "se-scp" defaults (soft spheres).
+        **params: further :class:`~agents.policies.se_scp.SESCPAgent` parameters.
+
+    Raises:
+        ValueError: a bad parameter, or a swarm not made with ``assignment="given"``.
+    """
+
+    name = "ma-se-scp"
+
+    def __init__(
+        self,
+        env: Any,
+        rule: str = "balanced",
+        *,
+        replan_every: int = 1,
+        r_max: float | None = None,
+        share_nodes: bool = True,
+        max_iterations: int = 300,
+        measure_alone: bool = True,
+        seed: int = 0,
+        expansion: ExpansionParams | None = None,
+        scp: SCPParams | None = None,
+        **params: Any,
+    ) -> None:
+        if rule not in ASSIGNMENT_RULES:
+            raise ValueError(
+                f"unknown assignment rule {rule!r}; known: {', '.join(ASSIGNMENT_RULES)}"
+            )
+        core = env.core
+        if core.swarm.assignment != "given":
+            raise ValueError(
+                f"ma-se-scp assigns the targets itself: make the swarm with assignment='given' "
+                f"(it has assignment={core.swarm.assignment!r})"
+            )
+        if isinstance(replan_every, bool) or not (
+            isinstance(replan_every, int) and replan_every >= 1
+        ):
+            raise ValueError(f"replan_every must be an integer >= 1, got {replan_every!r}")
+        if r_max is not None and not (math.isfinite(r_max) and r_max >= 0):
+            raise ValueError(f"r_max must be finite and >= 0 m or None, got {r_max!r}")
+        if not (isinstance(seed, int) and seed >= 0):
+            raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+        self.env, self.rule = env, rule
+        self.replan_every, self.r_max = replan_every, r_max
+        self.share_nodes, self.max_iterations = bool(share_nodes), int(max_iterations)
+        self.measure_alone, self.seed = bool(measure_alone), seed
+        self.agents: list[str] = list(env.possible_agents)
+        self._index = {a: k for k, a in enumerate(self.agents)}
+        self.views = [ChaserView(core, k) for k in range(core.chasers)]
+        self.scp_base = scp or SCPParams(sphere_penalty=100.0)
+        self.members = [
+            SwarmMember(view, self, expansion=expansion, scp=self.scp_base, seed=seed + k, **params)
+            for k, view in enumerate(self.views)
+        ]
+        self.params: SwarmParams | None = None
+        self.graphs: SwarmGraphs | None = None
+        self.last_exploration: ExplorationRecord | None = None
+        """The exploration before the last episode's first step (None on a moving field)."""
+        self._episode: tuple[int, float] | None = None
+        self._prepared: (
+            tuple[np.ndarray, np.ndarray, SwarmGraphs, ExplorationRecord | None] | None
+        ) = None
+        self._rng = np.random.default_rng(seed)
+
+    # --- the TeamPolicy protocol -------------------------------------------------------------
+
+    def choose_assignment(self) -> TeamAssignment:
+        """The assignment on the field the swarm holds now. A reconfiguration on a frozen
+        field under a least-total rule (``balanced``, ``optimal``): the exploration runs here
+        and the slots go by the optimal assignment of its graph path costs
+        (:func:`~agents.planners.swarm_expansion.assign_goals`; its cost is still reported on
+        the straight legs, as the other teams'); otherwise the rule's own assignment."""
+        field = team_field(self.views)
+        scenario = self.views[0].scenario
+        self._prepared = None
+        if not field.one_each or self.rule not in ("balanced", "optimal") or scenario.moving:
+            return assign(self.rule, field)
+        self._setup(scenario)
+        graphs, record = self._explore(scenario, field.docks, field.centers)
+        if graphs is None:
+            return assign(self.rule, field)
+        costs = np.array([graphs.path_costs(k) for k in range(field.n_chasers)])
+        order, total = assign_goals(costs)
+        if not math.isfinite(total):  # some chaser reaches no free slot yet: the straight legs
+            return assign(self.rule, field)
+        graphs.assigned = order
+        self._prepared = (field.docks.copy(), field.centers[order].copy(), graphs, record)
+        k = field.n_chasers
+        table = np.zeros((k, k), dtype=bool)
+        table[np.arange(k), order] = True
+        legs = field.dock_legs()[np.arange(k), order]
+        return TeamAssignment(self.rule, table, float(legs.sum()), legs)
+
+    def predict(
+        self, observations: dict[str, np.ndarray], deterministic: bool = True
+    ) -> dict[str, np.ndarray]:
+        """One action per agent of ``observations`` still flying; the first call of an
+        episode runs the exploration first.
+
+        Raises:
+            ValueError: an unknown agent name.
+        """
+        unknown = sorted(set(observations) - set(self._index))
+        if unknown:
+            raise ValueError(f"unknown agents {unknown}; the team flies {self.agents}")
+        view = self.views[0]
+        scenario = view.scenario
+        if scenario is None:
+            raise RuntimeError("reset the swarm before calling predict()")
+        key = (id(scenario), view.elapsed)
+        if self._episode is None or (view.elapsed == 0.0 and key != self._episode):
+            self._start(scenario)
+        self._episode = key
+        names = [a for a in observations if self.views[self._index[a]].flying]
+        if self.graphs is not None:
+            self.graphs.move(self.positions(), self.present())
+            flying = np.array([self._index[a] for a in names], dtype=np.int64)
+            if len(flying):
+                self.graphs.iterate(self._rng, flying)
+        return {
+            a: np.asarray(self.members[self._index[a]].predict(observations[a])[0]) for a in names
+        }
+
+    # --- what the members read ----------------------------------------------------------------
+
+    def positions(self) -> np.ndarray:
+        """(N, dim) every chaser's position now (m)."""
+        return np.array([v.chaser_state[: v.dim] for v in self.views])
+
+    def present(self) -> np.ndarray:
+        """(N,) the chasers still in the field: flying, or ended at their goal."""
+        m = self.env.core.shell.batch_in_use.missions
+        rows = [v.row for v in self.views]
+        return np.array([v.flying for v in self.views]) | np.asarray(m.success)[rows]
+
+    def teammates(self, k: int) -> np.ndarray:
+        """(P, dim) the positions (m) of the chasers other than ``k`` still in the field."""
+        mask = self.present()
+        mask[k] = False
+        return self.positions()[mask]
+
+    # --- the exploration ----------------------------------------------------------------------
+
+    def _setup(self, scenario: Any) -> None:
+        """r_max and the teammate spheres for an episode on ``scenario``."""
+        cfg = self.views[0].config
+        core = self.env.core
+        r_col = float(core.swarm.r_col if core.swarm.r_col is not None else 2 * cfg.chaser_radius)
+        # r_max: one env step at the programme's cruise speed (the paper: the farthest an
+        # agent travels in one time instant), times the steps between two plans
+        r_max = self.r_max
+        if r_max is None:
+            r_max = self.scp_base.cruise_speed * scenario.dt * self.replan_every
+        ex = dataclasses.replace(self.members[0].expansion_params, goal_bias=0.0, max_nodes=20_000)
+        self.params = SwarmParams(r_col, r_max, self.share_nodes, self.max_iterations, ex)
+
+    def _explore(
+        self, scenario: Any, starts: np.ndarray, goals: np.ndarray
+    ) -> tuple[SwarmGraphs | None, ExplorationRecord | None]:
+        """The exploration from ``starts`` to ``goals`` (with sharing and, for the record,
+        without), or nothing where the shared graph would not hold (a moving field) or a
+        chaser's goal is its start (the capture missions' dock slots)."""
+        assert self.params is not None
+        away = np.linalg.norm(goals[: len(starts)] - starts, axis=1).min()
+        if scenario.moving or away <= self.params.teammate_radius:
+            return None, None
+        began = time.perf_counter()
+        cfg, member0 = self.views[0].config, self.members[0]
+        # the keep-out "se-scp" gives its spheres: the MPC tracker's default, 0.2 % of the field
+        margin = member0.margin if member0.margin is not None else 0.002 * scenario.size
+        geometry = self.views[0].geometry
+        margins = np.full(geometry.n_bodies, cfg.chaser_radius + margin)
+        low, high = np.array(scenario.low, float), np.array(scenario.high, float)
+        runs: dict[bool, Exploration] = {}
+        for share in (True, False) if self.measure_alone else (self.share_nodes,):
+            p = dataclasses.replace(self.params, share_nodes=share)
+            rng = np.random.default_rng(self.seed)
+            runs[share] = explore(geometry, starts, goals, margins, rng, p, low=low, high=high)
+        shared, alone = runs.get(True), runs.get(False)
+        record = ExplorationRecord(
+            agents=len(starts),
+            iterations_shared=None if shared is None else shared.iterations,
+            connected_shared=None if shared is None else shared.connected,
+            iterations_alone=None if alone is None else alone.iterations,
+            connected_alone=None if alone is None else alone.connected,
+            nodes_shared=None if shared is None else tuple(map(int, shared.nodes_per_agent)),
+            nodes_alone=None if alone is None else tuple(map(int, alone.nodes_per_agent)),
+            r_col=self.params.r_col,
+            r_max=float(self.params.r_max),
+            wall_s=time.perf_counter() - began,
+        )
+        return runs[self.share_nodes].graphs, record
+
+    def _start(self, scenario: Any) -> None:
+        """A new episode: r_max, the teammate spheres and (frozen field) the graphs, reused
+        from :meth:`choose_assignment` when it explored this field."""
+        self._rng = np.random.default_rng(self.seed)
+        starts = self.positions()
+        goals = np.array([v.scenario.dock for v in self.views], dtype=float)
+        prepared, self._prepared = self._prepared, None
+        if (
+            prepared is not None
+            and np.allclose(prepared[0], starts)
+            and np.allclose(prepared[1], goals)
+        ):
+            self.graphs, self.last_exploration = prepared[2], prepared[3]
+            return
+        self._setup(scenario)
+        self.graphs, self.last_exploration = self._explore(scenario, starts, goals)
+        if self.graphs is not None:
+            self.graphs.assigned = np.arange(len(starts))  # each chaser's goal: its own slot
+
+    def __repr__(self) -> str:
+        return f"MASESCPTeam(rule={self.rule!r}, replan_every={self.replan_every})"

@@ -1,0 +1,132 @@
+"""Tests of the "ma-se-scp" team (agents.policies.ma_se_scp) and its place in the swarm
+evaluation: the teammate spheres in closed form, a re-plan per decision, bad parameters, and
+the team name and connectivity lines of the report."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from agents.experiments.swarm_evaluation.report import exploration_lines
+from agents.experiments.swarm_evaluation.teams import make_team, parse_teams
+from agents.planners.spherical_expansion import SphereChain
+from agents.policies.ma_se_scp import MASESCPTeam, TeammateSpheres
+from agents.policies.se_scp import SESCPAgent
+from agents.policies.team import start_episode
+from debris_gym import swarm
+
+
+class _Field:
+    dim, n_bodies = 2, 1
+
+    def signed_distance(self, points):
+        pts = np.asarray(points, float).reshape(-1, 2)
+        return np.linalg.norm(pts - [100.0, 0.0], axis=1, keepdims=True) - 10.0
+
+
+def test_teammate_spheres_add_one_closed_form_column_per_teammate():
+    mates = np.array([[0.0, 0.0], [30.0, 40.0]])
+    spheres = TeammateSpheres(_Field(), mates, np.array([5.0, 12.0]))
+    points = np.array([[0.0, 10.0], [60.0, 80.0], [100.0, 20.0]])
+    out = spheres.signed_distance(points)
+    assert spheres.n_bodies == 3 and out.shape == (3, 3)
+    for p, row in zip(points, out, strict=True):
+        assert row[0] == pytest.approx(np.hypot(p[0] - 100.0, p[1]) - 10.0)
+        assert row[1] == pytest.approx(np.hypot(*p) - 5.0)
+        assert row[2] == pytest.approx(np.hypot(p[0] - 30.0, p[1] - 40.0) - 12.0)
+
+
+def _env(**kwargs):
+    return swarm.make("DebrisGym/Swarm2D-Easy-v0", debris_motion="frozen", **kwargs)
+
+
+def test_every_flying_chaser_replans_at_every_decision_and_the_pair_stays_apart():
+    env = _env(return_to_dock=True)
+    team = MASESCPTeam(env)
+    observations, _, _ = start_episode(env, team, 0)
+    decisions = dict.fromkeys(team.agents, 0)
+    for _ in range(12):
+        actions = team.predict({a: observations[a] for a in env.agents})
+        for agent, action in actions.items():
+            assert np.all(np.abs(action) <= 1.0)
+            decisions[agent] += 1
+        observations, *_ = env.step(actions)
+    assert min(decisions.values()) == 12  # both chasers have a target (the balanced rule)
+    for agent, member in zip(team.agents, team.members, strict=True):
+        assert member.stats["plans"] == decisions[agent]
+    r_col = 2.0 * env.core.config.chaser_radius
+    assert float(env.core.min_separation()[0]) > r_col
+    # the chasers' goals are their starts (dock slots): nothing to explore
+    assert team.last_exploration is None
+    env.close()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [({"replan_every": 0}, "replan_every"), ({"r_max": -1.0}, "r_max"),
+     ({"rule": "fastest"}, "rule"), ({"seed": -1}, "seed")],
+)  # fmt: skip
+def test_bad_team_parameters_raise_naming_them(kwargs, name):
+    env = _env()
+    with pytest.raises(ValueError, match=name):
+        MASESCPTeam(env, **kwargs)
+    env.close()
+
+
+def test_a_swarm_without_given_assignments_is_refused():
+    env = swarm.make("DebrisGym/Swarm2D-v0", debris_motion="frozen", assignment="free")
+    with pytest.raises(ValueError, match="assignment='given'"):
+        MASESCPTeam(env)
+    env.close()
+
+
+def test_the_evaluation_names_and_builds_the_team():
+    specs = parse_teams("ma-se-scp,ma-se-scp@greedy,team-zero")
+    assert [s.label for s in specs] == [
+        "ma-se-scp@balanced",
+        "ma-se-scp@greedy",
+        "team-zero@balanced",
+    ]
+    with pytest.raises(ValueError, match="rule"):
+        parse_teams("ma-se-scp@fastest")
+    env = _env()
+    team = make_team(specs[1], env)
+    assert isinstance(team, MASESCPTeam) and team.rule == "greedy"
+    env.close()
+
+
+def test_the_report_states_both_connectivity_figures_beside_the_paper():
+    entry = {"exploration": {
+        "episodes": 2, "agents": 6, "r_col": 2.0, "r_max": 10.0,
+        "iterations_shared_mean": 31.5, "iterations_shared_max": 40, "connected_shared": 2,
+        "runs_shared": 2, "nodes_shared_mean": 180.0,
+        "iterations_alone_mean": 300.0, "iterations_alone_max": 300, "connected_alone": 0,
+        "runs_alone": 2, "nodes_alone_mean": 250.0,
+    }}  # fmt: skip
+    (line,) = exploration_lines({"ma-se-scp@optimal": entry, "team-zero@balanced": {}})
+    assert "with sharing 31.5" in line and "without 300" in line
+    assert "connected in 0/2" in line and "N = 48: 25" in line
+
+
+def test_a_moving_field_falls_back_to_the_bodies_alone_with_their_own_margins(monkeypatch):
+    """When no chain clears the teammates in a moving field, the "se-scp" chain among the
+    bodies alone is flown: its margins are one per body (not the teammate-extended ones)."""
+    env = swarm.make("DebrisGym/Swarm2D-Easy-v0")
+    team = MASESCPTeam(env)
+    observations, _, _ = start_episode(env, team, 0)
+    calls = []
+    original = SESCPAgent.sphere_chain
+
+    def failing_with_teammates(self, start, goal, geometry, margins, *rest):
+        calls.append((geometry.n_bodies, len(margins)))
+        if isinstance(geometry, TeammateSpheres):
+            d = len(start)
+            return SphereChain(False, np.zeros(0, int), np.zeros((0, d)), np.zeros(0), np.inf), 2
+        return original(self, start, goal, geometry, margins, *rest)
+
+    monkeypatch.setattr(SESCPAgent, "sphere_chain", failing_with_teammates)
+    team.predict({a: observations[a] for a in env.agents})
+    assert len(calls) == 4  # two chasers, each: with teammates, then alone
+    assert all(bodies == margins for bodies, margins in calls)
+    assert [m.stats["teammate_fallbacks"] for m in team.members] == [1, 1]
+    env.close()

@@ -1,0 +1,272 @@
+"""Tests of the multi-agent spherical expansion (agents.planners.swarm_expansion) against truths
+computed here: straight-line distances, a hand-computed shortest-path bound through a gap in a
+wall of circles, sphere clearances in closed form, and brute-force assignments."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from agents.planners.spherical_expansion import ExpansionParams
+from agents.planners.swarm_expansion import (
+    SwarmGraphs,
+    SwarmParams,
+    assign_goals,
+    compare_sharing,
+    explore,
+)
+
+
+class Spheres:
+    """A field of circles / spheres, the clearance in closed form: |p − c| − r."""
+
+    def __init__(self, centers, radii, dim: int = 2) -> None:
+        self.centers = np.asarray(centers, float).reshape(-1, dim)
+        self.radii = np.asarray(radii, float).reshape(-1)
+        self.dim = dim
+        self.n_bodies = len(self.radii)
+
+    def signed_distance(self, points):
+        pts = np.asarray(points, float).reshape(-1, self.dim)
+        return np.linalg.norm(pts[:, None] - self.centers[None], axis=-1) - self.radii[None]
+
+
+def _segment_gap(a, b, c) -> float:
+    """Distance (m) from point c to the segment a–b."""
+    ab = b - a
+    t = np.clip(np.dot(c - a, ab) / max(np.dot(ab, ab), 1e-300), 0.0, 1.0)
+    return float(np.linalg.norm(a + t * ab - c))
+
+
+def _params(**kwargs) -> SwarmParams:
+    expansion = {"goal_bias": 0.0, "max_nodes": 5000, "narrow_cost": 0.0, "min_overlap": 0.5}
+    expansion.update(kwargs.pop("expansion", {}))
+    return SwarmParams(
+        **{"r_col": 2.0, "r_max": 8.0, **kwargs}, expansion=ExpansionParams(**expansion)
+    )
+
+
+BOX = (np.array([-100.0, -100.0]), np.array([100.0, 100.0]))
+
+
+# --- graphs and paths against independent truth ----------------------------------------------
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_an_empty_box_path_costs_at_least_the_straight_line_and_at_most_a_third_more(seed):
+    """Edge costs are centre distances (``narrow_cost`` 0), so a path can never be shorter
+    than the straight line (triangle inequality); the chain of steered spheres in free space
+    zigzags by little: the bound 4/3 leaves room (the largest ratio over 30 seeds was 1.10)."""
+    field = Spheres(np.zeros((0, 2)), np.zeros(0))
+    starts = np.array([[-90.0, -90.0], [-90.0, -60.0], [-60.0, -90.0]])
+    goals = np.array([[90.0, 90.0], [90.0, 60.0], [60.0, 90.0]])
+    found = explore(
+        field, starts, goals, np.zeros(0), np.random.default_rng(seed), _params(),
+        low=BOX[0], high=BOX[1],
+    )  # fmt: skip
+    assert found.connected
+    straight = np.linalg.norm(starts[:, None] - goals[None], axis=-1)
+    assert np.all(found.costs >= straight - 1e-9)
+    assert np.all(found.costs <= 4.0 / 3.0 * straight)
+
+
+def _wall(gap_center: float, gap_half: float):
+    """Circles of radius 12 m every 20 m on the line x = 0 (they overlap), none whose centre
+    lies within ``gap_half`` of ``gap_center``."""
+    ys = np.arange(-100.0, 100.1, 20.0)
+    ys = ys[np.abs(ys - gap_center) >= gap_half]
+    return Spheres(np.c_[np.zeros_like(ys), ys], np.full(len(ys), 12.0)), ys
+
+
+def _bound_through_gaps(start, goal, ys, reach: float) -> float:
+    """The least length of any curve from ``start`` (x < 0) to ``goal`` (x > 0) that crosses
+    x = 0 at a point farther than ``reach`` from every circle centre (the free part of the
+    line): the crossing height y minimises |start − (0, y)| + |(0, y) − goal|, a convex
+    function of y, over each free interval: the straight crossing clamped to the interval."""
+    lo, hi = BOX[0][1], BOX[1][1]
+    blocked = sorted((y - reach, y + reach) for y in ys)
+    free, edge = [], lo
+    for a, b in blocked:
+        if a > edge:
+            free.append((edge, min(a, hi)))
+        edge = max(edge, b)
+    if edge < hi:
+        free.append((edge, hi))
+    # the straight line's crossing height
+    t = -start[0] / (goal[0] - start[0])
+    y_star = start[1] + t * (goal[1] - start[1])
+    best = math.inf
+    for a, b in free:
+        p = np.array([0.0, float(np.clip(y_star, a, b))])
+        best = min(best, float(np.linalg.norm(start - p) + np.linalg.norm(p - goal)))
+    return best
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_path_through_a_wall_of_circles_is_no_shorter_than_the_route_through_its_gap(seed):
+    margin = 2.0
+    field, ys = _wall(gap_center=50.0, gap_half=25.0)
+    starts = np.array([[-80.0, -80.0], [-80.0, -40.0]])
+    goals = np.array([[80.0, -80.0], [80.0, -40.0]])
+    margins = np.full(field.n_bodies, margin)
+    found = explore(
+        field, starts, goals, margins, np.random.default_rng(seed), _params(max_iterations=600),
+        low=BOX[0], high=BOX[1],
+    )  # fmt: skip
+    assert found.connected
+    for i, j in itertools.product(range(2), range(2)):
+        bound = _bound_through_gaps(starts[i], goals[j], ys, 12.0 + margin)
+        assert found.costs[i, j] >= bound - 1e-6
+        # the straight line is blocked, so the bound is a real detour
+        assert bound > np.linalg.norm(starts[i] - goals[j]) + 1.0
+    chain, _ = found.graphs.chain_to(0, 0)
+    assert chain.success
+    for a, b in itertools.pairwise(chain.centers):
+        for c in field.centers:
+            assert _segment_gap(a, b, c) >= 12.0 + margin - 1e-6
+
+
+def test_every_node_radius_is_the_body_clearance_cut_by_the_teammates_spheres():
+    field = Spheres([[0.0, 0.0], [40.0, -50.0]], [20.0, 10.0])
+    starts = np.array([[-70.0, -70.0], [-40.0, -70.0], [-70.0, -40.0]])
+    goals = np.array([[70.0, 70.0], [40.0, 70.0], [70.0, 40.0]])
+    margins = np.array([1.5, 3.0])
+    p = _params()
+    graphs = SwarmGraphs(field, starts, goals, margins, p, low=BOX[0], high=BOX[1])
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        graphs.iterate(rng)
+    pts = graphs.centers
+    walls = np.minimum(pts - BOX[0], BOX[1] - pts).min(axis=1)
+    bodies = np.linalg.norm(pts[:, None] - field.centers[None], axis=-1) - field.radii - margins
+    clearance = np.minimum(bodies.min(axis=1), walls)
+    for i in range(3):
+        others = np.delete(starts, i, axis=0)
+        mates = np.linalg.norm(pts[:, None] - others[None], axis=-1).min(axis=1)
+        truth = np.minimum(clearance, mates - (p.r_col + p.r_max))
+        np.testing.assert_allclose(graphs.radii(i), truth, atol=1e-9)
+        # a node the agent drew itself is at least min_radius clear in its own graph
+        own = np.flatnonzero(graphs.known(i))[5:]  # past the goals and the start
+        assert np.all(graphs.radii(i, own) >= p.expansion.min_radius - 1e-9)
+
+
+def test_a_chain_keeps_out_of_the_teammates_spheres():
+    field = Spheres(np.zeros((0, 2)), np.zeros(0))
+    starts = np.array([[-80.0, 0.0], [0.0, 0.0], [0.0, 60.0]])
+    goals = np.array([[80.0, 0.0], [0.0, -80.0], [-60.0, 80.0]])
+    p = _params(r_max=20.0)
+    found = explore(field, starts, goals, np.zeros(0), np.random.default_rng(3), p,
+                    low=BOX[0], high=BOX[1])  # fmt: skip
+    assert found.connected
+    chain, _ = found.graphs.chain_to(0, 0)  # right through agent 1's position
+    assert chain.success
+    for a, b in itertools.pairwise(chain.centers):
+        for other in starts[1:]:
+            assert _segment_gap(a, b, other) >= p.r_col + p.r_max - 1e-6
+
+
+def test_nodes_are_shared_one_iteration_later_and_only_when_sharing():
+    field = Spheres(np.zeros((0, 2)), np.zeros(0))
+    starts = np.array([[-80.0, -80.0], [80.0, -80.0]])
+    goals = np.array([[-80.0, 80.0], [80.0, 80.0]])
+    for share in (True, False):
+        graphs = SwarmGraphs(field, starts, goals, np.zeros(0), _params(share_nodes=share),
+                             low=BOX[0], high=BOX[1])  # fmt: skip
+        rng = np.random.default_rng(0)
+        graphs.iterate(rng)
+        first = np.arange(4, graphs.n_nodes)  # after 2 goals and 2 starts
+        assert graphs.nodes_per_agent().tolist() == [4, 4]  # own start, both goals, own node
+        graphs.iterate(rng)
+        for i in range(2):
+            other = first[graphs.owners[first] != i]
+            assert graphs.known(i)[other].all() == share
+
+
+def test_node_sharing_needs_fewer_iterations_than_exploring_alone():
+    """Mean over 20 seeds of the iterations until every graph connects its start to every
+    goal, 4 agents: with sharing each agent gains 3 nodes per iteration instead of 1, so it
+    should connect in well under the iterations alone; the assertion asks only for at most
+    3/4 of them (the censored runs alone, stopped at the cap, count as the cap: that can only
+    lower the mean alone)."""
+    field = Spheres([[0.0, 0.0], [50.0, 40.0], [-45.0, 50.0]], [30.0, 15.0, 15.0])
+    starts = np.array([[-85.0, -85.0], [-45.0, -85.0], [-85.0, -45.0], [-45.0, -45.0]])
+    angles = np.linspace(0.0, 2.0 * math.pi, 4, endpoint=False) + 0.4
+    goals = 40.0 * np.c_[np.cos(angles), np.sin(angles)]
+    p = _params(max_iterations=200, expansion={"narrow_cost": 2.0})
+    shared, alone = [], []
+    for seed in range(20):
+        both = compare_sharing(field, starts, goals, np.full(3, 2.0), seed, p,
+                               low=BOX[0], high=BOX[1])  # fmt: skip
+        assert both.shared.connected
+        shared.append(both.shared.iterations)
+        alone.append(both.alone.iterations)
+    assert np.mean(shared) <= 0.75 * np.mean(alone)
+
+
+# --- assignment ---------------------------------------------------------------------------------
+
+
+def _brute_force(costs: np.ndarray) -> float:
+    n = len(costs)
+    return min(sum(costs[i, p[i]] for i in range(n)) for p in itertools.permutations(range(n)))
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    st.integers(1, 6).flatmap(
+        lambda n: st.lists(
+            st.one_of(st.floats(0.0, 1e4, allow_nan=False), st.just(math.inf)),
+            min_size=n * n,
+            max_size=n * n,
+        ).map(lambda v: np.array(v).reshape(n, n))
+    )
+)
+def test_the_hungarian_assignment_totals_the_brute_force_optimum(costs):
+    goal, total = assign_goals(costs)
+    assert sorted(goal.tolist()) == list(range(len(costs)))
+    assert total == pytest.approx(float(costs[np.arange(len(costs)), goal].sum()))
+    best = _brute_force(costs)
+    if math.isinf(best):
+        assert math.isinf(total)
+    else:
+        assert total == pytest.approx(best, rel=1e-9, abs=1e-6)
+
+
+# --- bad input ------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [({"r_col": -1.0}, "r_col"), ({"r_max": math.nan}, "r_max"), ({"r_col": True}, "r_col"),
+     ({"max_iterations": 0}, "max_iterations"), ({"share_nodes": 1}, "share_nodes")],
+)  # fmt: skip
+def test_bad_parameters_raise_naming_them(kwargs, name):
+    with pytest.raises(ValueError, match=name):
+        SwarmParams(**{"r_col": 2.0, "r_max": 5.0, **kwargs})
+
+
+@pytest.mark.parametrize(
+    ("starts", "goals", "name"),
+    [
+        ([[0.0, 0.0], [10.0, 0.0]], [[50.0, 0.0]], "goals"),
+        ([[0.0, math.nan]], [[50.0, 0.0]], "starts"),
+        ([[0.0, 0.0]], [[math.inf, 0.0]], "goals"),
+        ([[0.0, 0.0, 0.0]], [[5.0, 0.0, 0.0]], "starts"),
+    ],
+)
+def test_bad_agents_raise_naming_the_parameter(starts, goals, name):
+    field = Spheres(np.zeros((0, 2)), np.zeros(0))
+    with pytest.raises(ValueError, match=name):
+        SwarmGraphs(field, starts, goals, np.zeros(0), _params(), low=BOX[0], high=BOX[1])
+
+
+@pytest.mark.parametrize("costs", [np.ones((2, 3)), np.array([[1.0, math.nan], [0.0, 1.0]]),
+                                   -np.ones((2, 2))])  # fmt: skip
+def test_bad_costs_raise(costs):
+    with pytest.raises(ValueError, match="costs"):
+        assign_goals(costs)
