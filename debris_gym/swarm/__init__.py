@@ -57,10 +57,13 @@ _RECONFIGURATION: dict[str, object] = {
     "n_obstacles": 20,
     "debris_motion": "frozen",
     "shaping_potential": "goal",
+    "dock_spacing": 12.0,
 }
 """The reconfiguration of [Bandyopadhyay17]: six chasers from their dock slots to six formation
 slots around a body among twenty other debris, one slot each, the debris frozen as in the paper
-(``debris_motion="bounded"`` moves them)."""
+(``debris_motion="bounded"`` moves them). The dock slots are as far apart as the formation's
+(12 m in the v2 world): the paper's starts and goals are r_col + r_max apart (its eq. 1–2), and
+a planner that treats its teammates as spheres of that radius needs room to leave."""
 
 SWARM_SPECS: dict[str, dict[str, Any]] = {
     "DebrisGym/Swarm2D-v0": {"max_episode_steps": 1000,
