@@ -14,8 +14,12 @@ with ``assignment="given"`` and reset with that assignment (the reset option ``a
 
 * a classical baseline (:data:`agents.BASELINES`) built on each chaser's
   :class:`~agents.policies.chaser_view.ChaserView`, so it sees the field, its own dock slot and
-  its own targets (the others' read as captured; they stay bodies to avoid) — not its
-  teammates;
+  its own targets (the others' read as captured; they stay bodies to avoid), and, if it reads
+  them (the MPC trackers: APF-MPC, A*, SE-SCP), its teammates as spheres on their predicted
+  tracks: the members decide in chaser order and share their plans
+  (:class:`~agents.policies.chaser_view.TeamPlans`), so each one predicts the teammates that
+  decided before it in this step by their new plans and the others by their plans of the
+  step before, flown on from where they are now;
 * a learned single-agent policy (``"pretrained"``, the one shipped for the single-agent ID of
   the swarm's world, or ``"ALGO:PATH"``), given the single-agent part of each chaser's swarm
   observation (its first elements, when the swarm is made with the policy's observation
@@ -36,7 +40,7 @@ from agents.planners.team_assignment import (
     assign,
 )
 from agents.policies.base import unwrap
-from agents.policies.chaser_view import ChaserView
+from agents.policies.chaser_view import ChaserView, TeamPlans
 from agents.policies.learned import (
     LEARNED_ALGOS,
     OBSERVATION_KEYS,
@@ -145,7 +149,9 @@ class TeamOfSingles:
         self.env, self.agent, self.rule = env, agent, rule
         self.name = f"team-{agent}@{rule}"
         self.agents: list[str] = list(env.possible_agents)
-        self.views = [ChaserView(core, k) for k in range(core.chasers)]
+        self.plans = TeamPlans(core.chasers)
+        """The plans the members share (posted after each decision)."""
+        self.views = [ChaserView(core, k, plans=self.plans) for k in range(core.chasers)]
         self._index = {a: k for k, a in enumerate(self.agents)}
         self._members: list[Any] = []
         self._learned: Any = None
@@ -206,9 +212,16 @@ class TeamOfSingles:
             batch = np.stack([np.asarray(observations[a])[: self._size] for a in names])
             actions, _ = self._learned.predict(batch, deterministic=deterministic)
             return {a: np.asarray(actions[i]) for i, a in enumerate(names)}
-        return {
-            a: np.asarray(self._members[self._index[a]].predict(observations[a])[0]) for a in names
-        }
+        if names and self.views[self._index[names[0]]].elapsed == 0.0:
+            self.plans.clear()  # an episode's first decisions: no plans of the last one
+        actions = {}
+        for a in names:
+            k = self._index[a]
+            member = self._members[k]
+            actions[a] = np.asarray(member.predict(observations[a])[0])
+            planned = getattr(member, "planned_states", None)
+            self.plans.post(k, planned() if callable(planned) else None)
+        return actions
 
     def __repr__(self) -> str:
         return f"TeamOfSingles({self.agent!r}, rule={self.rule!r})"
