@@ -15,6 +15,7 @@ from agents import make_agent
 from agents.control.mpc import MPCParams
 from agents.planners.teammates import MovingSpheres, predict_tracks, sphere_halfspaces
 from agents.policies.chaser_view import ChaserView
+from agents.policies.shield import ShieldParams
 from agents.policies.team import TeamOfSingles, start_episode
 from debris_gym import swarm
 from debris_gym.dynamics import discretize
@@ -222,6 +223,24 @@ def test_a_reconfiguring_team_leaves_its_lattice_without_contact_only_when_seein
         assert env.core.min_separation()[0] > env.core.shell.batch_in_use.rules.chaser_separation
     else:
         assert m.collision[:6].any()
+
+
+@pytest.mark.parametrize("shielded", [True, False])
+def test_a_pair_aware_shield_keeps_teammate_blind_chasers_apart_head_on(shielded):
+    env = swarm.make(EASY)
+    blind = MPCParams(teammates_per_step=0)
+    shield = ShieldParams() if shielded else None
+    team = TeamOfSingles(env, "apf-mpc", shield=shield, mpc=blind)
+    observations, _ = env.reset(seed=0, options=_head_on(env))
+    while env.agents:
+        observations, *_ = env.step(team.predict(observations))
+    r_col = float(env.core.shell.batch_in_use.rules.chaser_separation)
+    collided = env.core.shell.batch_in_use.missions.collision[:2]
+    if shielded:
+        assert env.core.min_separation()[0] > r_col and not collided.any()
+        assert all(stats.interventions >= 1 for stats in team.shield_stats)
+    else:
+        assert collided.all() and team.shield_stats == []
 
 
 def test_a_single_env_agent_has_no_teammates_and_its_mpc_no_teammate_rows():

@@ -48,6 +48,8 @@ from agents.policies.learned import (
     observation_options,
 )
 from agents.policies.registry import BASELINES, load_agent, make_agent
+from agents.policies.shield import ShieldParams
+from agents.policies.shielded import ShieldedAgent, ShieldStats
 
 __all__ = [
     "TeamOfSingles",
@@ -128,6 +130,10 @@ class TeamOfSingles:
             ``assignment="given"`` and :func:`team_options`).
         agent: a baseline name (:data:`agents.BASELINES`), ``"pretrained"`` or ``"ALGO:PATH"``.
         rule: the assignment rule (:data:`~agents.planners.team_assignment.ASSIGNMENT_RULES`).
+        shield: the safety shield's parameters, to filter every classical member's commands
+            through a shield of its own that counts the teammates as bodies
+            (:class:`~agents.policies.shield.SafetyShield` on the member's view); None: no
+            shield.
         **params: the baseline's constructor parameters (classical agents only).
 
     Raises:
@@ -135,7 +141,14 @@ class TeamOfSingles:
             (learned) a swarm observation that does not start with the policy's layout.
     """
 
-    def __init__(self, env: Any, agent: str, rule: str = "balanced", **params: Any) -> None:
+    def __init__(
+        self,
+        env: Any,
+        agent: str,
+        rule: str = "balanced",
+        shield: ShieldParams | None = None,
+        **params: Any,
+    ) -> None:
         if rule not in ASSIGNMENT_RULES:
             raise ValueError(
                 f"unknown assignment rule {rule!r}; known: {', '.join(ASSIGNMENT_RULES)}"
@@ -154,14 +167,23 @@ class TeamOfSingles:
         self.views = [ChaserView(core, k, plans=self.plans) for k in range(core.chasers)]
         self._index = {a: k for k, a in enumerate(self.agents)}
         self._members: list[Any] = []
+        self._shielded: list[ShieldedAgent] = []
         self._learned: Any = None
         self._size = 0
         if _is_learned(agent):
-            if params:
-                raise ValueError(f"a learned team member takes no parameters, got {sorted(params)}")
+            if params or shield is not None:
+                raise ValueError(
+                    f"a learned team member takes no parameters nor shield, got "
+                    f"{sorted(params) + (['shield'] if shield is not None else [])}"
+                )
             self._learned, self._size = self._load(agent, env)
         elif agent in BASELINES:
             self._members = [make_agent(agent, view, **params) for view in self.views]
+            if shield is not None:
+                self._shielded = [
+                    ShieldedAgent(m, v, shield)
+                    for m, v in zip(self._members, self.views, strict=True)
+                ]
         else:
             raise ValueError(
                 f"unknown team member {agent!r}; known: {', '.join(BASELINES)}, {PRETRAINED!r} "
@@ -187,6 +209,11 @@ class TeamOfSingles:
         finally:
             single.close()
         return policy, len(names)
+
+    @property
+    def shield_stats(self) -> list[ShieldStats]:
+        """Each chaser's shield counters this episode (empty without a shield)."""
+        return [s.stats for s in self._shielded]
 
     def choose_assignment(self) -> TeamAssignment:
         """The rule's assignment on the field the swarm holds now (after a reset, before the
@@ -218,7 +245,8 @@ class TeamOfSingles:
         for a in names:
             k = self._index[a]
             member = self._members[k]
-            actions[a] = np.asarray(member.predict(observations[a])[0])
+            acting = self._shielded[k] if self._shielded else member
+            actions[a] = np.asarray(acting.predict(observations[a])[0])
             planned = getattr(member, "planned_states", None)
             self.plans.post(k, planned() if callable(planned) else None)
         return actions
