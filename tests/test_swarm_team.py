@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 pytest.importorskip("pettingzoo")
 
 from agents import make_agent
+from agents.control.mpc import MPCParams
 from agents.experiments.swarm_evaluation.report import episode_columns
 from agents.experiments.swarm_evaluation.teams import DEFAULT_TEAMS, parse_teams
 from agents.planners.team_assignment import (
@@ -52,11 +53,14 @@ def _single_env_like(options: dict) -> DebrisFieldEnv:
 
 @pytest.mark.parametrize("name", ["apf-mpc", "apf"])
 def test_a_baseline_flying_one_chaser_acts_as_on_a_single_env_with_that_field_and_state(name):
+    """The view is the single env's field and chaser (the MPC's teammates left out: it keeps
+    clear of them otherwise, tests/test_team_bodies.py)."""
     options = {**SMALL, "n_chasers": 2}
     team = swarm.make(SWARM, **options)
     observations, _ = team.reset(seed=4)
     view = ChaserView(team.core, 1)
-    on_view = make_agent(name, view)
+    params = {"mpc": MPCParams(teammates_per_step=0)} if name == "apf-mpc" else {}
+    on_view = make_agent(name, view, **params)
     single = _single_env_like(options)
     obs, _ = single.reset(options={"scenario": view.scenario, "chaser_state": view.chaser_state})
     on_single = make_agent(name, single)
@@ -366,3 +370,19 @@ def test_evaluate_py_refuses_what_does_not_apply_to_swarm_ids(
     assert exc.value.code == 2
     assert f"argument {flag}" in capsys.readouterr().err
     assert not (tmp_path / "x" / "episodes.csv").exists()
+
+
+def test_evaluate_py_flies_teams_of_other_rules_on_one_reconfiguration_field(
+    evaluate, tmp_path, capsys
+):
+    """The rules give the chasers other slots (each view's dock), on the same field."""
+    out = tmp_path / "eval"
+    status = evaluate.main([
+        "--env", "DebrisGym/Reconfigure2D-v0", "--max-steps", "3", "--episodes", "1",
+        "--no-progress", "--out", str(out), "--agents", "team-zero@balanced,team-zero@minmax",
+    ])  # fmt: skip
+    assert status == 0, capsys.readouterr().err
+    with open(out / "episodes.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 2 and rows[0]["field"] == rows[1]["field"]
+    assert rows[0]["assignment_targets"] != rows[1]["assignment_targets"]

@@ -38,6 +38,12 @@ with its body (its offset shifted by n·(c(t_{k+1}) − c(t_k)), c the body's ce
 in the body's own frame at both ends of the chord. The chaser's motion relative to a body obeys
 the same CWH law, so this is the static argument in each body's frame.
 
+Moving spheres (a swarm's teammates on their predicted tracks, ``movers`` of :meth:`solve`;
+:mod:`agents.planners.teammates`): a tracker built with ``movers=T`` has T more half-spaces
+per linearisation point, from the T nearest spheres where they will be at t + k·dt, carried one
+step on with their sphere like a moving body's. A tracker built with ``movers=0`` (a single
+chaser) has exactly the QP above.
+
 The QP is set up once per tracker (one scenario and one parameter set) with a fixed sparsity
 pattern; every decision only calls ``update(q=, l=, u=, Ax=)`` and warm-starts from the previous
 primal and dual solution shifted by one step.
@@ -59,6 +65,7 @@ import scipy.sparse as sp
 
 from agents.control.mpc_params import MPCParams, MPCSolution, thrust_polytope
 from agents.planners.motion import FieldMotion
+from agents.planners.teammates import MovingSpheres, keepout_halfspaces
 from debris_gym.dynamics import discretize
 from debris_gym.geometry import FieldGeometry
 from debris_gym.scenario import Scenario
@@ -88,6 +95,9 @@ class MPCTracker:
         geometry: the field's :class:`FieldGeometry` (built, not inflated, if omitted).
         motion: the bodies' predicted motion; given for a moving field, the keep-out uses the
             bodies where they will be at each step of the horizon (``now`` of :meth:`solve`).
+        movers: keep-out rows per step for spheres on predicted tracks given at every solve
+            (a swarm's teammates, ``movers`` of :meth:`solve`), the nearest first; 0: none (the
+            QP of a single chaser).
     """
 
     def __init__(
@@ -99,7 +109,10 @@ class MPCTracker:
         chaser_radius: float = 0.0,
         geometry: FieldGeometry | None = None,
         motion: FieldMotion | None = None,
+        movers: int = 0,
     ) -> None:
+        if isinstance(movers, bool) or not isinstance(movers, (int, np.integer)) or movers < 0:
+            raise ValueError(f"movers must be an integer >= 0, got {movers!r}")
         self.params = p = params or MPCParams()
         self.motion = motion if motion is not None and motion.moving else None
         self.scenario = scenario
@@ -119,6 +132,7 @@ class MPCTracker:
         self._facets, self._facet_h = thrust_polytope(d, thrust_model, p.thrust_facets)
         self.M = p.keepout_per_step if self.geometry.n_bodies else 0
         self.M = min(self.M, self.geometry.n_bodies)
+        self.T = int(movers)
         self._build_qp()
         self.stats: dict[str, Any] = {"solves": 0, "fallbacks": 0, "slack_steps": 0, "iters": []}
         self.reset()
@@ -183,8 +197,9 @@ class MPCTracker:
                 upper.append(self._facet_h[f])
                 r += 1
         self._n_thrust = r
-        # keep-out rows: 2M per step k (positions p_{k+1}), coefficients on ũ_0..ũ_k and s_k
-        M2 = 2 * self.M
+        # keep-out rows: 2(M + T) per step k (positions p_{k+1}), coefficients on ũ_0..ũ_k and
+        # s_k; the bodies' M, then the movers' T, of p̂_{k+1} and of p̂_k
+        M2 = 2 * (self.M + self.T)
         self._ko_start = len(vals)
         ko_mask = np.zeros((N, M2, nu), dtype=bool)
         for k in range(N):
@@ -336,6 +351,29 @@ class MPCTracker:
         moved = np.einsum("kmd,kmd->km", normals[:-1], shift[rows, bodies[:-1]])
         return normals, offsets, offsets[:-1] + moved
 
+    def _with_movers(
+        self,
+        points: np.ndarray,
+        movers: MovingSpheres | None,
+        normals: np.ndarray,
+        offsets: np.ndarray,
+        carried: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The bodies' half-spaces (normals (N+1, M, dim), offsets (N+1, M), carried (N, M))
+        followed by the movers' (T per point, :func:`~agents.planners.teammates.
+        keepout_halfspaces`; without movers, rows that bind nothing)."""
+        movers = movers if movers is not None else MovingSpheres.none(self.N, self.dim)
+        if movers.tracks.shape[1] < self.N + 1:
+            raise ValueError(f"movers' tracks must hold N + 1 = {self.N + 1} positions or more")
+        n_m, o_m, c_m = keepout_halfspaces(
+            points, movers, self.chaser_radius, self.keepout_margin, self.T
+        )
+        return (
+            np.concatenate([normals, n_m], axis=1),
+            np.concatenate([offsets, o_m], axis=1),
+            np.concatenate([carried, c_m], axis=1),
+        )
+
     # --- solving ------------------------------------------------------------------------------
 
     def body_margins(self, overrides: Mapping[int, float] | None = None) -> np.ndarray:
@@ -383,6 +421,7 @@ class MPCTracker:
         dual_guess: np.ndarray | None = None,
         margins: Mapping[int, float] | None = None,
         now: float = 0.0,
+        movers: MovingSpheres | None = None,
     ) -> MPCSolution:
         """Solve one MPC problem (the tracker's warm-start state is left alone).
 
@@ -397,6 +436,10 @@ class MPCTracker:
             margins: per-body keep-out margin overrides (see :meth:`body_margins`).
             now: the current time (s since the episode began): where the bodies of a moving
                 field are (ignored for a frozen one).
+            movers: spheres on predicted tracks (at least N + 1 positions from now) kept out
+                like the bodies, the tracker's ``movers`` nearest per step; a mover nearer than
+                the keep-out margin must only not come nearer than it is (as a body in
+                :meth:`reachable_margins`). Ignored by a tracker built with ``movers=0``.
         """
         p, d, N, a, ell = self.params, self.dim, self.N, self.max_accel, self.ell
         x0 = np.asarray(state, dtype=float)
@@ -411,39 +454,48 @@ class MPCTracker:
         q[:d] -= 2.0 * p.w_smooth * u_prev_n
         lower, upper = self._l, self._u
         guess_n = None if guess is None else np.asarray(guess, float).reshape(N, d) / a
-        if self.M:
-            if guess_n is None and self.motion is None:
+        movers = movers if self.T and movers is not None and movers.count else None
+        if self.M or self.T:
+            if guess_n is None and self.motion is None and movers is None:
                 lin = ref[:, :d]
             elif guess_n is None:
                 # Cold start in a moving field (a new goal): linearise around the coasting
                 # prediction, which starts where the chaser is. The reference can leap ahead
                 # along a new path, and half-spaces taken around it can exclude the chaser's own
                 # neighbourhood when it sits beside a body (just after a capture), so no step
-                # is feasible and the slack then buys a cut through that body.
+                # is feasible and the slack then buys a cut through that body. The same holds
+                # beside a teammate.
                 lin = free[:, :d]
             else:
                 lin = free[:, :d] + np.einsum(
                     "kdc,c->kd", self._su[:, :d, :], guess_n.reshape(-1) * a
                 )
             points = np.vstack([x0[:d], lin])  # p̂_0 … p̂_N
-            if self.motion is None:
+            if not self.M:
+                normals, offsets = np.zeros((N + 1, 0, d)), np.zeros((N + 1, 0))
+                carried = offsets[:-1]
+            elif self.motion is None:
                 normals, offsets, _, _ = self._halfspaces(points, self.body_margins(margins))
                 carried = offsets[:-1]
             else:
                 normals, offsets, carried = self._moving_halfspaces(
                     points, self.body_margins(margins), now
                 )
+            if self.T:
+                normals, offsets, carried = self._with_movers(
+                    points, movers, normals, offsets, carried
+                )
             # step k (position p_{k+1}): half-spaces of p̂_{k+1} (own) and of p̂_k (previous)
-            n_rows = np.concatenate([normals[1:], normals[:-1]], axis=1)  # (N, 2M, d)
-            b_rows = np.concatenate([offsets[1:], carried], axis=1)  # (N, 2M)
-            coef = np.einsum("kmd,kdc->kmc", n_rows, self._gp)  # (N, 2M, nu)
+            n_rows = np.concatenate([normals[1:], normals[:-1]], axis=1)  # (N, 2(M+T), d)
+            b_rows = np.concatenate([offsets[1:], carried], axis=1)  # (N, 2(M+T))
+            coef = np.einsum("kmd,kdc->kmc", n_rows, self._gp)  # (N, 2(M+T), nu)
             self._a_vals[self._ko_ctrl_idx] = coef[self._ko_mask]
             base = np.einsum("kmd,kd->km", n_rows, free[:, :d])  # n·(free position)
             lo = (b_rows - base) / ell
             s0 = self._n_thrust
-            lower[s0 : s0 + N * 2 * self.M] = np.where(np.isfinite(lo), lo, -np.inf).reshape(-1)
+            lower[s0 : s0 + self._n_keepout] = np.where(np.isfinite(lo), lo, -np.inf).reshape(-1)
         solver = self._solver
-        if self.M:
+        if self.M or self.T:
             solver.update(q=q, l=lower, u=upper, Ax=self._a_vals[self._perm])
         else:
             solver.update(q=q, l=lower, u=upper)
@@ -495,6 +547,7 @@ class MPCTracker:
         ref_vel: np.ndarray,
         margins: Mapping[int, float] | None = None,
         now: float = 0.0,
+        movers: MovingSpheres | None = None,
     ) -> np.ndarray:
         """The acceleration (m/s²) to apply now: the first move of the MPC solution.
 
@@ -517,6 +570,7 @@ class MPCTracker:
             dual_guess=dual,
             margins=margins,
             now=now,
+            movers=movers,
         )
         self.stats["solves"] += 1
         self.stats["iters"].append(sol.iterations)

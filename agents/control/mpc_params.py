@@ -41,6 +41,10 @@ class MPCParams:
         keepout_per_step: keep-out bodies per linearisation point (nearest first); each gives a
             half-space on two consecutive predicted positions, so 2·this many rows per step.
             0 disables the keep-out constraints.
+        teammates_per_step: keep-out spheres per linearisation point for the other chasers of a
+            swarm (on their predicted tracks: :mod:`agents.planners.teammates`), nearest first,
+            2·this many more rows per step; used only by an agent flying one chaser of a team
+            (a view with ``teammates``); 0 ignores the teammates.
         slack_linear: ρ_l, linear penalty per unit of slack (slack in units of ℓ); makes the
             penalty exact (zero slack whenever the constraints are feasible).
         slack_quadratic: ρ_q, quadratic penalty per squared unit of slack.
@@ -59,6 +63,7 @@ class MPCParams:
     w_smooth: float = 4.0
     keepout_margin: float | None = None
     keepout_per_step: int = 3
+    teammates_per_step: int = 3
     slack_linear: float = 1.0e3
     slack_quadratic: float = 1.0e2
     thrust_facets: int = 16
@@ -81,6 +86,14 @@ class MPCParams:
         if not (isinstance(self.keepout_per_step, int) and self.keepout_per_step >= 0):
             raise ValueError(
                 f"keepout_per_step must be an integer >= 0, got {self.keepout_per_step!r}"
+            )
+        if not (
+            isinstance(self.teammates_per_step, int)
+            and not isinstance(self.teammates_per_step, bool)
+            and self.teammates_per_step >= 0
+        ):
+            raise ValueError(
+                f"teammates_per_step must be an integer >= 0, got {self.teammates_per_step!r}"
             )
         if not (self.slack_linear > 0 and self.slack_quadratic > 0):
             raise ValueError("slack_linear and slack_quadratic must be > 0")

@@ -19,11 +19,13 @@ What they read is the small read-only protocol :class:`FieldView`: a
 from __future__ import annotations
 
 import inspect
+from collections.abc import Callable
 from typing import Any, Protocol
 
 import numpy as np
 from gymnasium import spaces
 
+from agents.planners.teammates import MovingSpheres
 from debris_gym.config import EnvConfig
 from debris_gym.envs import DebrisFieldEnv
 from debris_gym.geometry import FieldGeometry
@@ -109,6 +111,14 @@ def field_view(env: Any) -> FieldView:
             f"{', '.join(missing)})"
         )
     return base
+
+
+def teammates_of(view: FieldView) -> Callable[[int], MovingSpheres] | None:
+    """What a view says of the other chasers in its field: its ``teammates(steps)`` (one chaser
+    of a swarm, :class:`agents.policies.chaser_view.ChaserView`: the others as spheres on
+    their predicted tracks over ``steps`` steps), or None (a single env has no teammates)."""
+    source = getattr(view, "teammates", None)
+    return source if callable(source) else None
 
 
 class ClassicalAgent:

@@ -11,8 +11,14 @@ With ``assignment="given"`` the chaser's flags mark the targets of the other cha
 captured, so the baseline goes after its own targets alone, and still avoids the others: they
 stay bodies of the field.
 
-The teammates are not bodies of the view's field: a baseline flying one chaser does not see the
-others (their contacts are still collisions in the swarm).
+The other chasers are not bodies of the view's field (its ``scenario`` and ``geometry``, which
+stay those of the single-agent world); the view answers for them apart:
+:meth:`ChaserView.teammates` gives each other chaser still in the field — flying, or held at its
+slot in a reconfiguration — as a sphere on its predicted track, the prediction of
+:func:`agents.planners.teammates.predict_tracks` from the plans the team shares
+(:class:`TeamPlans`; a teammate without one coasts). A baseline that reads them (the MPC
+trackers: :class:`agents.policies.tracking.MPCPathAgent`) keeps clear of them; the others do
+not see them (their contacts are still collisions in the swarm).
 """
 
 from __future__ import annotations
@@ -23,12 +29,39 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
+from agents.planners.teammates import MovingSpheres, predict_tracks
 from debris_gym.config import EnvConfig
+from debris_gym.dynamics import discretize
 from debris_gym.geometry import FieldGeometry, geometry_now
 from debris_gym.scenario import Scenario
 from debris_gym.swarm import SwarmCore
 
-__all__ = ["ChaserView"]
+__all__ = ["ChaserView", "TeamPlans"]
+
+
+class TeamPlans:
+    """The plans a team's members share: per chaser of a field, the states it last planned to
+    fly (a :meth:`~agents.policies.tracking.MPCPathAgent.planned_states` answer).
+
+    Args:
+        chasers: K, the chasers of the field.
+    """
+
+    def __init__(self, chasers: int) -> None:
+        self._plans: list[tuple[float, np.ndarray] | None] = [None] * int(chasers)
+
+    def post(self, chaser: int, plan: tuple[float, np.ndarray] | None) -> None:
+        """Chaser ``chaser``'s plan: (its time, s; (P + 1, 2·dim) states at it and the P steps
+        after, m and m/s), or None (it has none)."""
+        self._plans[chaser] = plan
+
+    def get(self, chaser: int) -> tuple[float, np.ndarray] | None:
+        """Chaser ``chaser``'s last posted plan, or None."""
+        return self._plans[chaser]
+
+    def clear(self) -> None:
+        """Forget every plan (a new episode)."""
+        self._plans = [None] * len(self._plans)
 
 
 class ChaserView:
@@ -39,12 +72,15 @@ class ChaserView:
             :class:`~debris_gym.swarm.parallel.SwarmParallelEnv`).
         chaser: the chaser's index k in its field, 0 … K − 1.
         field: the field's index (0 for a PettingZoo env, which has one).
+        plans: the plans the team shares (None: every teammate coasts in :meth:`teammates`).
 
     Raises:
         ValueError: ``chaser`` or ``field`` out of range.
     """
 
-    def __init__(self, core: SwarmCore, chaser: int, field: int = 0) -> None:
+    def __init__(
+        self, core: SwarmCore, chaser: int, field: int = 0, plans: TeamPlans | None = None
+    ) -> None:
         k, fields = int(core.chasers), int(core.num_fields)
         if isinstance(chaser, bool) or not isinstance(chaser, (int, np.integer)):
             raise ValueError(f"chaser must be an integer in [0, {k - 1}], got {chaser!r}")
@@ -61,6 +97,7 @@ class ChaserView:
         self._source: Scenario | None = None  # the swarm's field the cached view was made from
         self._scenario: Scenario | None = None
         self._geometry: FieldGeometry | None = None
+        self.plans = plans
 
     # --- the FieldView members ------------------------------------------------------------------
 
@@ -132,6 +169,45 @@ class ChaserView:
     def flying(self) -> bool:
         """Whether the chaser has not ended its mission."""
         return bool(self.core.flying[self.row])
+
+    def teammates(self, steps: int) -> MovingSpheres:
+        """The other chasers of the field still in it (flying, or held at their slots in a
+        reconfiguration), each a sphere of radius ``r_col`` − ``chaser_radius`` (grown by the
+        chaser's radius, the collision distance) on its predicted track over ``steps`` steps
+        (:func:`~agents.planners.teammates.predict_tracks`): its shared plan flown on from its
+        state now, coasting without one (a plan from the future or older than its horizon is
+        none), standing still when held.
+
+        Raises:
+            RuntimeError: the swarm has not been reset.
+        """
+        scenario = self.scenario
+        if scenario is None:
+            raise RuntimeError("reset the swarm before reading the teammates")
+        core, k = self.core, self.core.chasers
+        batch = core.shell.batch_in_use
+        missions = batch.missions
+        others = [self.field * k + q for q in range(k) if q != self.chaser]
+        flying = core.flying[others]
+        held = missions.success[others] & bool(core.swarm.reconfigure)
+        rows = [r for r, f, h in zip(others, flying, held, strict=True) if f or h]
+        dim, dt, now = self.dim, float(scenario.dt), self.elapsed
+        plans: list[np.ndarray | None] = []
+        offsets = np.zeros(len(rows), dtype=np.int64)
+        for i, row in enumerate(rows):
+            posted = None if self.plans is None else self.plans.get(row - self.field * k)
+            plan = None
+            if posted is not None:
+                lag = round((now - posted[0]) / dt)
+                if 0 <= lag < len(posted[1]) and abs(now - posted[0] - lag * dt) <= 1e-6 * dt:
+                    plan, offsets[i] = posted[1], lag
+            plans.append(plan)
+        radius = float(batch.rules.chaser_separation) - float(self.config.chaser_radius)
+        tracks = predict_tracks(
+            missions.state[rows], plans, offsets, ~core.flying[rows],
+            discretize(scenario.mean_motion, dt, dim).ad, steps,
+        )  # fmt: skip
+        return MovingSpheres(tracks, np.full(len(rows), radius))
 
     @property
     def _missions(self) -> Any:

@@ -32,8 +32,18 @@ action space (every discrete action in ``action="discrete"``) — are tried in o
 to the command (of the accelerations they command), and the first safe one is flown; if none
 is safe, the one with the largest predicted clearance.
 
+Teammates: filtering one chaser of a swarm (its :class:`~agents.policies.chaser_view.
+ChaserView`), the other chasers still in the field are bodies too, each a sphere of the
+collision distance on its predicted track (the view's ``teammates``: its shared plan flown on
+from where it is, coasting without one, standing when held; :mod:`agents.planners.teammates`),
+sampled between whole steps on the chord, whose distance from the true path (a·dt²/8, a its
+thrust limit plus the natural CWH term along the track, 5 % spare) is added to its reach;
+``margin`` applies to them as to debris. This is a check against a prediction, not a
+guarantee for the pair: a teammate that re-plans, or whose own shield changes its command,
+leaves its predicted track (each re-check starts from its true state).
+
 The shield reads only the env's public state: ``scenario``, ``chaser_state``, ``elapsed``,
-``config``.
+``config`` (and a view's ``teammates``).
 """
 
 from __future__ import annotations
@@ -46,7 +56,7 @@ import numpy as np
 
 from agents.planners.motion import FieldMotion
 from agents.planners.spacetime import SpaceTimeField
-from agents.policies.base import unwrap
+from agents.policies.base import field_view, teammates_of
 from debris_gym.dynamics import cwh_acceleration, discretize
 from debris_gym.envs.common import (
     checked_continuous_actions,
@@ -179,13 +189,15 @@ class SafetyShield:
     """Run-time assurance filter for one DebrisGym env (see the module docstring).
 
     Args:
-        env: the env (wrapped or not) whose commands are filtered; its public state is read at
-            every call, so build the shield once and keep it across episodes.
+        env: the env (wrapped or not), or a :class:`~agents.policies.base.FieldView` (one
+            chaser of a swarm), whose commands are filtered; its public state is read at every
+            call, so build the shield once and keep it across episodes.
         params: tunables; None: :class:`ShieldParams` defaults.
     """
 
     def __init__(self, env: Any, params: ShieldParams | None = None) -> None:
-        self.env = unwrap(env)
+        self.env = field_view(env)
+        self._teammates = teammates_of(self.env)
         if params is not None and not isinstance(params, ShieldParams):
             raise TypeError(f"params must be a ShieldParams, got {type(params).__name__}")
         self.params = params if params is not None else ShieldParams()
@@ -321,12 +333,54 @@ class SafetyShield:
                 if b >= 0:
                     ref_states[k, j] = states[b]
         model = discretize(n, dt, d)
+        centres = field.centres[:samples]
+        if self._teammates is not None:
+            centres, reach, centre_gap, margins = self._with_teammates(
+                centres, reach, centre_gap, margins, x0, float(scen.max_accel), dt, n
+            )
         return _Setting(
             x0=x0, n=n, h=h, max_accel=float(scen.max_accel), sub=discretize(n, h, d),
             brake_gain=-np.linalg.solve(model.bd[d:], model.ad[d:]),
-            centres=field.centres[:samples], reach=reach, centre_gap=centre_gap,
+            centres=centres, reach=reach, centre_gap=centre_gap,
             margins=margins, ref_states=ref_states,
         )  # fmt: skip
+
+    def _with_teammates(
+        self,
+        centres: np.ndarray,
+        reach: np.ndarray,
+        centre_gap: np.ndarray,
+        margins: np.ndarray,
+        x0: np.ndarray,
+        max_accel: float,
+        dt: float,
+        n: float,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The bodies' sample-grid centres (T + 1, B, dim), reach, present centre distance and
+        margins (B,), followed by the teammates' (see the module docstring)."""
+        p, d = self.params, self.dim
+        assert self._teammates is not None
+        mates = self._teammates(p.horizon_steps)
+        if mates.count == 0:
+            return centres, reach, centre_gap, margins
+        tracks = mates.tracks.transpose(1, 0, 2)  # (H + 1, J, d) at whole steps
+        frac = (np.arange(p.horizon_steps * p.substeps + 1) / p.substeps)[:, None, None]
+        k = np.minimum(frac[:, 0, 0].astype(np.int64), p.horizon_steps - 1)
+        sampled = tracks[k] + (frac - k[:, None, None]) * (tracks[k + 1] - tracks[k])
+        moving = np.any(tracks[1:] != tracks[:-1], axis=(0, 2))  # (J,) not held
+        thrust = max_accel * (math.sqrt(d) if self.thrust_model == "box" else 1.0)
+        # the natural CWH term along each track, its velocity taken from the chords
+        chords = np.concatenate([tracks[:-1], (tracks[1:] - tracks[:-1]) / dt], axis=2)
+        natural = np.linalg.norm(cwh_acceleration(chords, n), axis=2).max(axis=0)  # (J,)
+        chord = np.where(moving, 1.05 * (thrust + natural) * dt**2 / 8.0, 0.0)
+        mate_reach = mates.radii + self.chaser_radius + chord
+        own = self.chaser_radius if p.margin is None else p.margin
+        return (
+            np.concatenate([centres, sampled], axis=1),
+            np.concatenate([reach, mate_reach]),
+            np.concatenate([centre_gap, np.linalg.norm(x0[:d] - tracks[0], axis=1)]),
+            np.concatenate([margins, np.full(mates.count, own)]),
+        )
 
     def _saturate(self, u: np.ndarray, amax: float) -> np.ndarray:
         """Accelerations (N, d) cut to what the env can fly: its thrust model, or the nearest

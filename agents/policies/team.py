@@ -14,8 +14,12 @@ with ``assignment="given"`` and reset with that assignment (the reset option ``a
 
 * a classical baseline (:data:`agents.BASELINES`) built on each chaser's
   :class:`~agents.policies.chaser_view.ChaserView`, so it sees the field, its own dock slot and
-  its own targets (the others' read as captured; they stay bodies to avoid) — not its
-  teammates;
+  its own targets (the others' read as captured; they stay bodies to avoid), and, if it reads
+  them (the MPC trackers: APF-MPC, A*, SE-SCP), its teammates as spheres on their predicted
+  tracks: the members decide in chaser order and share their plans
+  (:class:`~agents.policies.chaser_view.TeamPlans`), so each one predicts the teammates that
+  decided before it in this step by their new plans and the others by their plans of the
+  step before, flown on from where they are now;
 * a learned single-agent policy (``"pretrained"``, the one shipped for the single-agent ID of
   the swarm's world, or ``"ALGO:PATH"``), given the single-agent part of each chaser's swarm
   observation (its first elements, when the swarm is made with the policy's observation
@@ -36,7 +40,7 @@ from agents.planners.team_assignment import (
     assign,
 )
 from agents.policies.base import unwrap
-from agents.policies.chaser_view import ChaserView
+from agents.policies.chaser_view import ChaserView, TeamPlans
 from agents.policies.learned import (
     LEARNED_ALGOS,
     OBSERVATION_KEYS,
@@ -44,6 +48,8 @@ from agents.policies.learned import (
     observation_options,
 )
 from agents.policies.registry import BASELINES, load_agent, make_agent
+from agents.policies.shield import ShieldParams
+from agents.policies.shielded import ShieldedAgent, ShieldStats
 
 __all__ = [
     "TeamOfSingles",
@@ -125,6 +131,10 @@ class TeamOfSingles:
             ``assignment="given"`` and :func:`team_options`).
         agent: a baseline name (:data:`agents.BASELINES`), ``"pretrained"`` or ``"ALGO:PATH"``.
         rule: the assignment rule (:data:`~agents.planners.team_assignment.ASSIGNMENT_RULES`).
+        shield: the safety shield's parameters, to filter every classical member's commands
+            through a shield of its own that counts the teammates as bodies
+            (:class:`~agents.policies.shield.SafetyShield` on the member's view); None: no
+            shield.
         **params: the baseline's constructor parameters (classical agents only).
 
     Raises:
@@ -132,7 +142,14 @@ class TeamOfSingles:
             (learned) a swarm observation that does not start with the policy's layout.
     """
 
-    def __init__(self, env: Any, agent: str, rule: str = "balanced", **params: Any) -> None:
+    def __init__(
+        self,
+        env: Any,
+        agent: str,
+        rule: str = "balanced",
+        shield: ShieldParams | None = None,
+        **params: Any,
+    ) -> None:
         if rule not in ASSIGNMENT_RULES:
             raise ValueError(
                 f"unknown assignment rule {rule!r}; known: {', '.join(ASSIGNMENT_RULES)}"
@@ -146,17 +163,28 @@ class TeamOfSingles:
         self.env, self.agent, self.rule = env, agent, rule
         self.name = f"team-{agent}@{rule}"
         self.agents: list[str] = list(env.possible_agents)
-        self.views = [ChaserView(core, k) for k in range(core.chasers)]
+        self.plans = TeamPlans(core.chasers)
+        """The plans the members share (posted after each decision)."""
+        self.views = [ChaserView(core, k, plans=self.plans) for k in range(core.chasers)]
         self._index = {a: k for k, a in enumerate(self.agents)}
         self._members: list[Any] = []
+        self._shielded: list[ShieldedAgent] = []
         self._learned: Any = None
         self._size = 0
         if _is_learned(agent):
-            if params:
-                raise ValueError(f"a learned team member takes no parameters, got {sorted(params)}")
+            if params or shield is not None:
+                raise ValueError(
+                    f"a learned team member takes no parameters nor shield, got "
+                    f"{sorted(params) + (['shield'] if shield is not None else [])}"
+                )
             self._learned, self._size = self._load(agent, env)
         elif agent in BASELINES:
             self._members = [make_agent(agent, view, **params) for view in self.views]
+            if shield is not None:
+                self._shielded = [
+                    ShieldedAgent(m, v, shield)
+                    for m, v in zip(self._members, self.views, strict=True)
+                ]
         else:
             raise ValueError(
                 f"unknown team member {agent!r}; known: {', '.join(BASELINES)}, {PRETRAINED!r} "
@@ -183,6 +211,11 @@ class TeamOfSingles:
             single.close()
         return policy, len(names)
 
+    @property
+    def shield_stats(self) -> list[ShieldStats]:
+        """Each chaser's shield counters this episode (empty without a shield)."""
+        return [s.stats for s in self._shielded]
+
     def choose_assignment(self) -> TeamAssignment:
         """The rule's assignment on the field the swarm holds now (after a reset, before the
         missions begin), with its cost (:func:`~agents.planners.team_assignment.assign`)."""
@@ -207,9 +240,17 @@ class TeamOfSingles:
             batch = np.stack([np.asarray(observations[a])[: self._size] for a in names])
             actions, _ = self._learned.predict(batch, deterministic=deterministic)
             return {a: np.asarray(actions[i]) for i, a in enumerate(names)}
-        return {
-            a: np.asarray(self._members[self._index[a]].predict(observations[a])[0]) for a in names
-        }
+        if names and self.views[self._index[names[0]]].elapsed == 0.0:
+            self.plans.clear()  # an episode's first decisions: no plans of the last one
+        actions = {}
+        for a in names:
+            k = self._index[a]
+            member = self._members[k]
+            acting = self._shielded[k] if self._shielded else member
+            actions[a] = np.asarray(acting.predict(observations[a])[0])
+            planned = getattr(member, "planned_states", None)
+            self.plans.post(k, planned() if callable(planned) else None)
+        return actions
 
     def __repr__(self) -> str:
         return f"TeamOfSingles({self.agent!r}, rule={self.rule!r})"

@@ -19,6 +19,13 @@ In a moving field (the v1 world) the agent plans against the bodies' predicted m
 
 In a frozen field (v0) none of this applies: the path is planned on the field itself, in LVLH,
 and re-planned only as :class:`MPCPathAgent` describes (a new goal, straying, a stall).
+
+Flying one chaser of a swarm (a view with ``teammates``:
+:class:`~agents.policies.chaser_view.ChaserView`), the other chasers still in the field are
+spheres on their predicted tracks (:mod:`agents.planners.teammates`) that the MPC keeps out
+like the bodies, ``MPCParams.teammates_per_step`` nearest per step; the path itself is planned
+on the field alone. The agent shares what it plans to fly (:meth:`MPCPathAgent.planned_states`),
+which a team hands to the others' predictions (:class:`agents.policies.team.TeamOfSingles`).
 """
 
 from __future__ import annotations
@@ -34,7 +41,7 @@ from agents.control.reference import PathReference, ReferenceParams
 from agents.planners.mission import Goal, MissionPlan
 from agents.planners.motion import FieldMotion
 from agents.planners.result import PlanResult
-from agents.policies.base import ClassicalAgent
+from agents.policies.base import ClassicalAgent, teammates_of
 from debris_gym.geometry import FieldGeometry
 from debris_gym.scenario import Scenario
 
@@ -107,6 +114,8 @@ class MPCPathAgent(ClassicalAgent):
         self._tracker: MPCTracker | None = None
         self.stats: dict[str, Any] = {}
         self.decision_times: list[float] = []
+        self._teammates = teammates_of(self.env) if self.mpc_params.teammates_per_step else None
+        self._planned: tuple[float, np.ndarray] | None = None
 
     @property
     def tracker(self) -> MPCTracker:
@@ -164,7 +173,9 @@ class MPCPathAgent(ClassicalAgent):
             chaser_radius=cfg.chaser_radius,
             geometry=self.geometry,
             motion=self.motion,
+            movers=self.mpc_params.teammates_per_step if self._teammates is not None else 0,
         )
+        self._planned = None
         self._since_plan = 0
         self._replan_distance = (
             self.replan_distance if self.replan_distance is not None else 0.02 * scenario.size
@@ -212,12 +223,15 @@ class MPCPathAgent(ClassicalAgent):
         elif self._ref is not None and self._stalled(self._ref):
             self.stats["stall_replans"] += 1
             self._new_path(pos)
+        mates = None if self._teammates is None else self._teammates(self.tracker.N)
         # a path (_ref) is only ever made for a goal
         if self._ref is None or self._goal is None:  # nothing left to do: hold still
             accel = self.tracker.brake(state)
         elif self.motion is None:
             ref_pos, ref_vel = self._ref.horizon(state, self.tracker.N)
-            accel = self.tracker.command(state, ref_pos, ref_vel, margins=self._margins)
+            accel = self.tracker.command(
+                state, ref_pos, ref_vel, margins=self._margins, movers=mates
+            )
         else:  # the path lives in the goal's frame: add the goal's predicted motion back
             frame = self._goal.index  # None for the dock
             rel = state - self.motion.body_state(frame, elapsed)
@@ -226,10 +240,28 @@ class MPCPathAgent(ClassicalAgent):
             accel = self.tracker.command(
                 state, rel_pos + track[:, :d], rel_vel + track[:, d:],
                 margins=self.tracker.reachable_margins(pos, elapsed, self._margins), now=elapsed,
+                movers=mates,
             )  # fmt: skip
+        if self._teammates is not None:
+            self._share_plan(state, elapsed, braked=self._ref is None or self._goal is None)
         action = self.accel_to_action(accel)
         self.decision_times.append(time.perf_counter() - t0)
         return action
+
+    def planned_states(self) -> tuple[float, np.ndarray] | None:
+        """What the agent plans to fly, as of its last decision (kept only when it flies one
+        chaser of a team): the decision's time (s) and the states (N + 1, 2·dim) at it and
+        after each of the MPC's N steps (m, m/s); None when it braked instead (the MPC failed,
+        or nothing is left to do) or has not decided this episode."""
+        return self._planned
+
+    def _share_plan(self, state: np.ndarray, now: float, braked: bool) -> None:
+        """Keep this decision's plan for :meth:`planned_states`."""
+        solution = self.tracker.last_solution
+        if braked or solution is None or not solution.ok:
+            self._planned = None
+        else:
+            self._planned = (now, np.vstack([state, solution.states]))
 
     def _stalled(self, ref: PathReference) -> bool:
         """No progress along ``ref``, short of its end, for ``stall_steps`` decisions."""

@@ -205,7 +205,9 @@ def fly_episode(
         agent=label,
         episode=episode,
         seed=seed,
-        field_hash=scenario_fingerprint(scenario),
+        # the swarm's field, not a view's: a view's dock is its chaser's slot, which the
+        # assignment chooses in a reconfiguration
+        field_hash=scenario_fingerprint(core.shell.scenario(0)),
         n_targets=int(m.captured.shape[1]),
         team_success=bool(core.team_success()[0]),
         team_captures=int(core.team_captures()[0]),
