@@ -194,7 +194,7 @@ class _UnionFind:
 
 
 def joinable(
-    dist: np.ndarray, r_a: np.ndarray, r_b: np.ndarray, params: ExpansionParams
+    dist: np.ndarray, r_a: np.ndarray | float, r_b: np.ndarray | float, params: ExpansionParams
 ) -> np.ndarray:
     """Whether two spheres of radii ``r_a`` and ``r_b`` (m) whose centres are ``dist`` (m)
     apart overlap enough to be joined by an edge: ``d ≤ κ (r_a + r_b) − min_overlap``."""

@@ -305,7 +305,11 @@ class SwarmGraphs:
                 own = max(own, float(extra_radius))
             candidates = np.flatnonzero(known & (radius > 0))
             gap = np.linalg.norm(centers[candidates] - point, axis=1)
-            near = candidates[joinable(gap, radius[candidates], own, ex)] if own > 0 else []
+            near: np.ndarray = (
+                candidates[joinable(gap, radius[candidates], own, ex)]
+                if own > 0
+                else np.empty(0, dtype=np.int64)
+            )
             v = np.concatenate([v, np.asarray(near, dtype=np.int64)])
             w = np.concatenate([w, np.full(len(near), m, dtype=np.int64)])
             centers = np.vstack([centers, point])
@@ -352,7 +356,7 @@ class SwarmGraphs:
         every goal; inf where there is none (``MinPath``, lines 33–38)."""
         source = int(self.start_nodes[agent] if source is None else source)
         g = self.graph(agent)
-        dist = dijkstra(g.adjacency, directed=False, indices=source)
+        dist = dijkstra(g.adjacency, directed=False, indices=[source])[0]
         return np.asarray(dist)[self.goal_nodes]
 
     def connected(self) -> np.ndarray:

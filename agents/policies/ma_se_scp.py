@@ -293,6 +293,8 @@ class MASESCPTeam:
         the straight legs, as the other teams'); otherwise the rule's own assignment."""
         field = team_field(self.views)
         scenario = self.views[0].scenario
+        if scenario is None:
+            raise RuntimeError("reset the swarm before choosing an assignment")
         self._prepared = None
         if not field.one_each or self.rule not in ("balanced", "optimal") or scenario.moving:
             return assign(self.rule, field)
@@ -343,6 +345,14 @@ class MASESCPTeam:
         }
 
     # --- what the members read ----------------------------------------------------------------
+
+    @staticmethod
+    def _dock(view: ChaserView) -> tuple[float, ...]:
+        """The chaser's dock slot (its goal at the end) of the field the view holds."""
+        scenario = view.scenario
+        if scenario is None:
+            raise RuntimeError("reset the swarm before flying it")
+        return scenario.dock
 
     def positions(self) -> np.ndarray:
         """(N, dim) every chaser's position now (m)."""
@@ -417,7 +427,7 @@ class MASESCPTeam:
         from :meth:`choose_assignment` when it explored this field."""
         self._rng = np.random.default_rng(self.seed)
         starts = self.positions()
-        goals = np.array([v.scenario.dock for v in self.views], dtype=float)
+        goals = np.array([self._dock(v) for v in self.views], dtype=float)
         prepared, self._prepared = self._prepared, None
         if (
             prepared is not None
