@@ -30,13 +30,14 @@ def fly(env: gym.Env, agent, seed: int) -> dict:
 
 
 @pytest.mark.parametrize(
-    "env_id, name",
+    "env_id, name, expected",
     [
-        ("DebrisGym/Rendezvous2D-v2", "rendezvous2d_v2.zip"),
-        ("DebrisGym/Rendezvous3D-v2", "rendezvous3d_v2.zip"),
+        # the 2D policy also observes the goal's near field (obs_near: DAgger, then fine-tuned)
+        ("DebrisGym/Rendezvous2D-v2", "rendezvous2d_v2.zip", {**V2_OPTIONS, "obs_near": True}),
+        ("DebrisGym/Rendezvous3D-v2", "rendezvous3d_v2.zip", V2_OPTIONS),
     ],
 )
-def test_the_pretrained_v2_policies_are_fine_tuned_for_the_hold(env_id, name):
+def test_the_pretrained_v2_policies_are_fine_tuned_for_the_hold(env_id, name, expected):
     """On the v2 IDs `pretrained` is the policy fine-tuned for v2: it observes the hold's
     progress and completes a held-out mission of the default difficulty (a seed outside every
     training, evaluation and suite range) under the hold rule."""
@@ -45,7 +46,7 @@ def test_the_pretrained_v2_policies_are_fine_tuned_for_the_hold(env_id, name):
     assert (PRETRAINED_DIR / f"{stem}_vecnormalize.pkl").is_file()
     assert (PRETRAINED_DIR / f"{stem}.yaml").is_file()
     options = agents.observation_options("pretrained", env_id)
-    assert options == V2_OPTIONS
+    assert options == expected
     env = gym.make(env_id, **options)
     agent = agents.load_agent("pretrained", env)
     info = fly(env, agent, 20_000_001)
@@ -76,7 +77,7 @@ def test_a_v2_policy_keeps_its_hold_element_on_another_id():
     config, and by its env's registration) whatever ID it is flown on."""
     v2_policy = f"ppo:{PRETRAINED_DIR / 'rendezvous2d_v2.zip'}"
     for env_id in ("DebrisGym/Rendezvous2D-v1", "DebrisGym/Rendezvous2D-v2"):
-        assert agents.observation_options(v2_policy, env_id) == V2_OPTIONS
+        assert agents.observation_options(v2_policy, env_id) == {**V2_OPTIONS, "obs_near": True}
 
 
 @pytest.mark.parametrize("dim", ["2d", "3d"])
