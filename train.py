@@ -101,7 +101,8 @@ def main(argv: list[str] | None = None) -> int:
     from debris_gym.swarm import SWARM_SPECS
 
     evaluate = (
-        "the held-out evaluations are in train_log.json (evaluate.py does not fly swarm IDs yet)"
+        "the held-out evaluations are in train_log.json (evaluate.py does not fly a "
+        "swarm-trained policy yet)"
         if result.env_id in SWARM_SPECS
         else "evaluate with: "
         + cli.evaluate_command(result.env_id, f"apf,{result.algo}={result.model_path}")
