@@ -58,10 +58,10 @@ from agents.planners.swarm_expansion import (
     assign_goals,
     explore,
 )
-from agents.planners.team_assignment import ASSIGNMENT_RULES, TeamAssignment, assign
+from agents.planners.team_assignment import TeamAssignment, assign
 from agents.policies.chaser_view import ChaserView
 from agents.policies.se_scp import SESCPAgent
-from agents.policies.team import team_field
+from agents.policies.team import check_team_env, team_field
 
 __all__ = ["ExplorationRecord", "MASESCPTeam", "SwarmMember", "TeammateSpheres"]
 
@@ -243,16 +243,7 @@ class MASESCPTeam:
         scp: SCPParams | None = None,
         **params: Any,
     ) -> None:
-        if rule not in ASSIGNMENT_RULES:
-            raise ValueError(
-                f"unknown assignment rule {rule!r}; known: {', '.join(ASSIGNMENT_RULES)}"
-            )
-        core = env.core
-        if core.swarm.assignment != "given":
-            raise ValueError(
-                f"ma-se-scp assigns the targets itself: make the swarm with assignment='given' "
-                f"(it has assignment={core.swarm.assignment!r})"
-            )
+        core = check_team_env(env, rule, "ma-se-scp assigns the targets itself")
         if isinstance(replan_every, bool) or not (
             isinstance(replan_every, int) and replan_every >= 1
         ):

@@ -54,6 +54,7 @@ from agents.policies.shielded import ShieldedAgent, ShieldStats
 __all__ = [
     "TeamOfSingles",
     "TeamPolicy",
+    "check_team_env",
     "single_agent_id",
     "start_episode",
     "team_field",
@@ -96,6 +97,24 @@ def team_options(agent: str, dim: int) -> dict[str, Any]:
     if _is_learned(agent):
         options.update(observation_options(agent, single_agent_id(dim)))
     return options
+
+
+def check_team_env(env: Any, rule: str, why: str) -> Any:
+    """The swarm core of ``env`` for a team flying behind the assignment ``rule`` (``why``
+    begins the message when the swarm does not take given assignments).
+
+    Raises:
+        ValueError: an unknown rule, or a swarm not made with ``assignment="given"``.
+    """
+    if rule not in ASSIGNMENT_RULES:
+        raise ValueError(f"unknown assignment rule {rule!r}; known: {', '.join(ASSIGNMENT_RULES)}")
+    core = env.core
+    if core.swarm.assignment != "given":
+        raise ValueError(
+            f"{why}: make the swarm with assignment='given' (it has "
+            f"assignment={core.swarm.assignment!r})"
+        )
+    return core
 
 
 def team_field(views: list[ChaserView]) -> TeamField:
@@ -150,16 +169,7 @@ class TeamOfSingles:
         shield: ShieldParams | None = None,
         **params: Any,
     ) -> None:
-        if rule not in ASSIGNMENT_RULES:
-            raise ValueError(
-                f"unknown assignment rule {rule!r}; known: {', '.join(ASSIGNMENT_RULES)}"
-            )
-        core = env.core
-        if core.swarm.assignment != "given":
-            raise ValueError(
-                f"a team of single agents flies behind an assignment: make the swarm with "
-                f"assignment='given' (it has assignment={core.swarm.assignment!r})"
-            )
+        core = check_team_env(env, rule, "a team of single agents flies behind an assignment")
         self.env, self.agent, self.rule = env, agent, rule
         self.name = f"team-{agent}@{rule}"
         self.agents: list[str] = list(env.possible_agents)

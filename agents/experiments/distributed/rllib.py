@@ -78,19 +78,15 @@ def ppo_config(
     """
     require_ray("RLlib training", "ray.rllib")
     from ray.rllib.algorithms.ppo import PPOConfig
-    from ray.rllib.core.rl_module.default_model_config import DefaultModelConfig
 
     if vectorize not in VECTORIZE_MODES:
         raise ValueError(
             f"vectorize must be one of {', '.join(VECTORIZE_MODES)}, got {vectorize!r}"
         )
-    for name, value, low in (("num_env_runners", num_env_runners, 0),
-                             ("num_envs_per_env_runner", num_envs_per_env_runner, 1),
-                             ("train_batch_size", train_batch_size, 1),
-                             ("minibatch_size", minibatch_size, 1),
-                             ("num_epochs", num_epochs, 1)):  # fmt: skip
-        if isinstance(value, bool) or not isinstance(value, int) or value < low:
-            raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+    _check_counts(num_env_runners=(num_env_runners, 0),
+                  num_envs_per_env_runner=(num_envs_per_env_runner, 1),
+                  train_batch_size=(train_batch_size, 1), minibatch_size=(minibatch_size, 1),
+                  num_epochs=(num_epochs, 1))  # fmt: skip
     config = (
         PPOConfig()
         .environment(rllib_env_id(env_id), env_config=dict(env_kwargs or {}))
@@ -100,22 +96,38 @@ def ppo_config(
             gym_env_vectorize_mode=vectorize,
             num_cpus_per_env_runner=1,
         )
-        .training(
-            train_batch_size_per_learner=train_batch_size,
-            minibatch_size=min(minibatch_size, train_batch_size),
-            num_epochs=num_epochs,
-            lr=lr,
-            gamma=gamma,
-        )
-        .rl_module(
-            model_config=DefaultModelConfig(
-                fcnet_hiddens=list(hidden), fcnet_activation="tanh", vf_share_layers=False
-            )
+    )
+    return _learning(config, train_batch_size, minibatch_size, num_epochs, lr, gamma, hidden, seed)
+
+
+def _check_counts(**counts: tuple[Any, int]) -> None:
+    """Raise ``ValueError`` for a count (name → (value, least allowed)) that is not an integer
+    at least its least value."""
+    for name, (value, low) in counts.items():
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+
+
+def _learning(
+    config: Any, train_batch_size: int, minibatch_size: int, num_epochs: int, lr: float,
+    gamma: float, hidden: tuple[int, ...], seed: int | None,
+) -> Any:  # fmt: skip
+    """``config`` with the PPO training settings, the policy and value networks (tanh MLPs
+    of sizes ``hidden``) and the seed (None: unseeded) every config of this module shares."""
+    from ray.rllib.core.rl_module.default_model_config import DefaultModelConfig
+
+    config = config.training(
+        train_batch_size_per_learner=train_batch_size,
+        minibatch_size=min(minibatch_size, train_batch_size),
+        num_epochs=num_epochs,
+        lr=lr,
+        gamma=gamma,
+    ).rl_module(
+        model_config=DefaultModelConfig(
+            fcnet_hiddens=list(hidden), fcnet_activation="tanh", vf_share_layers=False
         )
     )
-    if seed is not None:
-        config = config.debugging(seed=seed)
-    return config
+    return config if seed is None else config.debugging(seed=seed)
 
 
 SWARM_PREFIX = "debris_swarm:"
@@ -154,17 +166,18 @@ def swarm_ppo_config(
 
     Raises:
         ImportError: Ray RLlib or PettingZoo is not installed.
-        ValueError: not a swarm ID.
+        ValueError: not a swarm ID, or a bad count.
     """
     require_ray("RLlib training", "ray.rllib")
     from ray.rllib.algorithms.ppo import PPOConfig
-    from ray.rllib.core.rl_module.default_model_config import DefaultModelConfig
     from ray.tune.registry import register_env
 
     from debris_gym.swarm import SWARM_SPECS
 
     if env_id not in SWARM_SPECS:
         raise ValueError(f"env_id must be a swarm ID ({', '.join(SWARM_SPECS)}), got {env_id!r}")
+    _check_counts(num_env_runners=(num_env_runners, 0), train_batch_size=(train_batch_size, 1),
+                  minibatch_size=(minibatch_size, 1), num_epochs=(num_epochs, 1))  # fmt: skip
     name = SWARM_PREFIX + env_id
     register_env(name, _swarm_env)
     config = (
@@ -172,22 +185,8 @@ def swarm_ppo_config(
         .environment(name, env_config={"env_id": env_id, **dict(env_kwargs or {})})
         .multi_agent(policies={"shared"}, policy_mapping_fn=_shared_policy)
         .env_runners(num_env_runners=num_env_runners)
-        .training(
-            train_batch_size_per_learner=train_batch_size,
-            minibatch_size=min(minibatch_size, train_batch_size),
-            num_epochs=num_epochs,
-            lr=lr,
-            gamma=gamma,
-        )
-        .rl_module(
-            model_config=DefaultModelConfig(
-                fcnet_hiddens=list(hidden), fcnet_activation="tanh", vf_share_layers=False
-            )
-        )
     )
-    if seed is not None:
-        config = config.debugging(seed=seed)
-    return config
+    return _learning(config, train_batch_size, minibatch_size, num_epochs, lr, gamma, hidden, seed)
 
 
 def _shared_policy(agent_id: Any, *args: Any, **kwargs: Any) -> str:
