@@ -72,18 +72,23 @@ The colon of ALGO:PATH and MODULE:ATTR is told apart by the word before it: ppo,
 and recurrent_ppo name an algorithm, anything else a module. From Python, evaluate_agents() also
 takes policy objects: see agents.experiments.evaluation and docs/training.md.
 
-Swarm IDs (--env DebrisGym/Swarm2D-v0, Swarm3D-v0, Swarm2D-Easy-v0) fly teams, one
-single-agent policy per chaser behind an assignment of the targets (docs/swarm.md, "Baselines"):
+Swarm IDs (--env DebrisGym/Swarm2D-v0, Swarm3D-v0, Swarm2D-Easy-v0, Reconfigure2D-v0,
+Reconfigure3D-v0) fly teams, one single-agent policy per chaser behind an assignment of the
+targets or slots (docs/swarm.md, "Baselines"), or a multi-agent team:
   team-AGENT@RULE           AGENT a baseline (apf-mpc, zero, ...), pretrained (the policy
                             shipped for the swarm's single-agent world) or ALGO:PATH; RULE
-                            balanced (the env's; the default), greedy, optimal or minmax
+                            balanced (the env's; the default), greedy, optimal, minmax or
+                            auction
+  ma-se-scp[@RULE]          multi-agent SE-SCP (docs/baselines.md)
 Default: team-apf-mpc and team-pretrained under every rule, and team-zero@balanced. Every
-team flies episode i from reset(seed=SEED + i); the run writes episodes.csv (one row per
-team x episode: team success, per-chaser outcomes, debris and teammate collisions, min
-separation, Δv, time, the assignment with its tour cost and gap to the optimal, decision
-time per chaser), assignments.csv (every rule on every field), summary.json and summary.md,
-in one process (default --out runs/eval-swarm). --suite, --paper, --shield, --video,
---plots, --resume, --backend ray and several --workers do not apply and are refused.
+team flies episode i from reset(seed=SEED + i), or the missions of a swarm suite (--suite
+swarm-2d-v0, reconfigure-3d-v0); the run writes episodes.csv (one row per team x episode:
+team success, per-chaser outcomes, debris and teammate collisions, min separation, Δv, time,
+the assignment with its tour cost and gap to the optimal, decision time per chaser),
+assignments.csv (every rule on every field), summary.json, summary.md and trajectory plots
+(--plots N), and videos (--video N), in one process (default --out runs/eval-swarm).
+--paper, --shield, --resume, --backend ray and several --workers do not apply and are
+refused.
 """
 
 from __future__ import annotations
