@@ -112,6 +112,7 @@ examples:
   python evaluate.py --paper --out runs/paper          # [APF-MPC] Table I side by side
   python evaluate.py --agents apf,apf-mpc --shield     # every agent behind the safety shield
   python evaluate.py --agents apf-mpc,pretrained --video 2   # mp4s of the first 2 episodes
+  python evaluate.py --suite standard-2d-v2 --episodes 20 --robustness   # under every error
   python evaluate.py --resume runs/cmp                 # finish a run stopped by Ctrl-C
   python evaluate.py --workers 1                       # everything in this one process
   python evaluate.py --backend ray --workers 2 --episodes 200    # episodes on a local Ray
@@ -255,6 +256,14 @@ def build_parser() -> argparse.ArgumentParser:
         "first agent)",
     )
     parser.add_argument(
+        "--robustness",
+        action="store_true",
+        help="fly the evaluation again under each error of the uncertain world at three "
+        "levels (navigation, actuation, truth model, sensing) into OUT/<condition>/ and "
+        "gather OUT/robustness.md and .json (default --out runs/robustness; "
+        "docs/baselines.md, 'Robustness')",
+    )
+    parser.add_argument(
         "--shield",
         action="store_true",
         help="fly every agent behind the safety shield (run-time assurance): each command is "
@@ -329,11 +338,18 @@ def main(argv: list[str] | None = None) -> int:
     )
     from agents.experiments.swarm_evaluation import is_swarm_id, is_swarm_suite
 
+    arguments = vars(args)
+    robustness = arguments.pop("robustness")
     if is_swarm_id(args.env) or (args.env is None and is_swarm_suite(args.suite)):
+        if robustness:
+            parser.error("argument --robustness: swarms fly the exact world only")
         return _swarm(parser, args)
-    options = EvaluateOptions(**vars(args))  # the parser's destinations are the option names
+    options = EvaluateOptions(**arguments)  # the parser's destinations are the option names
     try:
-        text = run_evaluation(options, remote={"ray": RayRemote()})
+        if robustness:
+            text = _robustness(options, lambda o: run_evaluation(o, remote={"ray": RayRemote()}))
+        else:
+            text = run_evaluation(options, remote={"ray": RayRemote()})
     except UsageError as exc:
         parser.error(f"argument {exc.flag}: {exc}")
     except EvaluationInterrupted as exc:
@@ -348,6 +364,18 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     print(text, end="")
     return 0
+
+
+def _robustness(options: Any, run: Any) -> str:
+    """``--robustness``: the evaluation under every condition of the robustness table."""
+    from agents.experiments.evaluation.plan import UsageError
+    from agents.experiments.evaluation.robustness import run_robustness
+
+    if options.resume is not None:
+        raise UsageError("--resume", "not allowed with --robustness (resume each condition)")
+    out = Path("runs/robustness") if options.out is None else options.out
+    text = run_robustness(options, out, run, echo=lambda line: print(line, file=sys.stderr))
+    return text + f"\nwritten: {out / 'robustness.md'}, {out / 'robustness.json'}\n"
 
 
 def _swarm(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:

@@ -85,6 +85,10 @@ MAX_HOLD = 3600.0
 MAX_SLOPE = 1e3
 """Upper bound (1/s) of ``shaping_speed_slope``."""
 
+MIN_DRAG_ALTITUDE = 150e3
+"""Lowest reference-orbit altitude (m) of ``truth_model="j2_drag"``: below it a field decays
+within a mission."""
+
 MAX_WEIGHT = 1e6
 """Upper bound of every reward weight and shaping weight: with every weight, length and speed
 bounded, no reward term can overflow to inf or NaN."""
@@ -292,7 +296,94 @@ OPTIONS: dict[str, Option] = {
         doc="append the current goal's near field: gap / capture_radius and closing speed / "
         "capture_speed (positive when approaching), each saturated at ±4",
     ),
+    "nav_sigma_position": Option(
+        "m",
+        0.0,
+        MAX_LENGTH,
+        doc="navigation error: 1σ per axis of the observed positions (the chaser's and every "
+        "body's; 0 = exact)",
+    ),
+    "nav_sigma_velocity": Option(
+        "m/s",
+        0.0,
+        MAX_SPEED,
+        doc="navigation error: 1σ per axis of the observed velocities (0 = exact)",
+    ),
+    "nav_bias": Option(
+        choices=(False, True),
+        doc="the navigation error is drawn once per episode and held (a bias); False: drawn "
+        "afresh at every observation (white)",
+    ),
+    "thrust_sigma_magnitude": Option(
+        "",
+        0.0,
+        1.0,
+        doc="actuation error: 1σ of the thrust's relative magnitude error, drawn every step",
+    ),
+    "thrust_sigma_pointing": Option(
+        "rad",
+        0.0,
+        1.0,
+        doc="actuation error: 1σ of the thrust direction's error per transverse axis, drawn "
+        "every step",
+    ),
+    "thrust_miss_probability": Option(
+        "",
+        0.0,
+        1.0,
+        doc="actuation error: chance that the thrusters do not fire in a step (no Δv charged)",
+    ),
+    "truth_model": Option(
+        choices=("cw", "j2_drag"),
+        doc="how the world moves: 'cw' (the Clohessy-Wiltshire model, exact), 'j2_drag' (every "
+        "body and the chaser as an absolute orbit with J2 and drag, seen in the LVLH frame of "
+        "the reference orbit)",
+    ),
+    "ballistic_coefficient": Option(
+        "kg/m²",
+        1.0,
+        1e5,
+        doc="truth_model='j2_drag': m/(C_D·A) of the debris that are not targets",
+    ),
+    "target_ballistic_coefficient": Option(
+        "kg/m²", 1.0, 1e5, doc="truth_model='j2_drag': m/(C_D·A) of the targets"
+    ),
+    "chaser_ballistic_coefficient": Option(
+        "kg/m²",
+        1.0,
+        1e5,
+        doc="truth_model='j2_drag': m/(C_D·A) of the chaser and of the reference orbit (so an "
+        "idle chaser at the LVLH origin stays there)",
+    ),
+    "orbit_inclination": Option(
+        "deg", 0.0, 180.0, doc="truth_model='j2_drag': inclination of the reference orbit"
+    ),
+    "sensor_range": Option(
+        "m",
+        1e-3,
+        MAX_RANGE,
+        optional=True,
+        doc="limited sensing: obstacle slots and lidar rays show nothing beyond this gap "
+        "(targets, the mission's own, are always shown); None = unlimited",
+    ),
 }
+
+UNCERTAINTY_KEYS = (
+    "nav_sigma_position",
+    "nav_sigma_velocity",
+    "nav_bias",
+    "thrust_sigma_magnitude",
+    "thrust_sigma_pointing",
+    "thrust_miss_probability",
+    "truth_model",
+    "ballistic_coefficient",
+    "target_ballistic_coefficient",
+    "chaser_ballistic_coefficient",
+    "orbit_inclination",
+    "sensor_range",
+)
+"""The options of the uncertain world (off by default; docs/environments.md, "An uncertain
+world")."""
 
 
 @dataclass(frozen=True)
@@ -360,6 +451,18 @@ class EnvConfig:
     obs_hold: bool = False
     obs_other_targets: bool = False
     obs_teammates: int = 0
+    nav_sigma_position: float = 0.0
+    nav_sigma_velocity: float = 0.0
+    nav_bias: bool = False
+    thrust_sigma_magnitude: float = 0.0
+    thrust_sigma_pointing: float = 0.0
+    thrust_miss_probability: float = 0.0
+    truth_model: str = "cw"
+    ballistic_coefficient: float = 50.0
+    target_ballistic_coefficient: float = 100.0
+    chaser_ballistic_coefficient: float = 100.0
+    orbit_inclination: float = 51.6
+    sensor_range: float | None = None
 
     def __post_init__(self) -> None:
         # each key alone (stored normalised: whole numbers as int, reals as float, flags as
@@ -378,6 +481,30 @@ class EnvConfig:
                 f"unknown config key(s) {unknown}; known keys: {', '.join(sorted(OPTIONS))}"
             )
         return cls(**kwargs)
+
+    @property
+    def navigation_errors(self) -> bool:
+        """Whether observations carry a navigation error."""
+        return self.nav_sigma_position > 0.0 or self.nav_sigma_velocity > 0.0
+
+    @property
+    def actuation_errors(self) -> bool:
+        """Whether the thrusters err."""
+        return (
+            self.thrust_sigma_magnitude > 0.0
+            or self.thrust_sigma_pointing > 0.0
+            or self.thrust_miss_probability > 0.0
+        )
+
+    @property
+    def uncertain(self) -> bool:
+        """Whether any option of the uncertain world is on (:data:`UNCERTAINTY_KEYS`)."""
+        return (
+            self.navigation_errors
+            or self.actuation_errors
+            or self.truth_model != "cw"
+            or self.sensor_range is not None
+        )
 
     @property
     def n(self) -> float:
@@ -484,6 +611,23 @@ def _check_cross_keys(cfg: EnvConfig) -> None:
             f"debris_motion={cfg.debris_motion!r} needs an orbit (mean_motion > 0): in free "
             "space (mean_motion=0) relative orbits do not exist; use debris_motion='frozen'"
         )
+    if cfg.truth_model == "j2_drag":
+        if cfg.debris_motion == "frozen" or cfg.scenario == "paper":
+            raise ValueError(
+                "truth_model='j2_drag' moves every body as an orbit; a frozen field "
+                f"(debris_motion={cfg.debris_motion!r}, scenario={cfg.scenario!r}) is not one: "
+                "use debris_motion='bounded' or 'drifting' with scenario='random'"
+            )
+        if cfg.mean_motion is not None:
+            raise ValueError(
+                f"truth_model='j2_drag' orbits the Earth at orbit_radius; mean_motion="
+                f"{cfg.mean_motion!r} would set another: leave mean_motion None"
+            )
+        if cfg.orbit_radius - R_EARTH < MIN_DRAG_ALTITUDE:
+            raise ValueError(
+                f"truth_model='j2_drag' needs orbit_radius >= {R_EARTH + MIN_DRAG_ALTITUDE:g} m "
+                f"(an altitude of {MIN_DRAG_ALTITUDE / 1e3:g} km or more), got {cfg.orbit_radius!r}"
+            )
     if cfg.scenario == "random":
         limit = WORLD_FRACTION * cfg.field_size
         for key in _WORLD_TIED:

@@ -40,6 +40,7 @@ COMPILED_MODULES = (
     "potential",
     "observation",
     "thrust",
+    "uncertainty",
 )
 """Modules of this package with numba-compiled functions (their caches are dropped together)."""
 

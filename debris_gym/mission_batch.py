@@ -44,6 +44,7 @@ from debris_gym.observation import (
     observe_all,
     observe_all_threaded,
 )
+from debris_gym.uncertainty import navigate_rows
 
 __all__ = ["OBS_LIMIT", "MissionBatch", "Physics", "check_threads"]
 
@@ -158,6 +159,8 @@ class MissionBatch:
         arrived_stay: bool = False,
     ) -> None:
         n, d, t = num, cfg.dim, n_targets
+        if cfg.truth_model != "cw":
+            raise NotImplementedError(f"truth_model={cfg.truth_model!r} is not built yet")
         if chasers < 1 or num % chasers:
             raise ValueError(f"chasers={chasers} must be at least 1 and divide num={num}")
         self.chasers = int(chasers)
@@ -206,6 +209,16 @@ class MissionBatch:
         self._step_code: Callable[..., Any] | None = None
         self._observe_code: Callable[..., Any] | None = None
         self._begin_code: dict[bool, Callable[..., Any]] = {}
+        self._observed: tuple[np.ndarray, ...] | None = None
+        if cfg.navigation_errors:
+            if chasers != 1:
+                raise ValueError("navigation errors are for one chaser per field")
+            m = self.missions
+            self._observed = (
+                np.zeros_like(m.state), np.zeros_like(self.field.centers),
+                np.zeros_like(self.field.velocities), np.zeros_like(m.gaps),
+                np.zeros_like(m.nearest),
+            )  # fmt: skip
 
     def __getstate__(self) -> dict:
         # the resolved machine code does not pickle: it is resolved again on first use
@@ -293,10 +306,16 @@ class MissionBatch:
         self.length_scale[rows] = length_scale
         self.speed_scale[rows] = math.sqrt(self.physics.max_accel * length_scale)
 
-    def begin(self, rows: np.ndarray, states: np.ndarray | None = None) -> None:
+    def begin(
+        self, rows: np.ndarray, states: np.ndarray | None = None, keys: np.ndarray | None = None
+    ) -> None:
         """Start new episodes in ``rows`` (fields loaded): chaser at ``states`` (R, 2·dim) or at
-        rest at the dock, clocks and flags cleared, gaps and potential computed."""
+        rest at the dock, clocks and flags cleared, gaps and potential computed; ``keys`` (R,)
+        uint64 the episodes' error keys (:attr:`Missions.noise_key
+        <debris_gym.mission_data.Missions.noise_key>`; the uncertain world's)."""
         rows = np.ascontiguousarray(rows, dtype=np.int64)
+        if keys is not None:
+            self.missions.noise_key[rows] = keys
         states = None if states is None else np.ascontiguousarray(states, dtype=float)
         args = (rows, states, self.rules, self.shaping, self.missions, self.field_arrays)
         code = self._begin_code.get(states is None)
@@ -346,9 +365,40 @@ class MissionBatch:
             horizon: steps the ``time_remaining`` element counts down from.
         """
         head = self._head()["observe"]
+        if self._observed is not None:
+            head = (*head[:-2], *self._navigate(head[-2], head[-1]))
         code = self._observe_code
         if code is None:
             kernel = observe_all_threaded if self.threads > 1 else observe_all
             code = self._observe_code = specialise(kernel, *head, float(horizon), out)
         code(*head, float(horizon), out)
         return out
+
+    def _navigate(self, missions: Missions, field: Field) -> tuple[Missions, Field]:
+        """The observed copy of the missions and fields (navigation errors; see
+        :func:`~debris_gym.uncertainty.navigate_rows`), in the records' own types."""
+        assert self._observed is not None
+        state, centers, velocities, gaps, nearest = self._observed
+        cfg = self.config
+        navigate_rows(
+            float(cfg.nav_sigma_position), float(cfg.nav_sigma_velocity), bool(cfg.nav_bias),
+            missions, field, state, centers, velocities, gaps, nearest,
+        )  # fmt: skip
+        return (
+            missions._replace(state=state, gaps=gaps, nearest=nearest),
+            field._replace(centers=centers, velocities=velocities),
+        )
+
+    def observed_state(self) -> np.ndarray:
+        """(N, 2·dim) each chaser's state as the last observation saw it (the truth without
+        navigation errors; a copy)."""
+        if self._observed is None:
+            return self.missions.state.copy()
+        return self._observed[0].copy()
+
+    def observed_bodies(self) -> tuple[np.ndarray, np.ndarray]:
+        """(F, B, dim) the bodies' centres and velocities as the last observation saw them
+        (copies)."""
+        if self._observed is None:
+            return self.field.centers.copy(), self.field.velocities.copy()
+        return self._observed[1].copy(), self._observed[2].copy()

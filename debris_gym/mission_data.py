@@ -106,6 +106,16 @@ class Rules(NamedTuple):
     reward_out_of_bounds: float
     reward_time: float
     reward_budget: float
+    # the uncertain world (docs/environments.md, "An uncertain world")
+    thrust_errors: bool
+    """The thrusters err (any ``thrust_*`` option above 0): every burn is drawn through
+    :func:`debris_gym.uncertainty.err_thrust`."""
+    thrust_sigma_magnitude: float
+    """1σ of the thrust's relative magnitude error."""
+    thrust_sigma_pointing: float
+    """1σ (rad) of the thrust direction's error per transverse axis."""
+    thrust_miss_probability: float
+    """Chance that the thrusters do not fire in a step."""
 
 
 class Shaping(NamedTuple):
@@ -169,6 +179,10 @@ class Missions(NamedTuple):
     """(N, T) bool: the targets that are the chaser's to capture (all of them unless a swarm
     assigns them); a chaser's ``captured`` flags start True for the others, so its goal, its
     observation's target slots, its captures and its success count its own alone."""
+    noise_key: np.ndarray
+    """(N,) uint64: the key of the episode's random errors (the uncertain world): every error
+    is a pure function of the key, the step and what it perturbs
+    (:func:`debris_gym.uncertainty.standard_normal`)."""
 
 
 class Field(NamedTuple):
@@ -309,6 +323,10 @@ def make_rules(
         tour_potential=cfg.shaping_potential == "tour",
         terminal_zero=cfg.shaping_terminal == "zero",
         **{f"reward_{k}": float(getattr(cfg, f"reward_{k}")) for k in REWARD_TERMS},
+        thrust_errors=cfg.actuation_errors,
+        thrust_sigma_magnitude=float(cfg.thrust_sigma_magnitude),
+        thrust_sigma_pointing=float(cfg.thrust_sigma_pointing),
+        thrust_miss_probability=float(cfg.thrust_miss_probability),
     )
 
 
@@ -350,6 +368,7 @@ def new_missions(num: int, dim: int, n_targets: int, n_bodies: int, n_ranked: in
         teammate_collision=np.zeros(num, dtype=bool),
         separation=np.full(num, math.inf),
         assigned=np.ones((num, n_targets), dtype=bool),
+        noise_key=np.zeros(num, dtype=np.uint64),
     )
 
 

@@ -47,6 +47,7 @@ from debris_gym.potential import nearest_obstacle, potential, speed_of, tour_pot
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.swept_contacts import moving_path_touches, pair_distance, path_touches
 from debris_gym.thrust import delta_v_rate_row, thrust_row
+from debris_gym.uncertainty import err_thrust
 
 # reward term columns, in REWARD_TERMS order
 _T_CAPTURE, _T_SUCCESS, _T_PROGRESS, _T_DV, _T_COLLISION, _T_OOB, _T_TIME, _T_BUDGET = range(8)
@@ -58,11 +59,15 @@ assert REWARD_TERMS == (
 
 
 @inlined
-def burn(i, action, rules, delta_v, applied, accel):
+def burn(i, action, rules, delta_v, applied, accel, key, step):
     """Thrust: the commanded acceleration of ``action`` into ``accel`` (dim,) and
-    ``applied[i]``, cut to what the Δv budget still allows (a burn that would overspend it
-    spends it exactly); the Δv is added to ``delta_v[i]``. Returns the step's Δv (m/s)."""
+    ``applied[i]`` — with :attr:`Rules.thrust_errors` what the thrusters made of it in step
+    ``step`` of the episode of error key ``key`` (:func:`~debris_gym.uncertainty.err_thrust`)
+    — cut to what the Δv budget still allows (a burn that would overspend it spends it
+    exactly); the Δv is added to ``delta_v[i]``. Returns the step's Δv (m/s)."""
     thrust_row(action, rules.max_accel, rules.box_thrust, accel)
+    if rules.thrust_errors:
+        err_thrust(key, step, rules, accel)
     dv = delta_v_rate_row(accel, rules.box_thrust) * rules.dt
     spent = delta_v[i]
     budget = rules.delta_v_budget
@@ -434,7 +439,10 @@ def fly_row(i, f, k, actions, rules, missions, field, scratch, dvs):
     n_vertices, vertices = field.n_vertices, field.vertices
     path, start, touched = scratch.path[k], scratch.start[k], scratch.touched[k]
     accel = scratch.accel
-    dvs[k] = burn(i, actions[i], rules, missions.delta_v, missions.accel, accel)
+    dvs[k] = burn(
+        i, actions[i], rules, missions.delta_v, missions.accel, accel, missions.noise_key[i],
+        missions.steps[i],
+    )  # fmt: skip
     propagate(
         i, accel, rules.step_matrix_t, rules, missions.state, missions.time, missions.steps,
         start, path,

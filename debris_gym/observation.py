@@ -142,6 +142,9 @@ class ObservationLayout(NamedTuple):
     """``obs_other_targets``: the obstacle slots show the nearest bodies other than the goal."""
     lidar_range: float
     """Longest lidar range (m)."""
+    sensor_range: float
+    """``sensor_range`` (m; inf when unlimited): obstacle slots and lidar rays show nothing
+    beyond it."""
     lidar_directions: np.ndarray
     """(rays, dim) unit ray directions ((1, dim) zeros without lidar)."""
 
@@ -176,6 +179,7 @@ def observation_layout(cfg: EnvConfig) -> ObservationLayout:
         teammate_slots=slots["teammates"],
         other_targets=bool(cfg.obs_other_targets),
         lidar_range=float(cfg.lidar_range),
+        sensor_range=math.inf if cfg.sensor_range is None else float(cfg.sensor_range),
         lidar_directions=lidar_directions(cfg.dim, cfg.lidar_rays)
         if lidar
         else np.zeros((1, cfg.dim)),
@@ -306,36 +310,40 @@ def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
             else:
                 for s in range(n_near):
                     near[s] = nearest[i, s]
-            for s in range(n_near):
+            n_seen = 0  # the slots within sensor range (nearest first: a prefix)
+            while n_seen < n_near and gaps[i, near[n_seen]] <= layout.sensor_range:
+                n_seen += 1
+            for s in range(n_seen):
                 b = near[s]
                 for a in range(dim):
                     k = _put(out, i, k, (centers[f, b, a] - state[i, a]) * inv_l)
                 k = _put(out, i, k, radii[f, b] * inv_l)
                 k = _put(out, i, k, gaps[i, b] * inv_l)
-            for _slot in range(n_near, layout.obstacle_slots):
+            for _slot in range(n_seen, layout.obstacle_slots):
                 for _ in range(dim + 1):
                     k = _put(out, i, k, 0.0)
                 k = _put(out, i, k, 1.0)
             # the same bodies' velocities relative to the chaser (moving fields)
             if layout.obstacle_velocity_slots:
                 k = layout.obstacle_velocities
-                for s in range(n_near):
+                for s in range(n_seen):
                     b = near[s]
                     for a in range(dim):
                         k = _put(out, i, k, (velocities[f, b, a] - state[i, dim + a]) * inv_v)
-                for _slot in range(n_near, layout.obstacle_velocity_slots):
+                for _slot in range(n_seen, layout.obstacle_velocity_slots):
                     for _ in range(dim):
                         k = _put(out, i, k, 0.0)
 
         # lidar: ray ranges / lidar_range
         if layout.lidar_rays:
             k = layout.lidar
+            reach = min(layout.lidar_range, layout.sensor_range)
             ray_ranges(
-                state[i, :dim], lidar_directions, layout.lidar_range, f, centers, radii,
+                state[i, :dim], lidar_directions, reach, f, centers, radii,
                 field.polygon_start, n_vertices, vertices, attitude, ranges,
             )  # fmt: skip
-            for r in range(ranges.shape[0]):
-                k = _put(out, i, k, ranges[r] / layout.lidar_range)
+            for r in range(ranges.shape[0]):  # nothing within reach reads as the full range
+                k = _put(out, i, k, 1.0 if ranges[r] >= reach else ranges[r] / layout.lidar_range)
 
         # budgets: Δv remaining, time remaining (fractions)
         k = layout.budgets

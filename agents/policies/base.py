@@ -28,7 +28,7 @@ from gymnasium import spaces
 from agents.planners.teammates import MovingSpheres
 from debris_gym.config import EnvConfig
 from debris_gym.envs import DebrisFieldEnv
-from debris_gym.geometry import FieldGeometry
+from debris_gym.geometry import FieldGeometry, geometry_now
 from debris_gym.scenario import Scenario
 from debris_gym.thrust import action_for_accel
 
@@ -92,18 +92,72 @@ def unwrap(env: Any) -> DebrisFieldEnv:
     return base
 
 
+class NavigatedView:
+    """A :class:`DebrisFieldEnv` with navigation errors as a classical agent sees it: the
+    chaser's state as the last observation saw it, and the field as its navigation saw it at
+    the episode's start (:attr:`DebrisFieldEnv.estimated_scenario`), its bodies predicted from
+    there by the CW model. The agent never reads the truth; the env still judges on it.
+
+    Args:
+        env: the env (unwrapped).
+    """
+
+    def __init__(self, env: DebrisFieldEnv) -> None:
+        self._env = env
+        self._geometry: FieldGeometry | None = None
+
+    @property
+    def config(self) -> EnvConfig:
+        return self._env.config
+
+    @property
+    def dim(self) -> int:
+        return self._env.dim
+
+    @property
+    def observation_space(self) -> spaces.Space:
+        return self._env.observation_space
+
+    @property
+    def scenario(self) -> Scenario | None:
+        return self._env.estimated_scenario
+
+    @property
+    def chaser_state(self) -> np.ndarray:
+        return self._env.estimated_chaser_state
+
+    @property
+    def captured(self) -> np.ndarray:
+        return self._env.captured
+
+    @property
+    def elapsed(self) -> float:
+        return self._env.elapsed
+
+    @property
+    def geometry(self) -> FieldGeometry:
+        scenario = self.scenario
+        if scenario is None:
+            raise RuntimeError("call reset() first")
+        self._geometry = geometry_now(
+            self._geometry, scenario, self.elapsed, self.config.chaser_radius
+        )
+        return self._geometry
+
+
 def field_view(env: Any) -> FieldView:
     """What a classical agent reads from ``env``: the :class:`DebrisFieldEnv` inside it
-    (:func:`unwrap`), or ``env`` itself when it has every member of :class:`FieldView` (one
-    chaser of a swarm, say). The members are looked up without being read (a view that has no
-    field yet is still a view).
+    (:func:`unwrap`; a :class:`NavigatedView` of it when its observations carry navigation
+    errors), or ``env`` itself when it has every member of :class:`FieldView` (one chaser of a
+    swarm, say). The members are looked up without being read (a view that has no field yet is
+    still a view).
 
     Raises:
         TypeError: ``env`` is neither (the message names the members it lacks).
     """
     base = _inner(env)
     if isinstance(base, DebrisFieldEnv):
-        return base
+        return NavigatedView(base) if base.config.navigation_errors else base
     missing = [n for n in FIELD_VIEW_MEMBERS if inspect.getattr_static(base, n, None) is None]
     if missing:
         raise TypeError(

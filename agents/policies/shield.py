@@ -91,7 +91,9 @@ class ShieldParams:
             bounded analytically, so more samples only make the bound tighter.
         margin: clearance (m) kept from debris beyond contact (chaser radius included by the
             env), in [0, 1e6]; None: the env's ``chaser_radius`` (1 m in the Rendezvous IDs,
-            0.1 in the 20-unit PaperField2D-v0 world), so the margin scales with the world.
+            0.1 in the 20-unit PaperField2D-v0 world), so the margin scales with the world,
+            plus 3·√2·``nav_sigma_position`` when the env's observations carry navigation
+            errors (the shield then acts on the observed state and field).
         target_margin: clearance (m) kept from targets, in [0, 1e6]; keep it below the
             env's ``capture_radius`` or captures become impossible.
         directions: thrust directions of the candidate grid (on a circle in 2D, a Fibonacci
@@ -300,6 +302,15 @@ class SafetyShield:
             raise RuntimeError("the shield's env has not been reset: call env.reset() first")
         return scen
 
+    def _own_margin(self) -> float:
+        """The clearance kept from debris and teammates (m): ``margin``, or by default the
+        chaser's radius plus, with navigation errors, three standard deviations of the error of
+        a relative position along one axis (3·√2·``nav_sigma_position``: the chaser's and the
+        body's errors are independent)."""
+        if self.params.margin is not None:
+            return float(self.params.margin)
+        return self.chaser_radius + 3.0 * math.sqrt(2.0) * self.env.config.nav_sigma_position
+
     def _setting(self) -> _Setting:
         """Everything one decision needs: models, the bodies on the sample grid, backups."""
         scen = self._current_scenario()
@@ -319,7 +330,7 @@ class SafetyShield:
         bodies_now = self._motion.states(t0)
         reach = field.reach.copy()
         centre_gap = np.linalg.norm(x0[:d] - bodies_now[:, :d], axis=1)
-        margins = np.full(n_bodies, self.chaser_radius if p.margin is None else p.margin)
+        margins = np.full(n_bodies, self._own_margin())
         margins[: len(scen.targets)] = p.target_margin
         # backups: rest in LVLH (-1), then the velocity of each of the nearest bodies
         refs = [-1]
@@ -374,7 +385,7 @@ class SafetyShield:
         natural = np.linalg.norm(cwh_acceleration(chords, n), axis=2).max(axis=0)  # (J,)
         chord = np.where(moving, 1.05 * (thrust + natural) * dt**2 / 8.0, 0.0)
         mate_reach = mates.radii + self.chaser_radius + chord
-        own = self.chaser_radius if p.margin is None else p.margin
+        own = self._own_margin()
         return (
             np.concatenate([centres, sampled], axis=1),
             np.concatenate([reach, mate_reach]),

@@ -174,6 +174,20 @@ class DebrisFieldEnv(ShellView, gym.Env):
         return self._missions.missions.state[0].copy()
 
     @property
+    def estimated_scenario(self) -> Scenario | None:
+        """The field as the chaser's navigation saw it at the episode's start
+        (``nav_sigma_*`` > 0: every body's initial state with the errors of the first
+        observation; otherwise the field itself): what a planner flying on its observations
+        knows (None before the first reset)."""
+        return self._shell.estimated_scenario(0)
+
+    @property
+    def estimated_chaser_state(self) -> np.ndarray:
+        """The chaser's state as the last observation saw it (with ``nav_sigma_*`` > 0 the
+        true state plus its navigation error; a copy)."""
+        return self._missions.observed_state()[0]
+
+    @property
     def captured(self) -> np.ndarray:
         """Per-target capture flags (a copy), in scenario target order."""
         return self._missions.missions.captured[0].copy()

@@ -48,6 +48,7 @@ from debris_gym.mission_batch import MissionBatch, Physics, check_threads
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.scenario import Scenario, as_scenario
 from debris_gym.scenario_checks import check_dock_clear
+from debris_gym.uncertainty import estimated_field
 
 __all__ = [
     "INFO_KEYS",
@@ -205,6 +206,11 @@ class MissionShell:
         may edit their arrays in place (a reconfiguration shrinks the place the generator kept
         for its formation to the body at the formation's centre)."""
         self._live = np.ones(num, dtype=bool)
+        self._estimates: dict[int, tuple[int, Scenario, Scenario]] = {}
+        self._noise: list[np.random.Generator | None] = [None] * fields
+        """Per field, the generator of its episodes' error keys (the uncertain world): a child
+        of the field's generator, spawned when first needed, so that it never moves the field
+        draws on."""
 
     # --- reading ------------------------------------------------------------------------------
 
@@ -232,6 +238,22 @@ class MissionShell:
             return known
         self._built[i] = built = self._build_scenario(i, batch)
         return built
+
+    def estimated_scenario(self, i: int) -> Scenario | None:
+        """Field ``i`` as the chaser's navigation saw it at its episode's start: every body's
+        initial state plus the navigation errors of the episode's first observation (the truth,
+        :meth:`scenario`, without navigation errors); None before the first reset."""
+        truth = self.scenario(i)
+        if truth is None or not self.config.navigation_errors:
+            return truth
+        cached = self._estimates.get(i)
+        batch = self.batch_in_use
+        key = int(batch.missions.noise_key[i * self.chasers])
+        if cached is not None and cached[0] == key and cached[1] is truth:
+            return cached[2]
+        estimate = estimated_field(truth, key, self.config)
+        self._estimates[i] = (key, truth, estimate)
+        return estimate
 
     def _build_scenario(self, i: int, batch: MissionBatch) -> Scenario:
         cfg, field, d = self.config, batch.field, self.dim
@@ -367,6 +389,10 @@ class MissionShell:
             self.config, self.batch = saved
             raise
         # commit: everything is valid, nothing below raises on it
+        if generators is not None:
+            for f, g in enumerate(generators):
+                if g is not None:
+                    self._noise[f] = None  # a seeded reset: its errors follow the new seed
         self._pin = pinned
         if pinned is not None:
             self._install_scenario(fields_rows, pinned)
@@ -376,7 +402,7 @@ class MissionShell:
             starts = self.on_install(fields_rows)
             if states is None:
                 states = starts
-        self.batch_in_use.begin(rows, states)
+        self.batch_in_use.begin(rows, states, self._error_keys(fields_rows))
         self._restart[:] = False
         if pinned is None:
             self.supply.draw_ahead(fields_rows)
@@ -554,13 +580,36 @@ class MissionShell:
         else:
             self._install(fields, self._take(fields))
         starts = None if self.on_install is None else self.on_install(fields)
-        self.batch_in_use.begin(rows, starts)
+        self.batch_in_use.begin(rows, starts, self._error_keys(fields))
         if self._pin is None:
             self.supply.draw_ahead(fields)
+
+    def _error_keys(self, fields: np.ndarray) -> np.ndarray | None:
+        """The error keys of new episodes in ``fields``, one per row (None in a world without
+        errors: nothing is drawn)."""
+        if not self.config.uncertain:
+            return None
+        keys = np.empty(len(fields), dtype=np.uint64)
+        for r, f in enumerate(np.asarray(fields).tolist()):
+            noise = self._noise[f]
+            if noise is None:
+                noise = self._noise[f] = _child(self.supply.generators[f])
+            keys[r] = noise.integers(0, np.iinfo(np.uint64).max, dtype=np.uint64, endpoint=True)
+        return np.repeat(keys, self.chasers)
 
     def close(self) -> None:
         """Stop the field supply's worker thread."""
         self.supply.close()
+
+
+def _child(generator: np.random.Generator) -> np.random.Generator:
+    """A generator independent of ``generator`` that leaves its stream where it is: spawned
+    from its seed sequence, or (a generator built without one) seeded from its state."""
+    try:
+        return generator.spawn(1)[0]
+    except (TypeError, ValueError):
+        words = np.frombuffer(repr(generator.bit_generator.state).encode(), dtype=np.uint8)
+        return np.random.default_rng(np.random.SeedSequence(words.tolist()))
 
 
 def _holds(batch: MissionBatch, shape: FieldShape) -> bool:

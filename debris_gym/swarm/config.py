@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from debris_gym.config import MAX_WEIGHT, EnvConfig
+from debris_gym.config import MAX_WEIGHT, UNCERTAINTY_KEYS, EnvConfig
 from debris_gym.swarm.formation import formation_slots, outer_radius
 
 MAX_CHASERS = 256
@@ -44,6 +44,9 @@ ASSIGNMENTS = ("free", "given")
 MISSIONS = ("capture", "reconfigure")
 """``capture``: the targets shared by the team, then every chaser back at its dock slot;
 ``reconfigure``: every chaser to its own formation slot (:mod:`debris_gym.swarm.formation`)."""
+
+
+_DEFAULTS = {f.name: f.default for f in dataclasses.fields(EnvConfig)}
 
 
 @dataclass(frozen=True)
@@ -98,6 +101,12 @@ class SwarmConfig:
         k = self.n_chasers
         if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 1 <= k <= MAX_CHASERS:
             raise ValueError(f"n_chasers={k!r} is out of range; allowed: [1, {MAX_CHASERS}]")
+        if env.uncertain:
+            on = [key for key in UNCERTAINTY_KEYS if getattr(env, key) != _DEFAULTS[key]]
+            raise ValueError(
+                f"the uncertain world's options ({', '.join(on)}) are for the single-agent "
+                "IDs; a swarm flies the exact world: leave them at their defaults"
+            )
         touching = 2.0 * env.chaser_radius
         if self.r_col is not None and not (
             _real(self.r_col) and touching <= self.r_col <= env.field_size

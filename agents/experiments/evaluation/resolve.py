@@ -33,6 +33,7 @@ from agents.experiments.evaluation.specs import (
     known_specs_text,
     parse_agent_specs,
 )
+from debris_gym.config import UNCERTAINTY_KEYS
 from debris_gym.suites import Suite, load_suite
 
 __all__ = [
@@ -162,15 +163,19 @@ def _load_suite(name: str, flag: str = "--suite") -> Suite:
 def _resolve_suite(options: EvaluateOptions) -> tuple[Suite, int]:
     """The suite of ``--suite`` and the missions to fly (``--episodes``: its first N)."""
     assert options.suite is not None
-    for flag, value in (
-        ("--env", options.env),
-        ("--seed", options.seed),
-        ("--env-kwargs", options.env_kwargs),
-    ):
+    for flag, value in (("--env", options.env), ("--seed", options.seed)):
         if value is not None:
             raise UsageError(
                 flag, "not allowed with --suite (the suite fixes the env, its options and seeds)"
             )
+    other = sorted(set(options.env_kwargs or {}) - set(UNCERTAINTY_KEYS))
+    if other:
+        raise UsageError(
+            "--env-kwargs",
+            f"{', '.join(other)} not allowed with --suite (the suite fixes the env and its "
+            "options; only the uncertain world's may be added: "
+            f"{', '.join(UNCERTAINTY_KEYS)})",
+        )
     if options.paper:
         raise UsageError("--paper", "not allowed with --suite (--paper flies its own world)")
     suite = _load_suite(options.suite)
@@ -291,7 +296,8 @@ def fresh_plan(options: EvaluateOptions) -> EvaluationPlan:
     suite = None
     if options.suite is not None:
         suite, episodes = _resolve_suite(options)
-        env_id, env_kwargs, seed = suite.env_id, dict(suite.env_kwargs), suite.missions[0].seed
+        env_id, seed = suite.env_id, suite.missions[0].seed
+        env_kwargs = {**suite.env_kwargs, **(options.env_kwargs or {})}
     else:
         env_id, episodes = _resolve_env(options)
         seed = 0 if options.seed is None else options.seed

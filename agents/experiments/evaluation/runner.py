@@ -47,6 +47,7 @@ from agents.experiments.evaluation.specs import (
 from agents.experiments.evaluation.video import attach_shield, recording_env
 from agents.policies.shield import ShieldParams
 from agents.policies.shielded import ShieldedAgent
+from debris_gym.config import UNCERTAINTY_KEYS
 from debris_gym.scenario import Scenario
 from debris_gym.suites import Suite
 
@@ -415,11 +416,13 @@ def episode_resets(
         )
     if env_id is not None and env_id != suite.env_id:
         raise ValueError(f"suite {suite.name!r} is flown in {suite.env_id}, not {env_id}")
-    if env_kwargs is not None and dict(env_kwargs) != dict(suite.env_kwargs):
-        raise ValueError(
-            f"suite {suite.name!r} is flown with env_kwargs {dict(suite.env_kwargs)}, not "
-            f"{dict(env_kwargs)}"
-        )
+    if env_kwargs is not None:  # the uncertain world's options leave the fields as they are
+        kept = {k: v for k, v in dict(env_kwargs).items() if k not in UNCERTAINTY_KEYS}
+        if kept != dict(suite.env_kwargs):
+            raise ValueError(
+                f"suite {suite.name!r} is flown with env_kwargs {dict(suite.env_kwargs)} (and "
+                f"any of {', '.join(UNCERTAINTY_KEYS)}), not {dict(env_kwargs)}"
+            )
     return [(m.seed, m.scenario) for m in suite.missions[:episodes]]
 
 

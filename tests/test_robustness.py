@@ -1,0 +1,56 @@
+"""The robustness table: each condition is a real evaluation with its options, gathered."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from agents.experiments.evaluation.command import run_evaluation
+from agents.experiments.evaluation.plan import EvaluateOptions, UsageError
+from agents.experiments.evaluation.robustness import CONDITIONS, run_robustness
+
+
+def _pick(*names: str):
+    by_name = {c.name: c for c in CONDITIONS}
+    return tuple(by_name[n] for n in names)
+
+
+def test_every_condition_is_flown_with_its_options_and_gathered(tmp_path):
+    conditions = _pick("exact", "navigation-high", "actuation-high", "sensing-high")
+    options = EvaluateOptions(
+        suite="standard-2d-v2", agents="apf-mpc,zero", episodes=2, workers=1, progress=False
+    )
+    table = run_robustness(options, tmp_path, run_evaluation, conditions, echo=lambda _: None)
+    for condition in conditions:
+        summary = json.loads((tmp_path / condition.name / "summary.json").read_text())
+        for key, value in condition.options.items():
+            assert summary["env_kwargs"][key] == value
+        assert summary["episodes"] == 2
+    header = next(line for line in table.splitlines() if line.startswith("| agent"))
+    assert header.split(" | ")[1:] == [c.name for c in conditions[:-1]] + [
+        conditions[-1].name + " |"
+    ]
+    rows = [line for line in table.splitlines() if line.startswith("| apf-mpc")]
+    assert len(rows) == 1 and rows[0].count(" / ") == 3 * len(conditions)
+    payload = json.loads((tmp_path / "robustness.json").read_text())
+    assert set(payload["agents"]) == {c.name for c in conditions}
+    exact = payload["agents"]["exact"]["zero"]
+    assert exact["success_rate"] == 0.0  # zero thrust never captures: the cells are real
+
+
+def test_a_condition_option_given_by_the_user_is_refused(tmp_path):
+    options = EvaluateOptions(
+        env_kwargs={"sensor_range": 10.0}, agents="zero", episodes=1, workers=1, progress=False
+    )
+    with pytest.raises(UsageError, match="sensor_range"):
+        run_robustness(options, tmp_path, run_evaluation, _pick("sensing-low"))
+
+
+def test_a_suite_takes_only_the_uncertain_worlds_options(tmp_path):
+    bad = EvaluateOptions(
+        suite="standard-2d-v2", env_kwargs={"n_obstacles": 3}, agents="zero", episodes=1,
+        out=tmp_path, workers=1, progress=False,
+    )  # fmt: skip
+    with pytest.raises(UsageError, match="n_obstacles"):
+        run_evaluation(bad)
