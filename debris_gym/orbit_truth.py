@@ -11,9 +11,10 @@ equations of motion in the Earth-centred inertial frame (ECI, z along the Earth'
 - Drag ([Vallado13] ch. 8): a_drag = −½ ρ(h) B |v_rel| v_rel, with B = C_D A / m (m²/kg, the
   inverse ballistic coefficient; 0 = no drag), the altitude h = |r| − R_E over a spherical
   Earth, and the velocity relative to an atmosphere turning with the Earth,
-  v_rel = ṙ − ω_E ẑ × r. The density ρ(h) is the piecewise-exponential model of [Vallado13]
-  table 8-4 (:data:`ATMOSPHERE`): ρ = ρ₀ exp(−(h − h₀)/H) in the band whose base h₀ is the
-  highest at or below h (the lowest band below 0 km, the highest above 1 000 km).
+  v_rel = ṙ − ω_E e_z × r (e_z the ECI z axis). The density ρ(h) is the piecewise-exponential
+  model of [Vallado13] table 8-4 (:data:`ATMOSPHERE`): ρ = ρ₀ exp(−(h − h₀)/H) in the band
+  whose base h₀ is the highest at or below h (the lowest band below 0 km, the highest above
+  1 000 km).
 - u: a body's thrust, given in LVLH axes and held constant in that frame over a step.
 
 The world stays the LVLH frame of the *actual* reference orbit, (R, V) with its perturbing
