@@ -34,6 +34,7 @@ COMPILED_MODULES = (
     "convex_polygons",
     "orbit_separation",
     "orbit_fields",
+    "orbit_truth",
     "geometry_kernels",
     "goal",
     "mission_step",
