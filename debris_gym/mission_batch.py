@@ -44,6 +44,7 @@ from debris_gym.observation import (
     observe_all,
     observe_all_threaded,
 )
+from debris_gym.orbit_truth import ATMOSPHERE, reference_start, substeps_for
 from debris_gym.uncertainty import navigate_rows
 
 __all__ = ["OBS_LIMIT", "MissionBatch", "Physics", "check_threads"]
@@ -159,8 +160,9 @@ class MissionBatch:
         arrived_stay: bool = False,
     ) -> None:
         n, d, t = num, cfg.dim, n_targets
-        if cfg.truth_model != "cw":
-            raise NotImplementedError(f"truth_model={cfg.truth_model!r} is not built yet")
+        truth = cfg.truth_model == "j2_drag"
+        if truth and (chasers != 1 or field_loop):
+            raise ValueError("truth_model='j2_drag' is for one chaser per field")
         if chasers < 1 or num % chasers:
             raise ValueError(f"chasers={chasers} must be at least 1 and divide num={num}")
         self.chasers = int(chasers)
@@ -183,6 +185,7 @@ class MissionBatch:
             body_matrix_t=np.ascontiguousarray(check_transition(model.ad).T),
             reach=body_reach(sub, d), n_chasers=chasers, chaser_separation=chaser_separation,
             field_loop=field_loop, arrived_stay=arrived_stay,
+            truth_substeps=substeps_for(dt), atmosphere=ATMOSPHERE,
         )  # fmt: skip
         self._turn_angles = (dt, dt / cfg.collision_substeps)
         self.shaping = make_shaping(cfg)
@@ -202,6 +205,16 @@ class MissionBatch:
         """(N, P, 6) cos, sin of each polygon's turn over one step, then one sub-step, then the
         two angles (rad)."""
         self.turns[:, :, 0] = self.turns[:, :, 2] = 1.0
+        # the truth model's reference orbit (set as each episode begins) and each body's
+        # C_D·A/m: the targets', then the other debris'
+        self.reference = np.zeros((fields, 6))
+        self.inv_ballistic = np.full((fields, n_bodies), 1.0 / cfg.ballistic_coefficient)
+        self.inv_ballistic[:, :t] = 1.0 / cfg.target_ballistic_coefficient
+        self._reference_start = (
+            reference_start(cfg.orbit_radius, math.radians(cfg.orbit_inclination))
+            if truth
+            else None
+        )
         self._outputs: StepOutputs = new_step_outputs(n)
         self._field_view: Field | None = None
         self._heads: dict[str, tuple] | None = None
@@ -239,7 +252,8 @@ class MissionBatch:
                 polygons=f.polygons, n_vertices=f.n_vertices, vertices=f.vertices,
                 velocities=f.velocities, attitude=f.attitude, turns=self.turns, dock=self.dock,
                 low=self.low, high=self.high, length_scale=self.length_scale,
-                speed_scale=self.speed_scale,
+                speed_scale=self.speed_scale, reference=self.reference,
+                inv_ballistic=self.inv_ballistic,
             )  # fmt: skip
             self._heads = None
         return view
@@ -316,6 +330,8 @@ class MissionBatch:
         rows = np.ascontiguousarray(rows, dtype=np.int64)
         if keys is not None:
             self.missions.noise_key[rows] = keys
+        if self._reference_start is not None:  # the reference orbit starts again
+            self.reference[np.unique(rows // self.chasers)] = self._reference_start
         states = None if states is None else np.ascontiguousarray(states, dtype=float)
         args = (rows, states, self.rules, self.shaping, self.missions, self.field_arrays)
         code = self._begin_code.get(states is None)

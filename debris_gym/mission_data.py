@@ -116,6 +116,15 @@ class Rules(NamedTuple):
     """1σ (rad) of the thrust direction's error per transverse axis."""
     thrust_miss_probability: float
     """Chance that the thrusters do not fire in a step."""
+    truth_orbits: bool
+    """``truth_model="j2_drag"``: the step's end states are those of absolute orbits with J2
+    and drag (:func:`debris_gym.orbit_truth.truth_step`), not of the CW model."""
+    truth_substeps: int
+    """Runge-Kutta sub-steps of the truth model per step."""
+    atmosphere: np.ndarray
+    """(K, 3) the truth model's density table (:data:`debris_gym.orbit_truth.ATMOSPHERE`)."""
+    chaser_inv_ballistic: float
+    """C_D·A/m (m²/kg) of the chaser and of the reference orbit."""
 
 
 class Shaping(NamedTuple):
@@ -219,6 +228,11 @@ class Field(NamedTuple):
     """(N,) the observation's length scale L (m)."""
     speed_scale: np.ndarray
     """(N,) the observation's speed scale V (m/s)."""
+    reference: np.ndarray
+    """(N, 6) the truth model's reference orbit, ECI position (m) and velocity (m/s) (unused
+    by the CW model)."""
+    inv_ballistic: np.ndarray
+    """(N, B) each body's C_D·A/m (m²/kg) in the truth model."""
 
 
 class StepOutputs(NamedTuple):
@@ -262,6 +276,15 @@ class StepScratch(NamedTuple):
     """(C,) each chaser's Δv of the step (m/s)."""
     mates: np.ndarray
     """(C,) bool: each chaser touched another in the step."""
+    truth_states: np.ndarray
+    """(1 + B, 6) the truth model's LVLH states of the chaser and the bodies (3D; empty
+    without the truth model)."""
+    truth_accels: np.ndarray
+    """(1 + B, 3) their thrust (m/s², LVLH)."""
+    truth_inv: np.ndarray
+    """(1 + B,) their C_D·A/m (m²/kg)."""
+    truth_work: np.ndarray
+    """The truth model's scratch (:func:`debris_gym.orbit_truth.truth_work`)."""
 
 
 def hold_steps(capture_hold: float, dt: float) -> int:
@@ -284,6 +307,8 @@ def make_rules(
     chaser_separation: float | None = None,
     field_loop: bool = False,
     arrived_stay: bool = False,
+    truth_substeps: int = 1,
+    atmosphere: np.ndarray | None = None,
 ) -> Rules:
     """The :class:`Rules` of ``cfg`` for fields of ``n_targets`` targets and the given physics
     (``body_matrix_t`` and ``reach``: see :class:`Rules`), ``n_chasers`` chasers per field that
@@ -327,6 +352,10 @@ def make_rules(
         thrust_sigma_magnitude=float(cfg.thrust_sigma_magnitude),
         thrust_sigma_pointing=float(cfg.thrust_sigma_pointing),
         thrust_miss_probability=float(cfg.thrust_miss_probability),
+        truth_orbits=cfg.truth_model == "j2_drag",
+        truth_substeps=int(truth_substeps),
+        atmosphere=np.zeros((1, 3)) if atmosphere is None else atmosphere,
+        chaser_inv_ballistic=1.0 / float(cfg.chaser_ballistic_coefficient),
     )
 
 

@@ -43,6 +43,7 @@ import numpy as np
 from debris_gym.batch_geometry import field_gaps
 from debris_gym.jit import borrowing, inlined, kernel, threaded
 from debris_gym.mission_data import StepScratch
+from debris_gym.orbit_truth import TRACK_WIDTH, truth_step
 from debris_gym.potential import nearest_obstacle, potential, speed_of, tour_potential
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.swept_contacts import moving_path_touches, pair_distance, path_touches
@@ -145,6 +146,56 @@ def move_bodies(f, matrix_t, centers, velocities, attitude, turns):
         cd, sd = turns[f, j, 0], turns[f, j, 1]
         attitude[f, j, 0] = c * cd - s * sd
         attitude[f, j, 1] = s * cd + c * sd
+
+
+@inlined
+def fly_truth(i, f, rules, state, start, accel, field, scratch):
+    """The truth model's step of row ``i`` (one chaser per field: its field ``f``): the chaser
+    from ``start`` under ``accel`` and every body of the field from its state before the step
+    fly absolute orbits with J2 and drag (:func:`~debris_gym.orbit_truth.truth_step`), the
+    reference orbit ``field.reference[f]`` with them; their end states replace the CW model's
+    in ``state[i]`` and the field. Called before the bodies' CW move (whose polygon turns are
+    kept). A 2D world keeps the in-plane part."""
+    dim = accel.shape[0]
+    states, accels, inv = scratch.truth_states, scratch.truth_accels, scratch.truth_inv
+    centers, velocities = field.centers, field.velocities
+    n_bodies = centers.shape[1]
+    for c in range(6):
+        states[0, c] = 0.0
+    for a in range(3):
+        accels[0, a] = 0.0
+    for a in range(dim):
+        states[0, a] = start[a]
+        states[0, 3 + a] = start[dim + a]
+        accels[0, a] = accel[a]
+    inv[0] = rules.chaser_inv_ballistic
+    for b in range(n_bodies):
+        r = 1 + b
+        for c in range(6):
+            states[r, c] = 0.0
+        for a in range(3):
+            accels[r, a] = 0.0
+        for a in range(dim):
+            states[r, a] = centers[f, b, a]
+            states[r, 3 + a] = velocities[f, b, a]
+        inv[r] = field.inv_ballistic[f, b]
+    truth_step(
+        field.reference[f], states, accels, inv, rules.chaser_inv_ballistic, True, rules.dt,
+        rules.truth_substeps, rules.atmosphere, scratch.truth_work,
+    )  # fmt: skip
+
+
+@inlined
+def land_truth(i, f, dim, state, field, scratch):
+    """Put the end states of :func:`fly_truth` into ``state[i]`` and the field's bodies."""
+    states = scratch.truth_states
+    for a in range(dim):
+        state[i, a] = states[0, a]
+        state[i, dim + a] = states[0, 3 + a]
+    for b in range(field.centers.shape[1]):
+        for a in range(dim):
+            field.centers[f, b, a] = states[1 + b, a]
+            field.velocities[f, b, a] = states[1 + b, 3 + a]
 
 
 @inlined
@@ -414,6 +465,7 @@ def step_scratch(rules, field):
     n_path = rules.step_matrix_t.shape[1] // dim  # start + every sub-step
     n_targets = rules.n_targets
     n_chasers = rules.n_chasers
+    n_truth = n_chasers + field.centers.shape[1] if rules.truth_orbits else 0
     return StepScratch(
         np.empty((n_chasers, n_path, dim)),
         np.empty((n_chasers, 2 * dim)),
@@ -426,6 +478,10 @@ def step_scratch(rules, field):
         np.empty(n_targets),
         np.empty(n_chasers),
         np.empty(n_chasers, dtype=np.bool_),
+        np.zeros((n_truth, 6)),
+        np.zeros((n_truth, 3)),
+        np.zeros(n_truth),
+        np.zeros((4 * rules.truth_substeps + 1 if rules.truth_orbits else 0, TRACK_WIDTH)),
     )
 
 
@@ -544,9 +600,13 @@ def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out, scrat
             idle_row(i, out)
             continue
         fly_row(i, i, 0, actions, rules, missions, field, scratch, dvs)
+        if rules.truth_orbits:  # from the states before the step
+            fly_truth(i, i, rules, missions.state, scratch.start[0], scratch.accel, field, scratch)
         if rules.moving:  # the bodies fly once the path has been checked against them
             move_bodies(i, rules.body_matrix_t, field.centers, field.velocities, field.attitude,
                         field.turns)  # fmt: skip
+        if rules.truth_orbits:
+            land_truth(i, i, scratch.accel.shape[0], missions.state, field, scratch)
         land_row(i, i, 0, rules, shaping, missions, field, out, scratch, dvs[0], False)
 
 

@@ -67,6 +67,21 @@ docking contact speeds, berthing capture boxes)."""
 V2_WORLD: dict[str, object] = {**PHYSICAL_WORLD, **HOLD_RULES}
 """Every option of the v2 world: the v1 world with :data:`HOLD_RULES`."""
 
+UNCERTAIN_WORLD: dict[str, object] = {
+    **V2_WORLD,
+    "nav_sigma_position": 1.0,
+    "nav_sigma_velocity": 0.01,
+    "thrust_sigma_magnitude": 0.05,
+    "thrust_sigma_pointing": 0.02,
+    "thrust_miss_probability": 0.01,
+    "truth_model": "j2_drag",
+    "sensor_range": 250.0,
+}
+"""The v2 world with every error of the uncertain world on at the order of a real proximity
+operation (docs/environments.md, "An uncertain world"): relative navigation to 1 m and 1 cm/s,
+thrust to 5 % and 0.02 rad with one step in a hundred missed, absolute orbits with J2 and drag
+(the debris' ballistic coefficient half the chaser's and the targets'), sensing to 250 m."""
+
 EASY_MISSION: dict[str, object] = {"n_targets": 1, "n_obstacles": 5, "return_to_dock": False}
 """The Easy rung of v1: one target among five other debris, no return (the mission ends at the
 capture)."""
@@ -91,6 +106,13 @@ def _rungs(version: str, world: dict[str, object]) -> dict[str, dict]:
 
 ENV_SPECS: dict[str, dict] = {
     **_rungs("v2", V2_WORLD),
+    **{
+        f"DebrisGym/Rendezvous{dim}D-Uncertain-v2": {
+            "max_episode_steps": 1000,
+            "kwargs": {"dim": dim, **UNCERTAIN_WORLD},
+        }
+        for dim in (2, 3)
+    },
     **_rungs("v1", PHYSICAL_WORLD),
     "DebrisGym/Rendezvous2D-v0": {"max_episode_steps": 1000, "kwargs": {"dim": 2}},
     "DebrisGym/Rendezvous3D-v0": {"max_episode_steps": 1000, "kwargs": {"dim": 3}},

@@ -32,6 +32,7 @@ PHYSICS = {
     "debris_gym.geometry_kernels",
     "debris_gym.batch_geometry",
     "debris_gym.orbit_separation",
+    "debris_gym.orbit_truth",
     "debris_gym.jit",
 }
 """The physics of debris_gym: CW motion, thrust, contacts and gaps, compiled."""

@@ -350,3 +350,15 @@ def test_the_shield_widens_its_margin_by_the_navigation_error():
     noisy = SafetyShield(DebrisFieldEnv(dim=2, **SMALL, nav_sigma_position=2.0))
     assert exact._own_margin() == 1.0
     assert noisy._own_margin() == pytest.approx(1.0 + 3.0 * math.sqrt(2.0) * 2.0)
+
+
+def test_the_uncertain_ids_are_the_v2_world_with_every_error_on():
+    from debris_gym.registration import ENV_SPECS, UNCERTAIN_WORLD
+
+    for dim in (2, 3):
+        spec = ENV_SPECS[f"DebrisGym/Rendezvous{dim}D-Uncertain-v2"]
+        v2 = ENV_SPECS[f"DebrisGym/Rendezvous{dim}D-v2"]
+        added = {k: v for k, v in spec["kwargs"].items() if k not in v2["kwargs"]}
+        assert {k: spec["kwargs"][k] for k in v2["kwargs"]} == v2["kwargs"]
+        assert added == {k: v for k, v in UNCERTAIN_WORLD.items() if k in UNCERTAINTY_KEYS}
+        assert spec["max_episode_steps"] == v2["max_episode_steps"]
