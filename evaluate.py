@@ -78,7 +78,8 @@ targets or slots (docs/swarm.md, "Baselines"), or a multi-agent team:
   team-AGENT@RULE           AGENT a baseline (apf-mpc, zero, ...), pretrained (the policy
                             shipped for the swarm's single-agent world) or ALGO:PATH; RULE
                             balanced (the env's; the default), greedy, optimal, minmax or
-                            auction
+                            auction; team-st-rrt plans in space-time around the plans of the
+                            chasers ahead of each (prioritised planning)
   ma-se-scp[@RULE]          multi-agent SE-SCP (docs/baselines.md)
 Default: team-apf-mpc and team-pretrained under every rule, and team-zero@balanced. Every
 team flies episode i from reset(seed=SEED + i), or the missions of a swarm suite (--suite
