@@ -78,7 +78,8 @@ targets or slots (docs/swarm.md, "Baselines"), or a multi-agent team:
   team-AGENT@RULE           AGENT a baseline (apf-mpc, zero, ...), pretrained (the policy
                             shipped for the swarm's single-agent world) or ALGO:PATH; RULE
                             balanced (the env's; the default), greedy, optimal, minmax or
-                            auction
+                            auction; team-st-rrt plans in space-time around the plans of the
+                            chasers ahead of each (prioritised planning)
   ma-se-scp[@RULE]          multi-agent SE-SCP (docs/baselines.md)
 Default: team-apf-mpc and team-pretrained under every rule, and team-zero@balanced. Every
 team flies episode i from reset(seed=SEED + i), or the missions of a swarm suite (--suite
@@ -87,8 +88,10 @@ team success, per-chaser outcomes, debris and teammate collisions, min separatio
 the assignment with its tour cost and gap to the optimal, decision time per chaser),
 assignments.csv (every rule on every field), summary.json, summary.md and trajectory plots
 (--plots N), and videos (--video N), in one process (default --out runs/eval-swarm).
---paper, --shield, --resume, --backend ray and several --workers do not apply and are
-refused.
+With --shield every chaser of every team flies behind a safety shield of its own that counts
+its teammates as bodies on their predicted tracks (shield_interventions in episodes.csv, per
+team and chaser; summary.json and the table summarise them; the title says so).
+--paper, --resume, --backend ray and several --workers do not apply and are refused.
 """
 
 from __future__ import annotations
@@ -119,6 +122,7 @@ examples:
   python evaluate.py --backend ray --address auto ...  # on the Ray cluster this node is part of
   python evaluate.py --env DebrisGym/Swarm2D-v0 --episodes 30        # every swarm team
   python evaluate.py --env DebrisGym/Swarm2D-v0 --agents team-apf-mpc@minmax,team-zero
+  python evaluate.py --env DebrisGym/Swarm2D-v0 --agents team-pretrained@minmax --shield
 """
 
 
@@ -269,7 +273,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="fly every agent behind the safety shield (run-time assurance): each command is "
         "checked against the bodies' predicted motion over a short horizon and replaced by "
         "the closest safe one; interventions are counted in episodes.csv, summary.json and "
-        "the table (docs/baselines.md, 'The safety shield')",
+        "the table (docs/baselines.md, 'The safety shield'); on swarm IDs one shield per "
+        "chaser, its teammates counted as bodies (docs/swarm.md)",
     )
     parser.add_argument(
         "--video",

@@ -5,7 +5,9 @@ evaluate.py on a swarm ID end to end."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 import itertools
+import json
 import math
 
 import numpy as np
@@ -17,8 +19,9 @@ pytest.importorskip("pettingzoo")
 
 from agents import make_agent
 from agents.control.mpc import MPCParams
+from agents.experiments.swarm_evaluation import SwarmEvaluateOptions, run_swarm_evaluation
 from agents.experiments.swarm_evaluation.report import episode_columns
-from agents.experiments.swarm_evaluation.teams import DEFAULT_TEAMS, parse_teams
+from agents.experiments.swarm_evaluation.teams import DEFAULT_TEAMS, make_team, parse_teams
 from agents.planners.team_assignment import (
     ASSIGNMENT_RULES,
     TeamField,
@@ -31,6 +34,7 @@ from agents.planners.team_assignment import (
 )
 from agents.policies.base import field_view, unwrap
 from agents.policies.chaser_view import ChaserView
+from agents.policies.shield import ShieldParams
 from agents.policies.team import TeamOfSingles, start_episode, team_field
 from debris_gym import swarm
 from debris_gym.envs import DebrisFieldEnv
@@ -351,10 +355,72 @@ def test_evaluate_py_draws_and_records_swarm_episodes(evaluate, tmp_path):
     assert 12 <= frames <= 13  # the reset frame and one per step (moviepy may drop the last)
 
 
+def _rows(out) -> list[dict[str, str]]:
+    with open(out / "episodes.csv", newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def test_a_shielded_swarm_evaluation_flies_every_team_behind_its_shields(tmp_path):
+    """Two chasers, short episodes: the shields act (the shielded flights differ from the
+    unshielded ones exactly where they replaced commands), and the tables say so."""
+    teams = "team-pretrained@minmax,team-zero"
+    common = {
+        "env": SWARM, "agents": teams, "episodes": 2, "max_steps": 30, "progress": False,
+        "plots": 0, "env_kwargs": {"n_chasers": 2, "n_targets": 2, "n_obstacles": 3},
+    }  # fmt: skip
+    options = SwarmEvaluateOptions.from_arguments({**common, "shield": True})
+    assert options.shield
+    text = run_swarm_evaluation(dataclasses.replace(options, out=tmp_path / "on"))
+    run_swarm_evaluation(SwarmEvaluateOptions(**common, out=tmp_path / "off"))
+    on, off = _rows(tmp_path / "on"), _rows(tmp_path / "off")
+    assert "**Shielded**" in text and "Safety shield: commands replaced" in text
+    assert [(r["agent"], r["seed"]) for r in on] == [(r["agent"], r["seed"]) for r in off]
+    for shielded, plain in zip(on, off, strict=True):
+        replaced = int(shielded["shield_interventions"])
+        per_chaser = [int(shielded[f"chaser{k}_shield_interventions"]) for k in range(2)]
+        assert replaced == sum(per_chaser)
+        assert int(plain["shield_interventions"]) == 0
+        for column in ("team_success", "clean_success", "team_captures", "collisions",
+                       "teammate_collisions", "min_separation", "chaser0_outcome"):  # fmt: skip
+            assert shielded[column] != ""
+        flown = [shielded[f"chaser{k}_delta_v"] for k in range(2)]
+        unshielded = [plain[f"chaser{k}_delta_v"] for k in range(2)]
+        # a shield that replaced nothing changed nothing; a replaced command is flown
+        # (the teammates may then react too: they see each other)
+        assert (flown != unshielded) == (replaced > 0), shielded["agent"]
+        assert replaced == 0 or any(
+            flown[k] != unshielded[k] for k in range(2) if per_chaser[k] > 0
+        )
+        if replaced:
+            assert 0.0 < float(shielded["shield_size_mean"]) <= float(shielded["shield_size_max"])
+    learned = [r for r in on if r["agent"] == "team-pretrained@minmax"]
+    assert sum(int(r["shield_interventions"]) for r in learned) > 0
+    with open(tmp_path / "on" / "summary.json") as fh:
+        summary = json.load(fh)
+    assert summary["shield"] == ShieldParams().to_dict()
+    entry = summary["teams"]["team-pretrained@minmax"]
+    assert entry["shield_interventions_mean"] > 0 and 0 < entry["shield_intervention_share"] <= 1
+    with open(tmp_path / "off" / "summary.json") as fh:
+        assert json.load(fh)["shield"] is None
+
+
+@pytest.mark.parametrize("name", ["team-apf-mpc@balanced", "ma-se-scp"])
+def test_every_kind_of_team_takes_the_shield(name):
+    env = swarm.make(SWARM, n_chasers=2, n_targets=2, n_obstacles=3, assignment="given")
+    team = make_team(parse_teams(name)[0], env, ShieldParams())
+    assert make_team(parse_teams(name)[0], env).shield_stats == []
+    observations, _, _ = start_episode(env, team, seed=1)
+    for _ in range(3):
+        observations, *_ = env.step(team.predict(observations))
+    assert [s.decisions for s in team.shield_stats] == [3, 3]
+    observations, _, _ = start_episode(env, team, seed=2)  # a new episode counts afresh
+    team.predict(observations)
+    assert [s.decisions for s in team.shield_stats] == [1, 1]
+
+
 @pytest.mark.parametrize(
     ("extra", "flag"),
     [
-        (["--shield"], "--shield"),
         (["--workers", "2"], "--workers"),
         (["--resume", "somewhere"], "--resume"),
         (["--agents", "apf-mpc"], "--agents"),

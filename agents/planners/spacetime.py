@@ -19,6 +19,13 @@ How the bodies are represented:
 * every body as its circumscribed circle / sphere (``Body.radius``): for a polygon this is
   conservative, and it makes the polygon's attitude irrelevant.
 
+Moving spheres besides the field's bodies (``movers``: the teammates of a swarm's chaser on their
+predicted tracks, :mod:`agents.planners.teammates`) join the bodies as extra columns: their
+positions on the same grid minus the frame body's, each grown by its own inflation plus the
+distance its true path may stray from the chords between grid points (its thrust limit plus the
+natural CWH term of its motion relative to the frame: :func:`~agents.planners.teammates.
+chord_error`).
+
 A straight space-time edge (p₀, t₀) → (p₁, t₁) is checked exactly against that representation:
 on each grid interval the chaser's position and every body's interpolated centre are both linear
 in time, so their difference is a segment and its distance to the origin has a closed form
@@ -32,6 +39,7 @@ import math
 import numpy as np
 
 from agents.planners.motion import FieldMotion
+from agents.planners.teammates import MovingSpheres, chord_error
 from debris_gym.dynamics import cwh_acceleration, discretize
 
 __all__ = ["SpaceTimeField"]
@@ -48,11 +56,19 @@ class SpaceTimeField:
         inflation: (n_bodies,) distance (m) every body is grown by (the chaser's radius plus a
             margin); a body with ``inf`` is left out. None: zeros.
         step: grid step h (s); None: the scenario's ``dt``.
+        movers: moving spheres to keep out of besides the bodies (a swarm's teammates), their
+            tracks (LVLH, m) at t₀, t₀ + h, … covering the window (K+1 positions or more);
+            None: none.
+        mover_inflation: distance (m) every mover is grown by (one, or one per mover).
+        mover_thrust: largest thrust acceleration (m/s²) of a mover that moves: its path
+            between grid points may stray from the chord by what this and its natural CWH
+            motion allow, which is added to its reach.
 
     Attributes:
         t0, t_end: the window (s).
         frame_track: (K+1, 2·dim) the frame body's LVLH state on the grid (zeros for LVLH).
         body_speed: (n_bodies,) largest speed (m/s) of each body in the planning frame on the grid.
+        n_movers: J, the movers; columns ``n_bodies … n_bodies + J − 1`` of :meth:`gaps`.
     """
 
     def __init__(
@@ -63,6 +79,9 @@ class SpaceTimeField:
         frame: int | None = None,
         inflation: np.ndarray | None = None,
         step: float | None = None,
+        movers: MovingSpheres | None = None,
+        mover_inflation: float | np.ndarray = 0.0,
+        mover_thrust: float = 0.0,
     ) -> None:
         scen = motion.scenario
         if not (math.isfinite(start_time) and start_time >= 0):
@@ -103,10 +122,42 @@ class SpaceTimeField:
             raise ValueError(f"inflation must be a ({n_bodies},) array of distances (m)")
         self.inflation = inflation
         self.active = np.isfinite(inflation)
+        self.n_movers = 0
+        if movers is not None and movers.count:
+            self._add_movers(movers, mover_inflation, mover_thrust, scen.mean_motion)
         # distance a centre must keep: radius + inflation + interpolation error
-        self.reach = np.where(self.active, self.radii + inflation + self.interp_error, -np.inf)
+        self.reach = np.where(self.active, self.radii + self.inflation + self.interp_error, -np.inf)
         self.low = scen.low
         self.high = scen.high
+
+    def _add_movers(
+        self, movers: MovingSpheres, inflation: float | np.ndarray, thrust: float, n: float
+    ) -> None:
+        """Append the movers' columns to the bodies' (centres, radii, inflation, chord error)."""
+        count, j = len(self.centres), movers.count
+        tracks = np.asarray(movers.tracks, dtype=float)
+        if tracks.shape[1] < count or tracks.shape[2] != self.dim:
+            raise ValueError(
+                f"movers' tracks must cover the window: ({j}, >= {count}, {self.dim}) "
+                f"positions, got shape {tracks.shape}"
+            )
+        grow = np.broadcast_to(np.asarray(inflation, dtype=float), (j,))
+        if np.any(np.isnan(grow)):
+            raise ValueError(f"mover_inflation must be distances (m), got {inflation!r}")
+        if not (math.isfinite(thrust) and thrust >= 0):
+            raise ValueError(f"mover_thrust must be finite and >= 0 m/s², got {thrust!r}")
+        rel = tracks[:, :count] - self.frame_track[None, :, : self.dim]  # (J, K+1, d)
+        # a mover that stands still in LVLH does not thrust; in a body's frame it still moves
+        still = ~np.any(tracks[:, 1:count] != tracks[:, : count - 1], axis=(1, 2))
+        error = chord_error(rel, self.h, n, np.where(still, 0.0, thrust))
+        self.centres = np.ascontiguousarray(
+            np.concatenate([self.centres, rel.transpose(1, 0, 2)], axis=1)
+        )
+        self.radii = np.concatenate([self.radii, np.asarray(movers.radii, dtype=float)])
+        self.inflation = np.concatenate([self.inflation, grow])
+        self.active = np.concatenate([self.active, np.isfinite(grow)])
+        self.interp_error = np.concatenate([self.interp_error, error])
+        self.n_movers = j
 
     # --- time grid ----------------------------------------------------------------------------
 

@@ -17,6 +17,11 @@ or below which two chasers collide), so growing it by the chaser's radius, like 
 field, gives the collision distance. :func:`sphere_halfspaces` gives the MPC's keep-out
 half-spaces of the nearest of them around each predicted position (the same supporting
 half-spaces as for a round body: :class:`agents.control.mpc.MPCTracker`).
+
+Between two predicted positions a teammate is taken on the chord; :func:`chord_error` bounds its
+distance from the true path (a·dt²/8 for an acceleration bounded by a: its thrust limit plus
+the natural CWH term along the track, 5 % spare), which the safety shield and the space-time
+planner add to its reach.
 """
 
 from __future__ import annotations
@@ -25,7 +30,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["MovingSpheres", "keepout_halfspaces", "predict_tracks", "sphere_halfspaces"]
+from debris_gym.dynamics import cwh_acceleration
+
+__all__ = [
+    "MovingSpheres",
+    "chord_error",
+    "keepout_halfspaces",
+    "predict_tracks",
+    "sphere_halfspaces",
+]
 
 
 @dataclass(frozen=True)
@@ -111,6 +124,35 @@ def predict_tracks(
             out[j, i] = planned[i, :d] + deviation[:d]
             deviation = step_matrix @ deviation
     return out
+
+
+def chord_error(
+    tracks: np.ndarray, dt: float, mean_motion: float, thrust: float | np.ndarray
+) -> np.ndarray:
+    """How far (m) each track's true path may stray from the chords between its positions.
+
+    Between two positions dt apart a path whose acceleration is bounded by a lies within
+    a·dt²/8 of its chord. The bound a is ``thrust`` plus the largest natural CWH acceleration
+    along the track (its velocity taken from the chords), with 5 % to spare; a track that does
+    not move strays not at all.
+
+    Args:
+        tracks: (J, S + 1, dim) positions (m) at t, t + dt, …, t + S·dt, S >= 1.
+        dt: the spacing (s), > 0.
+        mean_motion: n (rad/s) of the frame the tracks are in, >= 0.
+        thrust: largest thrust acceleration (m/s²), one or (J,).
+
+    Returns:
+        (J,) distances (m).
+    """
+    tracks = np.asarray(tracks, dtype=float)
+    if tracks.shape[0] == 0:
+        return np.zeros(0)
+    step = tracks[:, 1:] - tracks[:, :-1]
+    moving = np.any(step != 0.0, axis=(1, 2))
+    chords = np.concatenate([tracks[:, :-1], step / dt], axis=2)
+    natural = np.linalg.norm(cwh_acceleration(chords, mean_motion), axis=2).max(axis=1)
+    return np.where(moving, 1.05 * (np.asarray(thrust, dtype=float) + natural) * dt**2 / 8.0, 0.0)
 
 
 def sphere_halfspaces(

@@ -167,10 +167,11 @@ def field_view(env: Any) -> FieldView:
     return base
 
 
-def teammates_of(view: FieldView) -> Callable[[int], MovingSpheres] | None:
-    """What a view says of the other chasers in its field: its ``teammates(steps)`` (one chaser
-    of a swarm, :class:`agents.policies.chaser_view.ChaserView`: the others as spheres on
-    their predicted tracks over ``steps`` steps), or None (a single env has no teammates)."""
+def teammates_of(view: FieldView) -> Callable[..., MovingSpheres] | None:
+    """What a view says of the other chasers in its field: its ``teammates(steps, ahead=False)``
+    (one chaser of a swarm, :class:`agents.policies.chaser_view.ChaserView`: the others, or
+    with ``ahead`` those ahead of it in the team's order and the held ones, as spheres on their
+    predicted tracks over ``steps`` steps), or None (a single env has no teammates)."""
     source = getattr(view, "teammates", None)
     return source if callable(source) else None
 

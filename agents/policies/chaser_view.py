@@ -170,13 +170,20 @@ class ChaserView:
         """Whether the chaser has not ended its mission."""
         return bool(self.core.flying[self.row])
 
-    def teammates(self, steps: int) -> MovingSpheres:
+    def teammates(self, steps: int, ahead: bool = False) -> MovingSpheres:
         """The other chasers of the field still in it (flying, or held at their slots in a
         reconfiguration), each a sphere of radius ``r_col`` − ``chaser_radius`` (grown by the
         chaser's radius, the collision distance) on its predicted track over ``steps`` steps
         (:func:`~agents.planners.teammates.predict_tracks`): its shared plan flown on from its
         state now, coasting without one (a plan from the future or older than its horizon is
         none), standing still when held.
+
+        Args:
+            steps: the horizon (steps).
+            ahead: only the chasers ahead of this one in the team's order of priority (a lower
+                index: they decide first in a step, so their plans of this step are known),
+                and those held at their slots (which stand still for everyone): what a
+                prioritised planner avoids.
 
         Raises:
             RuntimeError: the swarm has not been reset.
@@ -190,7 +197,11 @@ class ChaserView:
         others = [self.field * k + q for q in range(k) if q != self.chaser]
         flying = core.flying[others]
         held = missions.success[others] & bool(core.swarm.reconfigure)
-        rows = [r for r, f, h in zip(others, flying, held, strict=True) if f or h]
+        rows = [
+            r
+            for r, f, h in zip(others, flying, held, strict=True)
+            if h or (f and (not ahead or r < self.row))
+        ]
         dim, dt, now = self.dim, float(scenario.dt), self.elapsed
         plans: list[np.ndarray | None] = []
         offsets = np.zeros(len(rows), dtype=np.int64)

@@ -61,6 +61,8 @@ from agents.planners.swarm_expansion import (
 from agents.planners.team_assignment import TeamAssignment, assign
 from agents.policies.chaser_view import ChaserView
 from agents.policies.se_scp import SESCPAgent
+from agents.policies.shield import ShieldParams
+from agents.policies.shielded import ShieldStats, TeamShield
 from agents.policies.team import check_team_env, team_field
 
 __all__ = ["ExplorationRecord", "MASESCPTeam", "SwarmMember", "TeammateSpheres"]
@@ -220,6 +222,10 @@ class MASESCPTeam:
         expansion: spherical-expansion tunables (``min_radius`` and the edge rule are used
             by the team's graph too); None: the "se-scp" defaults.
         scp: trajectory-programme tunables; None: the "se-scp" defaults (soft spheres).
+        shield: the safety shield's parameters, to filter every chaser's commands through a
+            shield of its own on its view that counts the teammates as bodies
+            (:class:`~agents.policies.shielded.TeamShield`; the members share no plans, so it
+            predicts them coasting); None: no shield.
         **params: further :class:`~agents.policies.se_scp.SESCPAgent` parameters.
 
     Raises:
@@ -241,6 +247,7 @@ class MASESCPTeam:
         seed: int = 0,
         expansion: ExpansionParams | None = None,
         scp: SCPParams | None = None,
+        shield: ShieldParams | None = None,
         **params: Any,
     ) -> None:
         core = check_team_env(env, rule, "ma-se-scp assigns the targets itself")
@@ -264,6 +271,8 @@ class MASESCPTeam:
             SwarmMember(view, self, expansion=expansion, scp=self.scp_base, seed=seed + k, **params)
             for k, view in enumerate(self.views)
         ]
+        self.shield = None if shield is None else TeamShield(self.views, shield)
+        """The chasers' shields (None: unshielded)."""
         self.params: SwarmParams | None = None
         self.graphs: SwarmGraphs | None = None
         self.last_exploration: ExplorationRecord | None = None
@@ -331,9 +340,18 @@ class MASESCPTeam:
             flying = np.array([self._index[a] for a in names], dtype=np.int64)
             if len(flying):
                 self.graphs.iterate(self._rng, flying)
-        return {
-            a: np.asarray(self.members[self._index[a]].predict(observations[a])[0]) for a in names
+        actions = {
+            self._index[a]: np.asarray(self.members[self._index[a]].predict(observations[a])[0])
+            for a in names
         }
+        if self.shield is not None:
+            actions = self.shield.filter(actions)
+        return {self.agents[k]: np.asarray(action) for k, action in actions.items()}
+
+    @property
+    def shield_stats(self) -> list[ShieldStats]:
+        """Each chaser's shield counters this episode (empty without a shield)."""
+        return [] if self.shield is None else self.shield.stats
 
     # --- what the members read ----------------------------------------------------------------
 

@@ -56,6 +56,7 @@ import numpy as np
 
 from agents.planners.motion import FieldMotion
 from agents.planners.spacetime import SpaceTimeField
+from agents.planners.teammates import chord_error
 from agents.policies.base import field_view, teammates_of
 from debris_gym.dynamics import cwh_acceleration, discretize
 from debris_gym.envs.common import (
@@ -378,12 +379,8 @@ class SafetyShield:
         frac = (np.arange(p.horizon_steps * p.substeps + 1) / p.substeps)[:, None, None]
         k = np.minimum(frac[:, 0, 0].astype(np.int64), p.horizon_steps - 1)
         sampled = tracks[k] + (frac - k[:, None, None]) * (tracks[k + 1] - tracks[k])
-        moving = np.any(tracks[1:] != tracks[:-1], axis=(0, 2))  # (J,) not held
         thrust = max_accel * (math.sqrt(d) if self.thrust_model == "box" else 1.0)
-        # the natural CWH term along each track, its velocity taken from the chords
-        chords = np.concatenate([tracks[:-1], (tracks[1:] - tracks[:-1]) / dt], axis=2)
-        natural = np.linalg.norm(cwh_acceleration(chords, n), axis=2).max(axis=0)  # (J,)
-        chord = np.where(moving, 1.05 * (thrust + natural) * dt**2 / 8.0, 0.0)
+        chord = chord_error(mates.tracks, dt, n, thrust)
         mate_reach = mates.radii + self.chaser_radius + chord
         own = self._own_margin()
         return (

@@ -1,13 +1,17 @@
-"""The safety shield around an agent (:class:`ShieldedAgent`) or an env (:class:`ShieldWrapper`),
-with per-episode intervention counters (:class:`ShieldStats`).
+"""The safety shield around an agent (:class:`ShieldedAgent`), a team (:class:`TeamShield`) or an
+env (:class:`ShieldWrapper`), with per-episode intervention counters (:class:`ShieldStats`).
 
 ``ShieldedAgent`` filters a ``predict()`` agent's actions for evaluation (``evaluate.py
---shield``); ``ShieldWrapper`` filters every action a learner sends to a single env, for
-training with the shield on, and reports the counters in ``info``.
+--shield``); ``TeamShield`` filters every chaser's action of a swarm team, each through a shield
+on the chaser's view, which counts the teammates as bodies (``evaluate.py --shield`` on swarm
+IDs); ``ShieldWrapper`` filters every action a learner sends to a single env, for training with
+the shield on, and reports the counters in ``info``. The first two count through a
+:class:`ShieldFilter`.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, SupportsFloat
 
@@ -17,7 +21,7 @@ import numpy as np
 from agents.policies.base import unwrap
 from agents.policies.shield import SafetyShield, ShieldParams
 
-__all__ = ["ShieldStats", "ShieldWrapper", "ShieldedAgent"]
+__all__ = ["ShieldFilter", "ShieldStats", "ShieldWrapper", "ShieldedAgent", "TeamShield"]
 
 
 @dataclass
@@ -59,6 +63,35 @@ class ShieldStats:
         }
 
 
+class ShieldFilter:
+    """A :class:`SafetyShield` on one env (or a swarm chaser's view) with the counters of the
+    episode it is in: :attr:`stats` starts afresh when the env was reset since the last call
+    (another field, or its clock went back) or when told.
+
+    Args:
+        env: the env (or field view) the filtered commands fly in.
+        params: the shield's tunables (None: defaults).
+    """
+
+    def __init__(self, env: Any, params: ShieldParams | None = None) -> None:
+        self.shield = SafetyShield(env, params)
+        self.stats = ShieldStats()
+        self._clock: tuple[Any, float] | None = None  # (scenario, elapsed) of the last call
+
+    def filter(self, action: Any, new_episode: bool = False) -> Any:
+        """``action`` itself when the shield lets it pass, else the shield's safe action; the
+        decision is counted in :attr:`stats`."""
+        env = self.shield.env
+        clock = (env.scenario, env.elapsed)
+        fresh = self._clock is None or clock[0] is not self._clock[0] or clock[1] < self._clock[1]
+        if fresh or new_episode:
+            self.stats = ShieldStats()
+        self._clock = clock
+        decision = self.shield.decide(action)
+        self.stats.add(decision.intervened, decision.size)
+        return decision.action if decision.intervened else action
+
+
 class ShieldedAgent:
     """Any ``predict()`` agent with its actions filtered by a :class:`SafetyShield`.
 
@@ -76,9 +109,17 @@ class ShieldedAgent:
         if not callable(getattr(agent, "predict", None)):
             raise TypeError(f"agent must have a predict() method, got {type(agent).__name__}")
         self.agent = agent
-        self.shield = SafetyShield(env, params)
-        self.stats = ShieldStats()
-        self._clock: tuple[Any, float] | None = None  # (scenario, elapsed) of the last call
+        self.filter = ShieldFilter(env, params)
+
+    @property
+    def shield(self) -> SafetyShield:
+        """The shield."""
+        return self.filter.shield
+
+    @property
+    def stats(self) -> ShieldStats:
+        """This episode's counters."""
+        return self.filter.stats
 
     @property
     def episode_independent(self) -> bool:
@@ -105,20 +146,37 @@ class ShieldedAgent:
         action, state = self.agent.predict(
             observation, state=state, episode_start=episode_start, deterministic=deterministic
         )
-        clock = (env.scenario, env.elapsed)
-        fresh = self._clock is None or clock[0] is not self._clock[0] or clock[1] < self._clock[1]
-        if fresh or (episode_start is not None and bool(np.any(episode_start))):
-            self.stats = ShieldStats()
-        self._clock = clock
         single = np.asarray(action)[0] if batch else action
-        decision = self.shield.decide(single)
-        self.stats.add(decision.intervened, decision.size)
-        if not decision.intervened:
+        new_episode = episode_start is not None and bool(np.any(episode_start))
+        safe = self.filter.filter(single, new_episode)
+        if safe is single:
             return action, state
-        safe = decision.action
         if batch:
             safe = np.asarray([safe], dtype=np.asarray(action).dtype)
         return safe, state
+
+
+class TeamShield:
+    """One :class:`ShieldFilter` per chaser of a swarm team, each on the chaser's view
+    (:class:`~agents.policies.chaser_view.ChaserView`), whose shield counts the teammates
+    still in the field as bodies on their predicted tracks (:mod:`agents.policies.shield`).
+
+    Args:
+        views: the chasers' views, in chaser order.
+        params: the shield's tunables (None: defaults).
+    """
+
+    def __init__(self, views: Sequence[Any], params: ShieldParams | None = None) -> None:
+        self.filters = [ShieldFilter(view, params) for view in views]
+
+    @property
+    def stats(self) -> list[ShieldStats]:
+        """Each chaser's counters this episode."""
+        return [f.stats for f in self.filters]
+
+    def filter(self, actions: dict[int, Any]) -> dict[int, Any]:
+        """Each chaser's action (chaser index → action) through its chaser's shield."""
+        return {k: self.filters[k].filter(a) for k, a in actions.items()}
 
 
 class ShieldWrapper(gym.Wrapper):

@@ -23,6 +23,20 @@ ended ``stall_steps`` ago without the goal being met, and ``retry_steps`` after 
 (meanwhile a straight line to the goal at half the planning speed is tracked, guarded by the
 MPC's keep-out). The search's generator is re-seeded from ``seed`` every episode, so episodes
 are repeatable.
+
+Flying one chaser of a swarm (a view with ``teammates``:
+:class:`~agents.policies.chaser_view.ChaserView`), the planning is *prioritised*: the chasers
+decide in their team's order and share their plans, and a chaser's space-time field holds, as
+moving bodies besides the debris, the chasers ahead of it in that order (and any held at its
+formation slot) — each a sphere of the collision distance on its predicted track, the plan it
+shared flown on from where it is (:meth:`ChaserView.teammates` with ``ahead=True``), grown by
+the chaser's radius and the keep-out margin; the chasers behind it plan around it in turn. The
+plan is made again, at most every ``retry_steps`` decisions, when a teammate ahead has changed
+its plan so that the trajectory would come within the collision distance plus half the margin
+of it. The plan shared (:meth:`STRRTAgent.planned_states`) is the MPC's solution over its
+horizon followed by the trajectory, to its end and ``stall_steps`` beyond (held at the goal).
+The MPC keeps out of every teammate besides (``MPCParams.teammates_per_step`` nearest, as the
+other MPC members do), a safety net for what the prediction misses.
 """
 
 from __future__ import annotations
@@ -37,8 +51,10 @@ from agents.planners.mission import Goal, MissionPlan
 from agents.planners.motion import FieldMotion
 from agents.planners.spacetime import SpaceTimeField
 from agents.planners.st_rrt import STRRTParams, st_rrt_star
+from agents.planners.teammates import MovingSpheres
 from agents.planners.tube import SmoothParams, build_tube, smooth_in_tube
-from agents.policies.base import ClassicalAgent
+from agents.policies.base import ClassicalAgent, teammates_of
+from debris_gym.dynamics import discretize
 from debris_gym.geometry import FieldGeometry
 from debris_gym.scenario import Scenario
 
@@ -62,13 +78,18 @@ class STRRTAgent(ClassicalAgent):
             re-plan; None: 2 % of the world size.
         stall_steps: re-plan after the trajectory has ended this many steps ago with the goal
             unmet.
-        retry_steps: decisions between attempts after a failed search.
+        retry_steps: decisions between attempts after a failed search (and between re-plans
+            for a teammate ahead).
+        teammates: flying one chaser of a swarm, plan around the teammates ahead of it
+            (prioritised planning, above); False: the plan leaves them out (the MPC still keeps
+            out of them, per ``mpc.teammates_per_step``). No effect on a single env.
 
     Attributes:
         tracker: the episode's :class:`MPCTracker`.
-        stats: per-episode counters: plans, replans, stall_replans, plan_failures,
-            smooth_failures (QP unsolved: the raw path is tracked), unbounded_smooths (solved
-            only without the acceleration bound), plan_time (s, total).
+        stats: per-episode counters: plans, replans, stall_replans, teammate_replans,
+            plan_failures, smooth_failures (QP unsolved: the raw path is tracked),
+            unbounded_smooths (solved only without the acceleration bound), plan_time (s,
+            total).
         plan_times: wall time (s) of every plan since the agent was built.
         decision_times: wall time (s) of every :meth:`act` call since the agent was built.
         trajectory_log: (times, LVLH positions) of every trajectory this episode.
@@ -88,6 +109,7 @@ class STRRTAgent(ClassicalAgent):
         replan_distance: float | None = None,
         stall_steps: int = 20,
         retry_steps: int = 5,
+        teammates: bool = True,
     ) -> None:
         super().__init__(env)
         for name, value in (("stall_steps", stall_steps), ("retry_steps", retry_steps)):
@@ -95,6 +117,8 @@ class STRRTAgent(ClassicalAgent):
                 raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
         if not (isinstance(seed, int) and seed >= 0):
             raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+        if not isinstance(teammates, bool):
+            raise ValueError(f"teammates must be True or False, got {teammates!r}")
         if replan_distance is not None and not replan_distance > 0:
             raise ValueError(f"replan_distance must be > 0 m or None, got {replan_distance!r}")
         self.planner_params = planner
@@ -105,6 +129,9 @@ class STRRTAgent(ClassicalAgent):
         self.replan_distance = replan_distance
         self.stall_steps = stall_steps
         self.retry_steps = retry_steps
+        self.plan_around_teammates = teammates
+        self._teammates = teammates_of(self.env)
+        self._planned: tuple[float, np.ndarray] | None = None
         self._tracker: MPCTracker | None = None
         self.stats: dict[str, Any] = {}
         self.plan_times: list[float] = []
@@ -125,10 +152,15 @@ class STRRTAgent(ClassicalAgent):
         moving = self.motion if scenario.moving else None
         self.mission = MissionPlan(scenario, cfg, self.ordering, motion=moving)
         self.geometry = FieldGeometry(scenario)
+        movers = self.mpc_params.teammates_per_step if self._teammates is not None else 0
         self._tracker = MPCTracker(
             scenario, self.mpc_params, thrust_model=cfg.thrust_model,
             chaser_radius=cfg.chaser_radius, geometry=self.geometry, motion=moving,
+            movers=movers,
         )  # fmt: skip
+        self._step_matrix = discretize(scenario.mean_motion, scenario.dt, scenario.dim).ad
+        self._planned = None
+        self._mates_retry_at = -np.inf
         size = scenario.size
         cruise = np.sqrt(0.035 * scenario.max_accel * size)
         self.params = self.planner_params or STRRTParams(
@@ -146,8 +178,8 @@ class STRRTAgent(ClassicalAgent):
         self._retry_at = -np.inf
         self._margins: dict[int, float] = {}
         self.stats = {
-            "plans": 0, "replans": 0, "stall_replans": 0, "plan_failures": 0,
-            "smooth_failures": 0, "unbounded_smooths": 0, "plan_time": 0.0,
+            "plans": 0, "replans": 0, "stall_replans": 0, "teammate_replans": 0,
+            "plan_failures": 0, "smooth_failures": 0, "unbounded_smooths": 0, "plan_time": 0.0,
         }  # fmt: skip
         self.trajectory_log: list[tuple[np.ndarray, np.ndarray]] = []
 
@@ -168,7 +200,11 @@ class STRRTAgent(ClassicalAgent):
             self._new_plan(state, now)
         elif self._goal is not None and self._needs_plan(state, now):
             self._new_plan(state, now)
-        if self._goal is None or self._traj is None:
+        mates = None
+        if self._teammates is not None and self.mpc_params.teammates_per_step:
+            mates = self._teammates(self.tracker.N)
+        braked = self._goal is None or self._traj is None
+        if braked:
             accel = self.tracker.brake(state)
         else:
             ref_pos, ref_vel = self._reference(now)
@@ -178,10 +214,79 @@ class STRRTAgent(ClassicalAgent):
                 ref_vel,
                 margins=self.tracker.reachable_margins(state[:d], now, self._margins),
                 now=now,
+                movers=mates,
             )
+        if self._teammates is not None:
+            self._share_plan(state, now, braked)
         action = self.accel_to_action(accel)
         self.decision_times.append(time.perf_counter() - t0)
         return action
+
+    def planned_states(self) -> tuple[float, np.ndarray] | None:
+        """What the agent plans to fly, as of its last decision (kept only when it flies one
+        chaser of a team): the decision's time (s) and the LVLH states (P + 1, 2·dim) at it and
+        at each of the P steps after (m, m/s) — the MPC's solution over its horizon, then the
+        trajectory to its end and ``stall_steps`` beyond, held at the goal; None when it
+        braked instead (the MPC failed, or nothing is left to do) or has not decided this
+        episode."""
+        return self._planned
+
+    def _share_plan(self, state: np.ndarray, now: float, braked: bool) -> None:
+        """Keep this decision's plan for :meth:`planned_states`."""
+        solution = self.tracker.last_solution
+        if braked or self._traj is None or solution is None or not solution.ok:
+            self._planned = None
+            return
+        head = np.vstack([state, solution.states])
+        dt = self.scenario.dt
+        steps = int(np.ceil((self._traj[0][-1] - now) / dt - 1e-9)) + self.stall_steps
+        if steps < len(head):
+            self._planned = (now, head)
+            return
+        k = np.arange(len(head), steps + 1)
+        rel_pos, rel_vel = self._planned_track(now + dt * k)
+        frame = self._frame_states(now, steps)[k]
+        tail = np.concatenate([rel_pos, rel_vel], axis=1) + frame
+        self._planned = (now, np.vstack([head, tail]))
+
+    def _frame_states(self, now: float, steps: int) -> np.ndarray:
+        """(steps + 1, 2·dim) LVLH states of the planning frame's origin at now, now + dt, …
+        (the frame body's unforced CW motion, stepped exactly)."""
+        out = np.empty((steps + 1, 2 * self.env.dim))
+        out[0] = self._frame_state(now)
+        moving = self._frame is not None and self.motion.moving
+        for i in range(1, steps + 1):
+            out[i] = self._step_matrix @ out[i - 1] if moving else out[0]
+        return out
+
+    def _trajectory_positions(self, now: float, steps: int) -> np.ndarray:
+        """(steps + 1, dim) LVLH positions of the trajectory at now, now + dt, … (held at its
+        end)."""
+        d, dt = self.env.dim, self.scenario.dt
+        rel, _ = self._planned_track(now + dt * np.arange(steps + 1))
+        return rel + self._frame_states(now, steps)[:, :d]
+
+    def _conflicts_with_teammates(self, now: float) -> bool:
+        """Whether the trajectory, from now to its end, comes within the collision distance
+        plus half the keep-out margin of a teammate ahead on its predicted track."""
+        if self._teammates is None or not self.plan_around_teammates or self._traj is None:
+            return False
+        if now < self._mates_retry_at:
+            return False
+        steps = max(1, int(np.ceil((self._traj[0][-1] - now) / self.scenario.dt - 1e-9)))
+        mates = self._teammates(steps, ahead=True)
+        if mates.count == 0:
+            return False
+        mine = self._trajectory_positions(now, steps)
+        # between two steps both are taken on their chords: the least distance of the
+        # relative segment from the origin, in closed form
+        rel = mine[None] - mates.tracks[:, : steps + 1]  # (J, S + 1, d)
+        a, seg = rel[:, :-1], rel[:, 1:] - rel[:, :-1]
+        den = np.maximum(np.einsum("jsd,jsd->js", seg, seg), 1e-300)
+        frac = np.clip(-np.einsum("jsd,jsd->js", a, seg) / den, 0.0, 1.0)
+        gaps = np.linalg.norm(a + frac[..., None] * seg, axis=2)
+        keep = mates.radii + self.env.config.chaser_radius + 0.5 * self.tracker.keepout_margin
+        return bool(np.any(gaps < keep[:, None]))
 
     # --- reference ----------------------------------------------------------------------------
 
@@ -190,7 +295,7 @@ class STRRTAgent(ClassicalAgent):
         or zeros for the dock."""
         return self.motion.body_state(self._frame, t if self.motion.moving else 0.0)
 
-    def _planned(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _planned_track(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Trajectory positions and velocities (goal frame) at times ``t`` (held at the end)."""
         if self._traj is None:
             raise RuntimeError("no trajectory planned")
@@ -203,7 +308,7 @@ class STRRTAgent(ClassicalAgent):
     def _reference(self, now: float) -> tuple[np.ndarray, np.ndarray]:
         """Reference positions / velocities (LVLH) at now + k·dt, k = 1 … N."""
         n_steps, d, dt = self.tracker.N, self.env.dim, self.scenario.dt
-        rel_pos, rel_vel = self._planned(now + dt * np.arange(1, n_steps + 1))
+        rel_pos, rel_vel = self._planned_track(now + dt * np.arange(1, n_steps + 1))
         track = self.motion.body_track(self._frame, now, n_steps)
         return rel_pos + track[:, :d], rel_vel + track[:, d:]
 
@@ -213,12 +318,16 @@ class STRRTAgent(ClassicalAgent):
         if self._traj is None:
             return now >= self._retry_at
         here = state[:d] - self._frame_state(now)[:d]
-        planned, _ = self._planned(np.array([now]))
+        planned, _ = self._planned_track(np.array([now]))
         if np.linalg.norm(here - planned[0]) > self._replan_distance:
             self.stats["replans"] += 1
             return True
         if now > self._traj[0][-1] + self.stall_steps * self.scenario.dt:
             self.stats["stall_replans"] += 1
+            return True
+        if self._conflicts_with_teammates(now):
+            self.stats["teammate_replans"] += 1
+            self._mates_retry_at = now + self.retry_steps * self.scenario.dt
             return True
         return False
 
@@ -239,6 +348,24 @@ class STRRTAgent(ClassicalAgent):
         present = np.linalg.norm(centres - position, axis=1) - radii
         return np.minimum(inflation, present - 0.05)
 
+    def _mates_ahead(self, now: float, horizon: float) -> MovingSpheres | None:
+        """The teammates ahead of this chaser on their predicted tracks over a planning
+        window of ``horizon`` s from ``now`` (None: none to plan around)."""
+        if self._teammates is None or not self.plan_around_teammates:
+            return None
+        dt = self.scenario.dt
+        steps = max(2, int(np.ceil(horizon / dt)) + 1) - 1  # the window's grid (SpaceTimeField)
+        return self._teammates(steps, ahead=True)
+
+    def _mover_inflation(self, position: np.ndarray, movers: MovingSpheres | None) -> np.ndarray:
+        """Per-teammate growth (m): chaser radius + keep-out margin, never more than the
+        chaser's present gap to its sphere (the start stays a valid state)."""
+        if movers is None or movers.count == 0:
+            return np.zeros(0)
+        grow = self.env.config.chaser_radius + self.tracker.keepout_margin
+        present = np.linalg.norm(movers.tracks[:, 0] - position, axis=1) - movers.radii
+        return np.minimum(grow, present - 0.05)
+
     def _new_plan(self, state: np.ndarray, now: float) -> None:
         goal = self._goal
         if goal is None:
@@ -254,9 +381,13 @@ class STRRTAgent(ClassicalAgent):
         rel = state - frame_state
         goal_rel = goal.point - frame_state[:d]
         p = self.params
+        movers = self._mates_ahead(now, p.horizon)
+        thrust = scen.max_accel * (np.sqrt(d) if cfg.thrust_model == "box" else 1.0)
         field = SpaceTimeField(
-            self.motion, now, p.horizon, self._frame, self._inflation(state[:d], now, goal)
-        )
+            self.motion, now, p.horizon, self._frame, self._inflation(state[:d], now, goal),
+            movers=movers, mover_inflation=self._mover_inflation(state[:d], movers),
+            mover_thrust=float(thrust),
+        )  # fmt: skip
         result = st_rrt_star(field, rel[:d], goal_rel, p, self.rng)
         self.stats["plans"] += 1
         if result.success:

@@ -49,7 +49,7 @@ from agents.policies.learned import (
 )
 from agents.policies.registry import BASELINES, load_agent, make_agent
 from agents.policies.shield import ShieldParams
-from agents.policies.shielded import ShieldedAgent, ShieldStats
+from agents.policies.shielded import ShieldStats, TeamShield
 
 __all__ = [
     "TeamOfSingles",
@@ -150,10 +150,10 @@ class TeamOfSingles:
             ``assignment="given"`` and :func:`team_options`).
         agent: a baseline name (:data:`agents.BASELINES`), ``"pretrained"`` or ``"ALGO:PATH"``.
         rule: the assignment rule (:data:`~agents.planners.team_assignment.ASSIGNMENT_RULES`).
-        shield: the safety shield's parameters, to filter every classical member's commands
-            through a shield of its own that counts the teammates as bodies
-            (:class:`~agents.policies.shield.SafetyShield` on the member's view); None: no
-            shield.
+        shield: the safety shield's parameters, to filter every member's commands (classical
+            or learned) through a shield of its own on its chaser's view that counts the
+            teammates as bodies (:class:`~agents.policies.shielded.TeamShield`), once every
+            member has decided; None: no shield.
         **params: the baseline's constructor parameters (classical agents only).
 
     Raises:
@@ -178,28 +178,21 @@ class TeamOfSingles:
         self.views = [ChaserView(core, k, plans=self.plans) for k in range(core.chasers)]
         self._index = {a: k for k, a in enumerate(self.agents)}
         self._members: list[Any] = []
-        self._shielded: list[ShieldedAgent] = []
         self._learned: Any = None
         self._size = 0
         if _is_learned(agent):
-            if params or shield is not None:
-                raise ValueError(
-                    f"a learned team member takes no parameters nor shield, got "
-                    f"{sorted(params) + (['shield'] if shield is not None else [])}"
-                )
+            if params:
+                raise ValueError(f"a learned team member takes no parameters, got {sorted(params)}")
             self._learned, self._size = self._load(agent, env)
         elif agent in BASELINES:
             self._members = [make_agent(agent, view, **params) for view in self.views]
-            if shield is not None:
-                self._shielded = [
-                    ShieldedAgent(m, v, shield)
-                    for m, v in zip(self._members, self.views, strict=True)
-                ]
         else:
             raise ValueError(
                 f"unknown team member {agent!r}; known: {', '.join(BASELINES)}, {PRETRAINED!r} "
                 "or ALGO:PATH"
             )
+        self.shield = None if shield is None else TeamShield(self.views, shield)
+        """The members' shields (None: unshielded)."""
 
     @staticmethod
     def _load(agent: str, env: Any) -> tuple[Any, int]:
@@ -224,7 +217,7 @@ class TeamOfSingles:
     @property
     def shield_stats(self) -> list[ShieldStats]:
         """Each chaser's shield counters this episode (empty without a shield)."""
-        return [s.stats for s in self._shielded]
+        return [] if self.shield is None else self.shield.stats
 
     def choose_assignment(self) -> TeamAssignment:
         """The rule's assignment on the field the swarm holds now (after a reset, before the
@@ -244,23 +237,26 @@ class TeamOfSingles:
         if unknown:
             raise ValueError(f"unknown agents {unknown}; the team flies {self.agents}")
         names = [a for a in observations if self.views[self._index[a]].flying]
+        actions: dict[int, Any] = {}
         if self._learned is not None:
-            if not names:
-                return {}
-            batch = np.stack([np.asarray(observations[a])[: self._size] for a in names])
-            actions, _ = self._learned.predict(batch, deterministic=deterministic)
-            return {a: np.asarray(actions[i]) for i, a in enumerate(names)}
-        if names and self.views[self._index[names[0]]].elapsed == 0.0:
-            self.plans.clear()  # an episode's first decisions: no plans of the last one
-        actions = {}
-        for a in names:
-            k = self._index[a]
-            member = self._members[k]
-            acting = self._shielded[k] if self._shielded else member
-            actions[a] = np.asarray(acting.predict(observations[a])[0])
-            planned = getattr(member, "planned_states", None)
-            self.plans.post(k, planned() if callable(planned) else None)
-        return actions
+            if names:
+                batch = np.stack([np.asarray(observations[a])[: self._size] for a in names])
+                chosen, _ = self._learned.predict(batch, deterministic=deterministic)
+                actions = {self._index[a]: np.asarray(chosen[i]) for i, a in enumerate(names)}
+        else:
+            if names and self.views[self._index[names[0]]].elapsed == 0.0:
+                self.plans.clear()  # an episode's first decisions: no plans of the last one
+            for a in names:
+                k = self._index[a]
+                member = self._members[k]
+                actions[k] = np.asarray(member.predict(observations[a])[0])
+                planned = getattr(member, "planned_states", None)
+                self.plans.post(k, planned() if callable(planned) else None)
+        if self.shield is not None:
+            # after every member has decided, so each shield predicts the teammates by their
+            # plans of this step
+            actions = self.shield.filter(actions)
+        return {self.agents[k]: np.asarray(action) for k, action in actions.items()}
 
     def __repr__(self) -> str:
         return f"TeamOfSingles({self.agent!r}, rule={self.rule!r})"

@@ -6,10 +6,16 @@
 ``multiagent`` extra; the specs, :class:`SwarmCore` and the SB3 training env
 :class:`~debris_gym.integrations.sb3_swarm.SwarmVecEnv` do not). docs/swarm.md has the rules,
 spaces and IDs.
+
+Importing this module also registers every swarm ID in PettingZoo's own registry when the
+installed PettingZoo has one (1.27 and later: ``pettingzoo.make("parallel", ID, **options)`` and
+``pettingzoo.make("aec", ID, **options)``; :func:`register_with_pettingzoo`).
 """
 
 from __future__ import annotations
 
+import importlib
+from functools import partial
 from typing import TYPE_CHECKING, Any
 
 from debris_gym.config import EnvConfig
@@ -27,11 +33,13 @@ __all__ = [
     "SwarmConfig",
     "SwarmCore",
     "SwarmParallelEnv",
+    "aec_env",
     "checked_options",
     "dock_slots",
     "env",
     "make",
     "parallel_env",
+    "register_with_pettingzoo",
 ]
 
 DEFAULT_SWARM = "DebrisGym/Swarm2D-v0"
@@ -142,9 +150,59 @@ def parallel_env(**options: Any) -> SwarmParallelEnv:
     return make(DEFAULT_SWARM, **options)
 
 
+def aec_env(env_id: str = DEFAULT_SWARM, **options: Any):
+    """The swarm env ``env_id`` as a PettingZoo AEC env (``parallel_to_aec`` of :func:`make`).
+
+    Raises:
+        ValueError: an unknown ID or option.
+    """
+    from pettingzoo.utils.conversions import parallel_to_aec
+
+    return parallel_to_aec(make(env_id, **options))
+
+
 def env(**options: Any):
     """The default swarm ID as a PettingZoo AEC env (``parallel_to_aec`` of
     :func:`parallel_env`)."""
-    from pettingzoo.utils.conversions import parallel_to_aec
+    return aec_env(DEFAULT_SWARM, **options)
 
-    return parallel_to_aec(parallel_env(**options))
+
+def register_with_pettingzoo(pettingzoo: Any = None) -> list[str]:
+    """Register every swarm ID (:data:`SWARM_SPECS`) in PettingZoo's registry, as a parallel
+    env (:func:`make`) and as an AEC env (:func:`aec_env`), each ID's options and time limit
+    its own; the time limit is PettingZoo's ``max_cycles`` option. IDs already registered are
+    left as they are.
+
+    Args:
+        pettingzoo: the ``pettingzoo`` module (None: import it).
+
+    Returns:
+        the IDs registered now: none when PettingZoo is not installed or has no registry (its
+        releases before 1.27 have none; their envs are modules with ``env()`` /
+        ``parallel_env()``, as this one is).
+    """
+    if pettingzoo is None:
+        try:
+            pettingzoo = importlib.import_module("pettingzoo")
+        except ImportError:
+            return []
+    register = getattr(pettingzoo, "register", None)
+    registries: dict[str, Any] = {
+        "parallel": getattr(pettingzoo, "parallel_registry", None),
+        "aec": getattr(pettingzoo, "aec_registry", None),
+    }
+    if not callable(register) or any(r is None for r in registries.values()):
+        return []
+    creators = {"parallel": make, "aec": aec_env}
+    registered = []
+    for env_id in SWARM_SPECS:
+        for kind, registry in registries.items():
+            if env_id not in registry:
+                # the ID's time limit is applied by the creator: a spec's max_cycles would be
+                # passed beside a user's max_episode_steps, which make() refuses
+                register(kind, env_id, entry_point=partial(creators[kind], env_id))
+                registered.append(env_id)
+    return sorted(set(registered))
+
+
+register_with_pettingzoo()

@@ -8,9 +8,12 @@ run takes the output directory's lock, flies the teams one after another in this
 and writes ``episodes.csv``, ``assignments.csv``, ``summary.json``, ``summary.md`` and the
 trajectory plots (``--plots N``, :mod:`~agents.experiments.swarm_evaluation.recording`) as one
 set (:class:`~agents.experiments.run_directory.OutputSet`, each file written atomically);
-``--video N`` writes videos beside it. Options of the single-agent evaluation that do not apply
-(suites, the paper table, the shield, Ray, several workers, resuming) are refused with
-:class:`UsageError` before anything runs; Ctrl-C writes nothing.
+``--video N`` writes videos beside it. With ``--shield`` every team flies behind the safety shield,
+one per chaser, that counts the teammates as bodies
+(:class:`~agents.policies.shielded.TeamShield`; decision times include it), and the tables count
+the commands it replaced. Options of the single-agent evaluation that do not apply (the paper
+table, Ray, several workers, resuming) are refused with :class:`UsageError` before anything runs;
+Ctrl-C writes nothing.
 """
 
 from __future__ import annotations
@@ -58,6 +61,7 @@ from agents.experiments.swarm_evaluation.teams import (
     parse_teams,
 )
 from agents.planners.team_assignment import TeamAssignment
+from agents.policies.shield import ShieldParams
 from agents.policies.team import TeamPolicy, team_options
 from debris_gym.files import write_atomic
 from debris_gym.scenario import Scenario
@@ -81,7 +85,6 @@ OUTPUTS = ("episodes.csv", "assignments.csv", "summary.json", "summary.md")
 
 NOT_FOR_SWARMS: dict[str, tuple[str, Any]] = {
     "paper": ("--paper", False),
-    "shield": ("--shield", False),
     "resume": ("--resume", None),
     "address": ("--address", None),
     "backend": ("--backend", "local"),
@@ -153,6 +156,8 @@ class SwarmEvaluateOptions:
         video: videos of each team's first episodes (0: none).
         suite: a frozen suite of a swarm ID (:mod:`debris_gym.suites`): its env, options,
             seeds and pinned fields (its first ``episodes`` missions); None: seeded fields.
+        shield: fly every team behind the safety shield (default parameters,
+            :class:`~agents.policies.shield.ShieldParams`), one per chaser.
     """
 
     env: str | None
@@ -167,6 +172,7 @@ class SwarmEvaluateOptions:
     plots: int | None = None
     video: int = 0
     suite: str | None = None
+    shield: bool = False
 
     @classmethod
     def from_arguments(cls, arguments: dict[str, Any]) -> SwarmEvaluateOptions:
@@ -187,7 +193,15 @@ class SwarmEvaluateOptions:
         kwargs = {k: arguments.get(k) for k in names}
         video = int(arguments.get("video") or 0)
         check_video_support(video)
-        return cls(env=env, progress=bool(arguments.get("progress", True)), video=video, **kwargs)
+        return cls(
+            env=env, progress=bool(arguments.get("progress", True)), video=video,
+            shield=bool(arguments.get("shield", False)), **kwargs,
+        )  # fmt: skip
+
+    @property
+    def shield_params(self) -> ShieldParams | None:
+        """The shield every team flies behind (None: unshielded)."""
+        return ShieldParams() if self.shield else None
 
     @property
     def recorded(self) -> int:
@@ -238,7 +252,7 @@ def _build_teams(
         except (TypeError, ValueError) as exc:
             raise UsageError("--env-kwargs", f"{spec.label}: {exc}") from exc
         try:
-            team = make_team(spec, env)
+            team = make_team(spec, env, options.shield_params)
         except (ValueError, FileNotFoundError) as exc:
             env.close()
             if named:
@@ -365,6 +379,7 @@ def run_swarm_evaluation(options: SwarmEvaluateOptions) -> str:
         summary = summarize_teams(records, flown, options.reference)
         kwargs = dict(options.env_kwargs or {})
         steps = "" if options.max_steps is None else f", max_steps {options.max_steps}"
+        shield = options.shield_params
         where = (
             f"suite {options.suite} ({suite_hash}), its first {episodes} missions"
             if options.suite is not None
@@ -386,6 +401,7 @@ def run_swarm_evaluation(options: SwarmEvaluateOptions) -> str:
             skipped=skipped,
             ci_methods=CI_METHODS,
             elapsed_s=elapsed,
+            shield=None if shield is None else shield.to_dict(),
         )
         text = summary_markdown(summary)
         contents = {
@@ -402,7 +418,8 @@ def run_swarm_evaluation(options: SwarmEvaluateOptions) -> str:
             written = files.commit(
                 evaluation={"env_id": env_id, "env_kwargs": kwargs, "agents": flown,
                             "episodes": episodes, "seed": seed, "max_steps": options.max_steps,
-                            "suite": options.suite, "suite_hash": suite_hash}
+                            "suite": options.suite, "suite_hash": suite_hash,
+                            "shield": options.shield}
             )  # fmt: skip
     finally:
         lock.release()

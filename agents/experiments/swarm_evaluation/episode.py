@@ -17,6 +17,7 @@ import numpy as np
 from agents.experiments.evaluation.records import scenario_fingerprint
 from agents.experiments.swarm_evaluation.recording import EpisodeFrames
 from agents.planners.team_assignment import ASSIGNMENT_RULES, TeamAssignment, assign, tour_costs
+from agents.policies.shielded import ShieldStats
 from agents.policies.team import TeamPolicy, start_episode, team_field
 
 __all__ = [
@@ -80,6 +81,10 @@ class TeamEpisode:
         exploration: what the team explored before the first step, when it does
             (``team.last_exploration`` as a dict: :class:`~agents.policies.ma_se_scp.
             ExplorationRecord`); None otherwise.
+        shield: each chaser's safety-shield counters, when the team flew shielded
+            (:class:`~agents.policies.shielded.ShieldStats`: decisions filtered, commands
+            replaced, their total and largest size ‖u_safe − u_cmd‖ / max_accel); empty
+            otherwise.
     """
 
     agent: str
@@ -105,6 +110,7 @@ class TeamEpisode:
     decision_ms: tuple[float, ...] = field(repr=False, default=())
     wall_s: float = 0.0
     exploration: dict[str, Any] | None = None
+    shield: tuple[ShieldStats, ...] = ()
 
     @property
     def n_chasers(self) -> int:
@@ -125,6 +131,27 @@ class TeamEpisode:
         """Team success with no chaser colliding (the env's team success forgives a chaser
         that collides once every target is captured)."""
         return self.team_success and self.collisions == 0
+
+    @property
+    def shield_interventions(self) -> int:
+        """Commands the shields replaced, over the chasers (0 unshielded)."""
+        return sum(s.interventions for s in self.shield)
+
+    @property
+    def shield_decisions(self) -> int:
+        """Commands the shields filtered, over the chasers (0 unshielded)."""
+        return sum(s.decisions for s in self.shield)
+
+    @property
+    def shield_size_mean(self) -> float:
+        """Mean size of the replaced commands, over the chasers (0 without any)."""
+        count = self.shield_interventions
+        return sum(s.size_sum for s in self.shield) / count if count else 0.0
+
+    @property
+    def shield_size_max(self) -> float:
+        """Largest size of a replaced command (0 without any)."""
+        return max((s.size_max for s in self.shield), default=0.0)
 
     @property
     def gap(self) -> float:
@@ -148,6 +175,11 @@ def field_assignments(views: Any) -> dict[str, TeamAssignment]:
 def _exploration(team: Any) -> dict[str, Any] | None:
     record = getattr(team, "last_exploration", None)
     return None if record is None else dataclasses.asdict(record)
+
+
+def _shield_stats(team: Any) -> tuple[ShieldStats, ...]:
+    """Copies of the team's per-chaser shield counters (none unshielded)."""
+    return tuple(dataclasses.replace(s) for s in getattr(team, "shield_stats", ()))
 
 
 def fly_episode(
@@ -227,5 +259,6 @@ def fly_episode(
         decision_ms=tuple(decision_ms),
         wall_s=time.perf_counter() - began,
         exploration=_exploration(team),
+        shield=_shield_stats(team),
     )
     return record, rules

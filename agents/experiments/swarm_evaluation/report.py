@@ -46,10 +46,11 @@ def episode_columns(n_chasers: int) -> list[str]:
         "delta_v_max", "time", "steps", "assignment", "assignment_targets", "assignment_cost",
         "assignment_longest", "optimal_cost", "assignment_gap", "assignment_gap_pct",
         "minmax_longest", "decision_ms_mean", "decision_ms_p95", "wall_s",
+        "shield_interventions", "shield_size_mean", "shield_size_max",
     ]  # fmt: skip
     for k in range(n_chasers):
         head += [f"chaser{k}_outcome", f"chaser{k}_captures", f"chaser{k}_delta_v",
-                 f"chaser{k}_end_time"]  # fmt: skip
+                 f"chaser{k}_end_time", f"chaser{k}_shield_interventions"]  # fmt: skip
     return head
 
 
@@ -70,9 +71,11 @@ def _row(r: TeamEpisode) -> list[Any]:
         r.gap, r.gap_pct, r.minmax_longest,
         float(ms.mean()) if ms.size else None,
         float(np.percentile(ms, 95)) if ms.size else None, r.wall_s,
+        r.shield_interventions, r.shield_size_mean, r.shield_size_max,
     ]  # fmt: skip
     for k in range(r.n_chasers):
-        row += [r.outcomes[k], r.captures[k], r.delta_v[k], r.end_time[k]]
+        replaced = r.shield[k].interventions if r.shield else 0
+        row += [r.outcomes[k], r.captures[k], r.delta_v[k], r.end_time[k], replaced]
     return row
 
 
@@ -163,6 +166,8 @@ def summarize_teams(
         entry["wall_s_mean"] = float(np.mean([r.wall_s for r in recs]))
         entry["decision_ms_p50"] = float(np.percentile(ms, 50)) if ms.size else None
         entry["decision_ms_p95"] = float(np.percentile(ms, 95)) if ms.size else None
+        if any(r.shield for r in recs):
+            entry |= _shield_entry(recs)
         teams[label] = entry
     ref = reference if reference is not None else (labels[0] if labels else None)
     paired: dict[str, Any] = {}
@@ -176,6 +181,62 @@ def summarize_teams(
             c = sum(o and not a for a, o in pairs)
             paired[label] = {"n": len(pairs), "b": b, "c": c, "p_value": mcnemar_exact(b, c)}
     return {"teams": teams, "reference": ref, "paired_team_success": paired}
+
+
+def _shield_entry(recs: Sequence[TeamEpisode]) -> dict[str, Any]:
+    """A shielded team's interventions: the commands replaced per episode (over the chasers;
+    mean, bootstrap interval), their share of the chasers' decisions, and their size
+    ‖u_safe − u_cmd‖ / max_accel over all of them (mean, largest)."""
+    counts = [r.shield_interventions for r in recs]
+    total, decisions = sum(counts), sum(r.shield_decisions for r in recs)
+    mean, ci = _mean_ci(counts, 0.0, None)
+    return {
+        "shield_interventions_mean": mean,
+        "shield_interventions_mean_ci95": ci,
+        "shield_intervention_share": total / decisions if decisions else None,
+        "shield_size_mean": (
+            sum(r.shield_size_mean * r.shield_interventions for r in recs) / total if total else 0.0
+        ),
+        "shield_size_max": max(r.shield_size_max for r in recs),
+    }
+
+
+def _shielded_title(summary: dict[str, Any]) -> str:
+    """The title, with the shield's note when the run was shielded."""
+    title, shield = summary.get("title", ""), summary.get("shield")
+    if shield is None:
+        return title
+    margin = "the chaser's radius" if shield["margin"] is None else f"{shield['margin']} m"
+    return (
+        f"{title} **Shielded**: every team flies behind the safety shield, one per chaser, "
+        f"its teammates bodies on their predicted tracks (run-time assurance: "
+        f"{shield['horizon_steps']}-step horizon, margin {margin} from debris and teammates, "
+        f"{shield['target_margin']} m from targets; docs/swarm.md)."
+    ).strip()
+
+
+def _shield_lines(summary: dict[str, Any]) -> list[str]:
+    """The shield's table (nothing for an unshielded run)."""
+    if summary.get("shield") is None:
+        return []
+    lines = [
+        "",
+        "Safety shield: commands replaced per episode over the chasers (95 % bootstrap "
+        "interval), their share of the chasers' decisions, and their size ‖u_safe − u_cmd‖ / "
+        "max_accel (a fraction of the thrust limit; decision times above include the shield).",
+        "",
+        "| team | interventions / episode | share of decisions | mean size | max size |",
+        "|---|---|---|---|---|",
+    ]
+    for label, e in summary["teams"].items():
+        if "shield_interventions_mean" not in e:
+            continue
+        lines.append(
+            f"| {markdown_cell(label)} | {_ci(e, 'shield_interventions_mean')} | "
+            f"{format_number(e['shield_intervention_share'])} | "
+            f"{format_number(e['shield_size_mean'])} | {format_number(e['shield_size_max'])} |"
+        )
+    return lines
 
 
 PAPER_CONNECTIVITY = "paper (Fig. 4, N = 6: about 30; Fig. 7, N = 48: 25)"
@@ -269,7 +330,7 @@ def _ci(entry: dict[str, Any], key: str, scale: float = 1.0, digits: int = 3) ->
 
 def summary_markdown(summary: dict[str, Any]) -> str:
     """The team table and the assignment-gap table, as Markdown."""
-    teams, title = summary["teams"], summary.get("title", "")
+    teams, title = summary["teams"], _shielded_title(summary)
     lines = [title, ""] if title else []
     lines += [
         "| team | team success % | no collision and team success % | collisions % (debris / "
@@ -293,6 +354,7 @@ def summary_markdown(summary: dict[str, Any]) -> str:
             f"{format_number(e['decision_ms_p50'])} / {format_number(e['decision_ms_p95'])} | "
             f"{format_number(e['wall_s_mean'])} |"
         )
+    lines += _shield_lines(summary)
     explored = exploration_lines(teams)
     if explored:
         lines += ["", "Exploration before the first step (mean over the episodes):", "", *explored]

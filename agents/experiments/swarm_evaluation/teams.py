@@ -17,6 +17,7 @@ from typing import Any
 from agents.planners.team_assignment import ASSIGNMENT_RULES
 from agents.policies.learned import LEARNED_ALGOS, PRETRAINED
 from agents.policies.registry import BASELINES
+from agents.policies.shield import ShieldParams
 from agents.policies.team import TeamOfSingles
 
 __all__ = [
@@ -36,8 +37,8 @@ DEFAULT_RULE = "balanced"
 TEAM_POLICIES: dict[str, tuple[str, str]] = {
     "ma-se-scp": ("agents.policies.ma_se_scp:MASESCPTeam", "balanced"),
 }
-"""Multi-agent team policies by name → (``module:Class`` built as ``Class(env, rule)``, the
-rule of a name given without ``@RULE``); imported on first use."""
+"""Multi-agent team policies by name → (``module:Class`` built as ``Class(env, rule,
+shield=...)``, the rule of a name given without ``@RULE``); imported on first use."""
 
 DEFAULT_TEAMS = (
     *(f"team-apf-mpc@{rule}" for rule in ASSIGNMENT_RULES),
@@ -119,10 +120,13 @@ def parse_teams(text: str | None) -> list[TeamSpec]:
     return specs
 
 
-def make_team(spec: TeamSpec, env: Any) -> Any:
+def make_team(spec: TeamSpec, env: Any, shield: ShieldParams | None = None) -> Any:
     """The team policy of ``spec`` on ``env``: a :data:`TEAM_POLICIES` class, else a
-    :class:`~agents.policies.team.TeamOfSingles`."""
+    :class:`~agents.policies.team.TeamOfSingles`; with ``shield``, every chaser's commands
+    pass a safety shield of its own that counts the teammates as bodies
+    (:class:`~agents.policies.shielded.TeamShield`)."""
     if spec.agent in TEAM_POLICIES:
         module_name, class_name = TEAM_POLICIES[spec.agent][0].split(":")
-        return getattr(importlib.import_module(module_name), class_name)(env, spec.rule)
-    return TeamOfSingles(env, spec.agent, spec.rule)
+        team_class = getattr(importlib.import_module(module_name), class_name)
+        return team_class(env, spec.rule, shield=shield)
+    return TeamOfSingles(env, spec.agent, spec.rule, shield=shield)
