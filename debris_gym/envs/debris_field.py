@@ -130,6 +130,10 @@ class DebrisFieldEnv(ShellView, gym.Env):
       of the target's surface at ≤ 0.1 m/s relative to it, drifting at most 1 m and untouched
       (a colliding step captures nothing); running out of Δv is a failure (−50); the hold's
       progress is observed; contacts follow a turning polygon's surface through its turn.
+      ``Rendezvous2D-Uncertain-v2`` / ``3D``: v2 with navigation errors (1 m, 1 cm/s), thrust
+      errors (5 %, 0.02 rad, 1 % misses), absolute orbits with J2 and drag as the truth, and
+      a 250 m sensor range (docs/environments.md, "An uncertain world"; every error option is
+      off in the other IDs).
     * v1: the physical world — every body on its natural CWH relative orbit, solid targets,
       capture as a 30 s hold at ≤ 0.2 m/s relative to the target, fine discrete thrust, a
       potential on the shortest remaining mission; the Easy and Medium rungs.
