@@ -207,10 +207,28 @@ def navigation_errors(key, step, sigma_position, sigma_velocity, out):
             )
 
 
+def field_with_states(template: Scenario, states: np.ndarray, label: str) -> Scenario:
+    """``template`` (its bounds, dock, bodies' shapes and sizes) with every body's initial
+    state (B, 2·dim) replaced by ``states``; ``label`` is added to its name."""
+    dim = template.dim
+
+    def moved(body: Body, state: np.ndarray) -> Body:
+        velocity = tuple(map(float, state[dim:])) if template.moving else body.velocity
+        return dataclasses.replace(body, position=tuple(map(float, state[:dim])), velocity=velocity)
+
+    n_t = len(template.targets)
+    return dataclasses.replace(
+        template,
+        targets=tuple(moved(b, states[k]) for k, b in enumerate(template.targets)),
+        obstacles=tuple(moved(b, states[n_t + k]) for k, b in enumerate(template.obstacles)),
+        name=f"{template.name} ({label})".strip(),
+    )
+
+
 def estimated_field(truth: Scenario, key: int, config: EnvConfig) -> Scenario:
     """``truth`` with every body's initial state plus the navigation errors of the first
     observation of the episode of error key ``key`` (of the held bias with ``nav_bias``): the
-    field a planner that trusts its navigation at the episode's start knows."""
+    field as the chaser's navigation saw it at the episode's start."""
     dim = truth.dim
     errors = np.empty((1 + len(truth.bodies), 2 * dim))
     step = BIAS_STEP if config.nav_bias else 0
@@ -218,16 +236,4 @@ def estimated_field(truth: Scenario, key: int, config: EnvConfig) -> Scenario:
         np.uint64(key), step, float(config.nav_sigma_position), float(config.nav_sigma_velocity),
         errors,
     )  # fmt: skip
-    states = truth.initial_body_states() + errors[1:]
-
-    def moved(body: Body, state: np.ndarray) -> Body:
-        velocity = tuple(map(float, state[dim:])) if truth.moving else body.velocity
-        return dataclasses.replace(body, position=tuple(map(float, state[:dim])), velocity=velocity)
-
-    n_t = len(truth.targets)
-    return dataclasses.replace(
-        truth,
-        targets=tuple(moved(b, states[k]) for k, b in enumerate(truth.targets)),
-        obstacles=tuple(moved(b, states[n_t + k]) for k, b in enumerate(truth.obstacles)),
-        name=f"{truth.name} (navigated)".strip(),
-    )
+    return field_with_states(truth, truth.initial_body_states() + errors[1:], "navigated")

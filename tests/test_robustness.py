@@ -54,3 +54,27 @@ def test_a_suite_takes_only_the_uncertain_worlds_options(tmp_path):
     )  # fmt: skip
     with pytest.raises(UsageError, match="n_obstacles"):
         run_evaluation(bad)
+
+
+def test_a_condition_already_flown_is_kept_and_a_changed_one_flown_again(tmp_path):
+    flown = []
+
+    def run(options):
+        flown.append(dict(options.env_kwargs or {}))
+        return run_evaluation(options)
+
+    conditions = _pick("exact", "sensing-high")
+    options = EvaluateOptions(
+        suite="standard-2d-v2", agents="zero", episodes=1, workers=1, progress=False
+    )
+    run_robustness(options, tmp_path, run, conditions, echo=lambda _: None)
+    assert len(flown) == 2
+    first = (tmp_path / "robustness.md").read_text()
+    run_robustness(options, tmp_path, run, conditions, echo=lambda _: None)
+    assert len(flown) == 2  # both kept
+    assert (tmp_path / "robustness.md").read_text() == first
+    more = EvaluateOptions(
+        suite="standard-2d-v2", agents="zero", episodes=2, workers=1, progress=False
+    )
+    run_robustness(more, tmp_path, run, conditions, echo=lambda _: None)
+    assert len(flown) == 4  # other episodes: flown again

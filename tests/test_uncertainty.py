@@ -362,3 +362,29 @@ def test_the_uncertain_ids_are_the_v2_world_with_every_error_on():
         assert {k: spec["kwargs"][k] for k in v2["kwargs"]} == v2["kwargs"]
         assert added == {k: v for k, v in UNCERTAIN_WORLD.items() if k in UNCERTAINTY_KEYS}
         assert spec["max_episode_steps"] == v2["max_episode_steps"]
+
+
+def test_a_navigated_view_re_estimates_the_field_from_the_latest_observation():
+    from agents.policies.base import NavigatedView
+    from debris_gym.dynamics import cw_transition
+
+    env = DebrisFieldEnv(dim=2, **SMALL, nav_sigma_position=2.0, nav_sigma_velocity=0.01)
+    view = NavigatedView(env, refresh_steps=5)
+    env.reset(seed=6)
+    first = view.scenario
+    assert first is env.estimated_scenario
+    for step in range(1, 12):
+        env.step(np.zeros(2))
+        estimate = view.scenario
+        if step in (5, 10):  # a new field, carried back from this observation
+            assert estimate is not first
+            back = env.estimated_body_states @ cw_transition(env.config.n, -env.elapsed, 2).T
+            np.testing.assert_allclose(estimate.initial_body_states(), back, atol=1e-9)
+            now = estimate.body_states(env.elapsed)
+            np.testing.assert_allclose(now, env.estimated_body_states, atol=1e-6)
+            assert not np.allclose(now, env.body_states)  # never the truth
+            first = estimate
+        else:
+            assert estimate is first
+    env.reset(seed=7)
+    assert view.scenario is env.estimated_scenario

@@ -27,10 +27,12 @@ from gymnasium import spaces
 
 from agents.planners.teammates import MovingSpheres
 from debris_gym.config import EnvConfig
+from debris_gym.dynamics import cw_transition
 from debris_gym.envs import DebrisFieldEnv
 from debris_gym.geometry import FieldGeometry, geometry_now
 from debris_gym.scenario import Scenario
 from debris_gym.thrust import action_for_accel
+from debris_gym.uncertainty import field_with_states
 
 FIELD_VIEW_MEMBERS = (
     "config", "dim", "observation_space", "scenario", "chaser_state", "captured", "elapsed",
@@ -77,6 +79,10 @@ class FieldView(Protocol):
         radius."""
 
 
+NAV_REFRESH_STEPS = 10
+"""Steps between a :class:`NavigatedView`'s re-estimates of the field."""
+
+
 def _inner(env: Any) -> Any:
     base = env
     if hasattr(base, "envs") and len(base.envs) == 1:  # SB3 DummyVecEnv
@@ -94,17 +100,28 @@ def unwrap(env: Any) -> DebrisFieldEnv:
 
 class NavigatedView:
     """A :class:`DebrisFieldEnv` with navigation errors as a classical agent sees it: the
-    chaser's state as the last observation saw it, and the field as its navigation saw it at
-    the episode's start (:attr:`DebrisFieldEnv.estimated_scenario`), its bodies predicted from
-    there by the CW model. The agent never reads the truth; the env still judges on it.
+    chaser's state as the last observation saw it, and the field as its navigation estimates
+    it, re-estimated every ``refresh_steps`` steps from the observation of that step (every
+    body's observed state carried back to t = 0 by the CW model:
+    :attr:`DebrisFieldEnv.estimated_body_states`), the bodies predicted from there by the CW
+    model. Each re-estimate is a new field, so the agent re-plans on it. The bodies' shapes and
+    sizes are known. The agent never reads the true states; the env still judges on them.
 
     Args:
         env: the env (unwrapped).
+        refresh_steps: steps between re-estimates, >= 1.
     """
 
-    def __init__(self, env: DebrisFieldEnv) -> None:
+    def __init__(self, env: DebrisFieldEnv, refresh_steps: int = NAV_REFRESH_STEPS) -> None:
+        if isinstance(refresh_steps, bool) or not (
+            isinstance(refresh_steps, int) and refresh_steps >= 1
+        ):
+            raise ValueError(f"refresh_steps must be an integer >= 1, got {refresh_steps!r}")
         self._env = env
+        self.refresh_steps = refresh_steps
         self._geometry: FieldGeometry | None = None
+        self._estimate: Scenario | None = None
+        self._estimated_at = -1  # the step of the estimate (-1: none yet)
 
     @property
     def config(self) -> EnvConfig:
@@ -120,7 +137,23 @@ class NavigatedView:
 
     @property
     def scenario(self) -> Scenario | None:
-        return self._env.estimated_scenario
+        env = self._env
+        truth = env.scenario
+        if truth is None:
+            return None
+        step = round(env.elapsed / truth.dt)
+        fresh = step == 0 or step < self._estimated_at
+        if fresh or self._estimate is None or step - self._estimated_at >= self.refresh_steps:
+            if step == 0:  # the episode's first observation
+                estimate = env.estimated_scenario
+            else:
+                now = env.estimated_body_states
+                if truth.moving:
+                    back = cw_transition(truth.mean_motion, -env.elapsed, truth.dim)
+                    now = now @ back.T
+                estimate = field_with_states(truth, now, "navigated")
+            self._estimate, self._estimated_at = estimate, step
+        return self._estimate
 
     @property
     def chaser_state(self) -> np.ndarray:

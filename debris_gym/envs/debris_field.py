@@ -186,6 +186,14 @@ class DebrisFieldEnv(ShellView, gym.Env):
         return self._shell.estimated_scenario(0)
 
     @property
+    def estimated_body_states(self) -> np.ndarray:
+        """Every body's state as the last observation saw it, (B, 2·dim) [position (m),
+        velocity (m/s)] (with ``nav_sigma_*`` > 0 the truth plus its navigation errors; a
+        copy)."""
+        centers, velocities = self._missions.observed_bodies()
+        return np.concatenate([centers[0], velocities[0]], axis=1)
+
+    @property
     def estimated_chaser_state(self) -> np.ndarray:
         """The chaser's state as the last observation saw it (with ``nav_sigma_*`` > 0 the
         true state plus its navigation error; a copy)."""

@@ -5,6 +5,9 @@ Each condition is one ordinary evaluation (:func:`~agents.experiments.evaluation
 run_evaluation`) with the condition's options added to the env's (a frozen suite keeps its
 fields: the uncertain world's options do not change them), written to ``OUT/<condition>/``;
 the table gathers their ``summary.json`` into ``OUT/robustness.md`` and ``robustness.json``.
+A condition already flown into ``OUT/<condition>/`` with the same suite, episodes, agents and
+options is kept, not flown again (a table stopped part-way finishes where it stopped; delete a
+condition's directory to fly it again).
 The levels are stated in :data:`CONDITIONS` and docs/baselines.md.
 """
 
@@ -18,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from agents.experiments.evaluation.plan import EvaluateOptions, UsageError
+from debris_gym.config import UNCERTAINTY_KEYS
 from debris_gym.files import write_atomic
 
 
@@ -114,8 +118,13 @@ def run_robustness(
             )
     summaries: dict[str, dict[str, Any]] = {}
     for condition in conditions:
-        echo(f"robustness: {condition.name} {condition.options or ''}")
         target = out / condition.name
+        done = _finished(target, options, {**base, **condition.options})
+        if done is not None:
+            echo(f"robustness: {condition.name} already in {target}: kept")
+            summaries[condition.name] = done
+            continue
+        echo(f"robustness: {condition.name} {condition.options or ''}")
         run(
             dataclasses.replace(
                 options,
@@ -140,6 +149,26 @@ def run_robustness(
     }
     write_atomic(out / "robustness.json", json.dumps(payload, indent=2) + "\n")
     return table
+
+
+def _finished(
+    target: Path, options: EvaluateOptions, added: dict[str, Any]
+) -> dict[str, Any] | None:
+    """The summary of a condition already flown into ``target`` with the same episodes,
+    agents and added options (a table stopped part-way, or extended), else None."""
+    path = target / "summary.json"
+    if not path.is_file():
+        return None
+    summary = json.loads(path.read_text())
+    wanted_agents = None if options.agents is None else options.agents.split(",")
+    flown = summary.get("env_kwargs") or {}
+    same = (
+        (summary.get("suite") or {}).get("name") == options.suite
+        and (options.episodes is None or summary.get("episodes") == options.episodes)
+        and all(flown.get(k) == added.get(k) for k in set(added) | set(UNCERTAINTY_KEYS))
+        and (wanted_agents is None or list(summary.get("agents", {})) == wanted_agents)
+    )
+    return summary if same else None
 
 
 def _cell(entry: dict[str, Any]) -> str:
