@@ -54,10 +54,9 @@ class CentralState(BaseParallelWrapper):
         env: a swarm env (:func:`debris_gym.swarm.make`), whose ``state()`` is its agents'
             observations one after the other.
         own_first: True: each agent's ``state`` entry starts with its own block, the other
-            blocks following in agent order from its own (the team seen from the agent's
-            seat: one critic shared by every chaser then knows whose return it predicts;
-            relabelling the chasers leaves each one's entry as it was); False: ``state()``
-            as it is, the same for every agent.
+            blocks following in agent order after it, wrapping round (the team seen from the
+            agent's seat: one critic shared by every chaser then knows whose return it
+            predicts); False: ``state()`` as it is, the same for every agent.
 
     Every agent has the same observation space object, ``Dict(obs=…, state=env.state_space)``.
 
