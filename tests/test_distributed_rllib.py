@@ -52,6 +52,8 @@ def test_ppo_trains_one_iteration_on_an_env_runner_with_the_native_vector_env():
         ray.shutdown()
     assert summary.env_steps >= 400
     assert summary.episodes >= 1 and math.isfinite(summary.episode_return_mean)
+    assert math.isfinite(summary.policy_loss) and math.isfinite(summary.vf_loss)
+    assert math.isnan(summary.team_success)  # a single chaser: no team to report
 
 
 def test_multi_agent_ppo_trains_one_iteration_on_a_swarm():
@@ -73,3 +75,5 @@ def test_multi_agent_ppo_trains_one_iteration_on_a_swarm():
     finally:
         ray.shutdown()
     assert summary.env_steps >= 400
+    assert summary.episodes >= 1 and 0.0 <= summary.team_success <= 1.0
+    assert math.isfinite(summary.policy_loss) and math.isfinite(summary.vf_loss)

@@ -6,7 +6,8 @@ recipes, and RLlib on the registered envs.
 * :mod:`~agents.experiments.distributed.sweep` — :func:`run_sweep`, a Ray Tune sweep over a
   recipe's ``sweep:`` section (``sweep.py``), the best trial exported as ``OUT/best/``;
 * :mod:`~agents.experiments.distributed.rllib` — the envs under RLlib's new API stack
-  (``examples/rllib_ppo.py``).
+  (``examples/rllib_ppo.py``), the swarms as IPPO or MAPPO (``examples/swarm_mappo.py``);
+* :mod:`~agents.experiments.distributed.rllib_mappo` — MAPPO's network (imports Ray and torch).
 
 Ray is an optional dependency (``pip install 'debris-gym[distributed]'``): nothing here imports
 it at module level, and :func:`require_ray` names the extra when it is missing. docs/distributed.md

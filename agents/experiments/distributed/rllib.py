@@ -10,22 +10,35 @@ package's native vector env (``vectorization_mode="vector_entry_point"``: every 
 in one compiled call, Gymnasium's ``NEXT_STEP`` autoreset, as RLlib's ``sync`` mode), or with
 ``vectorize="sync"`` through gymnasium's ``SyncVectorEnv`` of single envs.
 
-The swarm IDs go through RLlib's multi-agent API (:func:`swarm_ppo_config`: RLlib's
-``ParallelPettingZooEnv`` around :func:`debris_gym.swarm.make`, one policy shared by every
-chaser).
+The swarm IDs go through RLlib's multi-agent API, RLlib's ``ParallelPettingZooEnv`` around
+:func:`debris_gym.swarm.make`, one policy shared by every chaser: :func:`swarm_ppo_config`
+(IPPO: actor and critic on the chaser's own observation) and :func:`swarm_mappo_config` (MAPPO:
+the critic on the team's state, :mod:`~agents.experiments.distributed.rllib_mappo`). Both log
+the team's success per episode (:class:`IterationSummary`).
 
-``examples/rllib_ppo.py`` runs it; docs/distributed.md shows a measured run.
+``examples/rllib_ppo.py`` and ``examples/swarm_mappo.py`` run them; docs/distributed.md and
+docs/swarm.md show measured runs.
 """
 
 from __future__ import annotations
 
+import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 from agents.experiments.distributed import require_ray
 
-__all__ = ["IterationSummary", "ppo_config", "rllib_env_id", "train_ppo"]
+__all__ = [
+    "IterationSummary",
+    "ppo_config",
+    "rllib_env_id",
+    "swarm_mappo_config",
+    "swarm_ppo_config",
+    "train_ppo",
+]
 
 VECTORIZE_MODES = ("vector_entry_point", "sync", "async")
 """How an env runner vectorises its sub-envs (``gymnasium.VectorizeMode`` values)."""
@@ -113,7 +126,12 @@ def _learning(
     gamma: float, hidden: tuple[int, ...], seed: int | None,
 ) -> Any:  # fmt: skip
     """``config`` with the PPO training settings, the policy and value networks (tanh MLPs
-    of sizes ``hidden``) and the seed (None: unseeded) every config of this module shares."""
+    of sizes ``hidden``) and the seed (None: unseeded) every config of this module shares.
+
+    The value loss is not clipped (``vf_clip_param`` infinite): RLlib clamps each row's squared
+    value error at ``vf_clip_param`` (10 by default), which takes the value gradient away from
+    every row whose error is above √10 — nearly every row while the critic learns returns of
+    tens to hundreds, as here."""
     from ray.rllib.core.rl_module.default_model_config import DefaultModelConfig
 
     config = config.training(
@@ -122,6 +140,7 @@ def _learning(
         num_epochs=num_epochs,
         lr=lr,
         gamma=gamma,
+        vf_clip_param=math.inf,
     ).rl_module(
         model_config=DefaultModelConfig(
             fcnet_hiddens=list(hidden), fcnet_activation="tanh", vf_share_layers=False
@@ -133,16 +152,27 @@ def _learning(
 SWARM_PREFIX = "debris_swarm:"
 """Prefix of the RLlib env names :func:`swarm_ppo_config` registers for swarm IDs."""
 
+MAPPO_PREFIX = "debris_swarm_state:"
+"""Prefix of the RLlib env names :func:`swarm_mappo_config` registers for swarm IDs (the env
+with :class:`~debris_gym.swarm.wrappers.CentralState` observations)."""
 
-def _swarm_env(config: Any) -> Any:
+TEAM_SUCCESS = "team_success"
+"""Metric the swarm configs log per ended episode (1 or 0), under ``env_runners``."""
+
+
+def _swarm_env(config: Any, central_state: bool = False) -> Any:
     """RLlib's env creator of a swarm: ``config["env_id"]`` with the other keys as options, as
-    RLlib's ``ParallelPettingZooEnv`` (imported here: only RLlib's processes need it)."""
+    RLlib's ``ParallelPettingZooEnv`` (imported here: only RLlib's processes need it); with
+    ``central_state``, each agent's observation is ``{"obs": own, "state": team}``
+    (:class:`~debris_gym.swarm.wrappers.CentralState`, own block first)."""
     from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
 
     from debris_gym import swarm
+    from debris_gym.swarm.wrappers import CentralState
 
     options = dict(config)
-    return ParallelPettingZooEnv(swarm.make(options.pop("env_id"), **options))
+    env = swarm.make(options.pop("env_id"), **options)
+    return ParallelPettingZooEnv(CentralState(env) if central_state else env)
 
 
 def swarm_ppo_config(
@@ -168,6 +198,56 @@ def swarm_ppo_config(
         ImportError: Ray RLlib or PettingZoo is not installed.
         ValueError: not a swarm ID, or a bad count.
     """
+    config = _swarm_base(env_id, env_kwargs, SWARM_PREFIX, _swarm_env, num_env_runners,
+                         train_batch_size, minibatch_size, num_epochs)  # fmt: skip
+    return _learning(config, train_batch_size, minibatch_size, num_epochs, lr, gamma, hidden, seed)
+
+
+def swarm_mappo_config(
+    env_id: str = "DebrisGym/Swarm2D-Easy-v0",
+    env_kwargs: dict[str, Any] | None = None,
+    *,
+    num_env_runners: int = 0,
+    train_batch_size: int = 4000,
+    minibatch_size: int = 500,
+    num_epochs: int = 5,
+    lr: float = 3e-4,
+    gamma: float = 0.995,
+    hidden: tuple[int, ...] = (128, 128),
+    seed: int | None = 0,
+) -> Any:
+    """A MAPPO ``AlgorithmConfig`` (new API stack, torch) for a swarm ID: one actor shared by
+    every chaser on its own observation, one critic on the team's state (every chaser's
+    observation, the chaser's own first: :class:`~debris_gym.swarm.wrappers.CentralState`),
+    the network :class:`~agents.experiments.distributed.rllib_mappo.MAPPOTorchModule`; the env
+    is registered as ``debris_swarm_state:<ID>``.
+
+    Args: as :func:`swarm_ppo_config` (``hidden``: the actor's and the critic's layers).
+
+    Raises:
+        ImportError: Ray RLlib or PettingZoo is not installed.
+        ValueError: not a swarm ID, or a bad count.
+    """
+    creator = partial(_swarm_env, central_state=True)
+    config = _swarm_base(env_id, env_kwargs, MAPPO_PREFIX, creator, num_env_runners,
+                         train_batch_size, minibatch_size, num_epochs)  # fmt: skip
+    from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
+    from ray.rllib.core.rl_module.rl_module import RLModuleSpec
+
+    from agents.experiments.distributed.rllib_mappo import MAPPOTorchModule
+
+    spec = MultiRLModuleSpec(rl_module_specs={"shared": RLModuleSpec(MAPPOTorchModule)})
+    config = config.rl_module(rl_module_spec=spec)
+    return _learning(config, train_batch_size, minibatch_size, num_epochs, lr, gamma, hidden, seed)
+
+
+def _swarm_base(
+    env_id: str, env_kwargs: dict[str, Any] | None, prefix: str, creator: Callable[[Any], Any],
+    num_env_runners: int, train_batch_size: int, minibatch_size: int, num_epochs: int,
+) -> Any:  # fmt: skip
+    """The PPO config both swarm configs start from: ``env_id`` checked and registered as
+    ``prefix + env_id`` with ``creator``, every chaser on the one policy ``"shared"``, the
+    team's success logged per episode, the counts checked."""
     require_ray("RLlib training", "ray.rllib")
     from ray.rllib.algorithms.ppo import PPOConfig
     from ray.tune.registry import register_env
@@ -178,15 +258,15 @@ def swarm_ppo_config(
         raise ValueError(f"env_id must be a swarm ID ({', '.join(SWARM_SPECS)}), got {env_id!r}")
     _check_counts(num_env_runners=(num_env_runners, 0), train_batch_size=(train_batch_size, 1),
                   minibatch_size=(minibatch_size, 1), num_epochs=(num_epochs, 1))  # fmt: skip
-    name = SWARM_PREFIX + env_id
-    register_env(name, _swarm_env)
-    config = (
+    name = prefix + env_id
+    register_env(name, creator)
+    return (
         PPOConfig()
         .environment(name, env_config={"env_id": env_id, **dict(env_kwargs or {})})
         .multi_agent(policies={"shared"}, policy_mapping_fn=_shared_policy)
         .env_runners(num_env_runners=num_env_runners)
+        .callbacks(on_episode_end=_log_team_success)
     )
-    return _learning(config, train_batch_size, minibatch_size, num_epochs, lr, gamma, hidden, seed)
 
 
 def _shared_policy(agent_id: Any, *args: Any, **kwargs: Any) -> str:
@@ -194,21 +274,40 @@ def _shared_policy(agent_id: Any, *args: Any, **kwargs: Any) -> str:
     return "shared"
 
 
+def _log_team_success(*, episode: Any, metrics_logger: Any, **kwargs: Any) -> None:
+    """RLlib's episode-end callback: log :data:`TEAM_SUCCESS` from the ``team_success`` of the
+    infos of the episode's last step (the agents that ended in it; the team's outcome is
+    final once the last chaser has ended), averaged as RLlib averages the episode return."""
+    infos = episode.get_infos(-1)
+    success = any(bool(info.get("team_success")) for info in infos.values() if info)
+    config = kwargs["env_runner"].config
+    window = math.ceil(config.metrics_num_episodes_for_smoothing / (config.num_env_runners or 1))
+    metrics_logger.log_value(TEAM_SUCCESS, float(success), reduce="mean", window=max(1, window))
+
+
 @dataclass(frozen=True)
 class IterationSummary:
     """One ``algo.train()`` call: cumulative env steps, the mean return of the episodes that
-    ended in it (NaN when none did), episodes ended, and its wall time (s)."""
+    ended in it (a swarm's: the sum over its chasers; NaN when none did), episodes ended, its
+    wall time (s), the fraction of those episodes the team succeeded in (the swarm configs;
+    NaN otherwise or when none ended), and the PPO policy and value losses RLlib reports for
+    it (of the one RLModule trained; NaN when there are several)."""
 
     iteration: int
     env_steps: int
     episode_return_mean: float
     episodes: int
     wall_time_s: float
+    team_success: float = math.nan
+    policy_loss: float = math.nan
+    vf_loss: float = math.nan
 
 
-def train_ppo(config: Any, iterations: int) -> list[IterationSummary]:
+def train_ppo(
+    config: Any, iterations: int, on_iteration: Callable[[IterationSummary], None] | None = None
+) -> list[IterationSummary]:
     """Build the algorithm from ``config``, train ``iterations`` iterations, stop it; the
-    summary of each iteration.
+    summary of each iteration (``on_iteration``, if given, is called with each as it ends).
 
     A local Ray is started if none is running (and stopped after).
     """
@@ -221,7 +320,12 @@ def train_ppo(config: Any, iterations: int) -> list[IterationSummary]:
     try:
         algo = config.build_algo()
         try:
-            return [_summary(k, algo) for k in range(1, iterations + 1)]
+            summaries = []
+            for k in range(1, iterations + 1):
+                summaries.append(_summary(k, algo))
+                if on_iteration is not None:
+                    on_iteration(summaries[-1])
+            return summaries
         finally:
             algo.stop()
     finally:
@@ -236,10 +340,15 @@ def _summary(k: int, algo: Any) -> IterationSummary:
     runners = result.get("env_runners", {})
     lifetime = result.get("num_env_steps_sampled_lifetime", runners.get(
         "num_env_steps_sampled_lifetime", 0))  # fmt: skip
+    modules = [v for m, v in result.get("learners", {}).items() if m != "__all_modules__"]
+    losses = modules[0] if len(modules) == 1 else {}
     return IterationSummary(
         iteration=k,
         env_steps=int(lifetime),
-        episode_return_mean=float(runners.get("episode_return_mean", float("nan"))),
+        episode_return_mean=float(runners.get("episode_return_mean", math.nan)),
         episodes=int(runners.get("num_episodes", 0)),
         wall_time_s=time.perf_counter() - start,
+        team_success=float(runners.get(TEAM_SUCCESS, math.nan)),
+        policy_loss=float(losses.get("policy_loss", math.nan)),
+        vf_loss=float(losses.get("vf_loss", math.nan)),
     )
