@@ -38,6 +38,7 @@ COMPILED_MODULES = (
     "geometry_kernels",
     "goal",
     "mission_step",
+    "mission_starts",
     "potential",
     "observation",
     "thrust",

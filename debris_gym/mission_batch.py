@@ -37,6 +37,7 @@ from debris_gym.mission_data import (
     new_missions,
     new_step_outputs,
 )
+from debris_gym.mission_starts import advance_bodies, resume_rows
 from debris_gym.mission_step import begin_rows, count_rows, step_all, step_all_threaded
 from debris_gym.observation import (
     OBS_LIMIT,
@@ -338,6 +339,67 @@ class MissionBatch:
         if code is None:  # one machine code with initial states, one without
             code = self._begin_code[states is None] = specialise(begin_rows, *args)
         code(*args)
+
+    def advance(self, fields: np.ndarray, counts: np.ndarray) -> None:
+        """Fly the bodies of each field ``fields[k]`` on by ``counts[k]`` steps of their
+        natural motion, exactly as that many steps would (a start part-way; a frozen field
+        stays)."""
+        fields = np.ascontiguousarray(fields, dtype=np.int64)
+        counts = np.ascontiguousarray(counts, dtype=np.int64)
+        f = self.field
+        advance_bodies(
+            fields, counts, self.rules.moving, self.rules.body_matrix_t, f.centers, f.velocities,
+            f.attitude, self.turns,
+        )  # fmt: skip
+
+    def flown_copy(self, fields: FieldArrays | Any, counts: np.ndarray) -> FieldBatch:
+        """A :class:`~debris_gym.batch_geometry.FieldBatch` of its own holding the drawn
+        ``fields`` (K of them; or a pinned scenario, K = len(counts) copies of it), each flown
+        on by ``counts[k]`` steps as :meth:`advance` flies them: where a start's chaser can be
+        checked before anything of the batch changes."""
+        k = len(counts)
+        copy = FieldBatch(
+            k, self.field.n_bodies, self.dim, MAX_POLYGON_VERTICES, self.field.polygon_start
+        )
+        if isinstance(fields, FieldArrays):
+            spins = None if fields.spins is None else fields.spins[:, copy.polygon_start :]
+            copy.load_arrays(
+                np.arange(k), fields.centers, fields.radii, fields.vertices, fields.n_vertices,
+                fields.velocities, spins, vertex_start=fields.n_targets,
+            )  # fmt: skip
+        else:
+            copy.load_scenario(np.arange(k), fields)
+        turns = np.zeros((k, copy.spins.shape[1], 6))
+        turns[:, :, 0] = turns[:, :, 2] = 1.0
+        if self.rules.moving and turns.shape[1]:
+            step, sub = self._turn_angles
+            polygon_turns(np.arange(k), copy.spins, self.physics.mean_motion, step, sub, turns)
+        advance_bodies(
+            np.arange(k), np.ascontiguousarray(counts, dtype=np.int64), self.rules.moving,
+            self.rules.body_matrix_t, copy.centers, copy.velocities, copy.attitude, turns,
+        )  # fmt: skip
+        return copy
+
+    def resume(
+        self,
+        rows: np.ndarray,
+        states: np.ndarray,
+        captured: np.ndarray,
+        counts: np.ndarray,
+        spent: np.ndarray,
+    ) -> None:
+        """Rows ``rows``, just begun (:meth:`begin`), resume part-way: the chasers at
+        ``states`` (R, 2·dim), ``captured`` (R, T) bool targets already taken, ``counts`` (R,)
+        steps on their clocks, ``spent`` (R,) Δv spent (m/s); gaps, clearance and potential
+        measured again (see :mod:`debris_gym.mission_starts`)."""
+        resume_rows(
+            np.ascontiguousarray(rows, dtype=np.int64),
+            np.ascontiguousarray(states, dtype=float),
+            np.ascontiguousarray(captured, dtype=np.bool_),
+            np.ascontiguousarray(counts, dtype=np.int64),
+            np.ascontiguousarray(spent, dtype=float),
+            self.rules, self.shaping, self.missions, self.field_arrays,
+        )  # fmt: skip
 
     def step(self, actions: np.ndarray, live: np.ndarray) -> StepOutputs:
         """One decision step of the missions in ``live`` (the others are left as they are).

@@ -190,7 +190,7 @@ def warn_if_physics_differ(cfg: EnvConfig, scenario: Scenario) -> None:
 
 # --- user input at reset and step: one check each, shared by the single and the vector env ---
 
-RESET_OPTIONS = ("chaser_state", "mission", "scenario")
+RESET_OPTIONS = ("chaser_state", "mission", "scenario", "start")
 """Keys ``reset(options=...)`` accepts."""
 
 MISSION_KEYS = ("n_targets", "n_obstacles", "return_to_dock")
