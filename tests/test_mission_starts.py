@@ -438,3 +438,12 @@ def test_a_start_bank_with_a_curriculum_or_another_env_is_refused(tmp_path):
                                     "starts": {"bank": str(path)}})  # fmt: skip
     with pytest.raises(ConfigError, match="recorded in"):
         make_train_env(config, seed=0)
+
+
+def test_a_bank_refuses_the_seeds_of_an_evaluation_suite():
+    from agents.experiments.starts import build_start_bank
+    from debris_gym.suites import suite_seeds
+
+    seed = min(suite_seeds("standard-2d-v2"))
+    with pytest.raises(ValueError, match="evaluation suite"):
+        build_start_bank(ENV_2D, missions=3, seed=seed - 1, progress=False)

@@ -18,6 +18,7 @@ import numpy as np
 import debris_gym  # noqa: F401  (registers the IDs)
 from agents.policies.registry import BASELINES, make_agent
 from debris_gym.start_bank import StartBank, world_options
+from debris_gym.suites import refuse_suite_seeds
 
 __all__ = ["BankEntry", "build_start_bank", "fly_and_record"]
 
@@ -119,7 +120,9 @@ def build_start_bank(
     ``seed`` …) and bank every capture it makes (``workers`` processes).
 
     Raises:
-        ValueError: an unknown baseline, a bad count, or an env without moving random fields.
+        ValueError: an unknown baseline, a bad count, seeds of an evaluation suite (training
+            on its fields would leak them into its evaluation), or an env without moving random
+            fields.
     """
     env_kwargs = dict(env_kwargs or {})
     if source not in BASELINES:
@@ -128,6 +131,7 @@ def build_start_bank(
         raise ValueError(f"missions={missions} is out of range; allowed: [1, 1000000]")
     if not 1 <= workers <= (os.cpu_count() or 1) * 4:
         raise ValueError(f"workers={workers} is out of range; allowed: [1, 4 × cores]")
+    refuse_suite_seeds(range(seed, seed + missions), "a start bank (training starts)")
     seeds = list(range(seed, seed + missions))
     bar = None
     if progress:
