@@ -306,3 +306,18 @@ def test_base_commands_refuses_rows_out_of_range():
     batch = env.unwrapped.batch
     with pytest.raises(ValueError, match=r"rows must be indices in \[0, 0\]"):
         base_law.base_commands(batch.base_law, batch.missions, batch.field_arrays, [1])
+
+
+def test_a_policy_trained_in_the_residual_mode_is_flown_in_it(tmp_path):
+    """evaluate.py makes a learned agent's env with the options its run trained with: for a
+    residual run that includes the action mode (its actions alone are no thrust command)."""
+    import agents
+
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "config.yaml").write_text(f"env_id: {EASY}\nenv_kwargs: {{action: residual}}\n")
+    assert agents.observation_options(f"ppo:{run / 'model.zip'}", EASY)["action"] == "residual"
+    plain = tmp_path / "plain"
+    plain.mkdir()
+    (plain / "config.yaml").write_text(f"env_id: {EASY}\nenv_kwargs: {{}}\n")
+    assert "action" not in agents.observation_options(f"ppo:{plain / 'model.zip'}", EASY)
