@@ -14,6 +14,8 @@ import pickle
 import gymnasium as gym
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
 import debris_gym  # noqa: F401  (registers the IDs)
@@ -321,3 +323,31 @@ def test_a_policy_trained_in_the_residual_mode_is_flown_in_it(tmp_path):
     plain.mkdir()
     (plain / "config.yaml").write_text(f"env_id: {EASY}\nenv_kwargs: {{}}\n")
     assert "action" not in agents.observation_options(f"ppo:{plain / 'model.zip'}", EASY)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    x=st.floats(-400.0, 400.0),
+    y=st.floats(-400.0, 400.0),
+    vx=st.floats(-2.0, 2.0),
+    vy=st.floats(-2.0, 2.0),
+    action=st.tuples(st.floats(-3.0, 3.0), st.floats(-3.0, 3.0)),
+    model=st.sampled_from(["ball", "box"]),
+)
+def test_any_state_gets_a_feasible_command_and_the_sum_is_what_flies(x, y, vx, vy, action, model):
+    """Wherever the chaser is and however it moves, the law's command is finite and inside the
+    thrust model's set, and a residual step applies the thrust of clip(base + action)."""
+    target = np.array([200.0, 150.0, 0.1, -2 * N * 200.0])
+    if math.hypot(x - 200.0, y - 150.0) < TARGET_RADIUS + CHASER_RADIUS + 1.0:
+        return  # in contact with the target: not a state a reset accepts
+    chaser = np.array([x, y, vx, vy])
+    base, env = command_at(target, chaser, moving=True, thrust_model=model, action="residual")
+    assert np.all(np.isfinite(base))
+    if model == "ball":
+        assert np.linalg.norm(base) <= 1.0 + 1e-12
+    else:
+        assert np.all(np.abs(base) <= 1.0)
+    command = np.clip(base + np.asarray(action), -1.0, 1.0)
+    *_, info = env.step(np.asarray(action))
+    scale = max(1.0, float(np.linalg.norm(command))) if model == "ball" else 1.0
+    np.testing.assert_allclose(info["applied_accel"], MAX_ACCEL * command / scale, rtol=1e-12)
