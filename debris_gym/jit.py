@@ -28,6 +28,7 @@ if TYPE_CHECKING:
     from numba.core.dispatcher import Dispatcher
 
 COMPILED_MODULES = (
+    "base_law",
     "batch_geometry",
     "swept_contacts",
     "generators",

@@ -23,6 +23,7 @@ from typing import Any, NamedTuple
 import numba
 import numpy as np
 
+from debris_gym.base_law import BaseLaw, base_commands, make_base_law, residual_rows
 from debris_gym.batch_geometry import FieldBatch, polygon_turns
 from debris_gym.config import EnvConfig
 from debris_gym.dynamics import discretize, substep_position_matrix
@@ -224,6 +225,14 @@ class MissionBatch:
         self._observe_code: Callable[..., Any] | None = None
         self._begin_code: dict[bool, Callable[..., Any]] = {}
         self._observed: tuple[np.ndarray, ...] | None = None
+        self.base_law: BaseLaw = make_base_law(cfg, mean_motion, dt, max_accel)
+        """The base law of these missions' rules and physics (:mod:`debris_gym.base_law`):
+        with ``action="residual"`` each step adds its command to the actions."""
+        self.residual = cfg.action == "residual"
+        if self.residual and chasers != 1:
+            raise ValueError("action='residual' is for one chaser per field")
+        self._commands = np.zeros((n, d))  # the residual mode's summed commands
+        self._residual_code: Callable[..., Any] | None = None
         if cfg.navigation_errors:
             if chasers != 1:
                 raise ValueError("navigation errors are for one chaser per field")
@@ -238,7 +247,7 @@ class MissionBatch:
         # the resolved machine code does not pickle: it is resolved again on first use
         state = self.__dict__.copy()
         state.update(_step_code=None, _observe_code=None, _begin_code={}, _field_view=None)
-        state.update(_heads=None)
+        state.update(_heads=None, _residual_code=None)
         return state
 
     @property
@@ -407,7 +416,9 @@ class MissionBatch:
         Args:
             actions: (N, dim) normalised thrust commands (validated: finite), held over the step;
                 the thrust model turns them into accelerations, and a burn that would overspend
-                the Δv budget is cut to spend it exactly.
+                the Δv budget is cut to spend it exactly. With ``action="residual"`` they are
+                corrections: each live row flies its base law's command plus its action,
+                clipped to [−1, 1] per axis (:func:`~debris_gym.base_law.residual_rows`).
             live: (N,) bool, the missions that step.
 
         Returns:
@@ -421,6 +432,8 @@ class MissionBatch:
             live = np.ascontiguousarray(live, dtype=np.bool_)
         if actions.dtype != np.float64 or not actions.flags.c_contiguous:
             actions = np.ascontiguousarray(actions, dtype=np.float64)
+        if self.residual:
+            actions = self._with_base(actions, live)
         head = self._head()
         code = self._step_code
         if code is None:
@@ -428,6 +441,28 @@ class MissionBatch:
             code = self._step_code = specialise(kernel, *head["step"], live, actions, *head["tail"])
         code(*head["step"], live, actions, *head["tail"])
         return self._outputs
+
+    def _with_base(self, actions: np.ndarray, live: np.ndarray) -> np.ndarray:
+        """The residual mode's commands: ``actions`` plus the base law's, clipped per axis, in
+        the live rows of a buffer the next call overwrites."""
+        args = (live, actions, self.base_law, self.missions, self.field_arrays, self._commands)
+        code = self._residual_code
+        if code is None:
+            code = self._residual_code = specialise(residual_rows, *args)
+        code(*args)
+        return self._commands
+
+    def base_commands(self, rows: np.ndarray | None = None) -> np.ndarray:
+        """(R, dim) the base law's normalised commands for missions ``rows`` (default: all) in
+        their current state (:func:`~debris_gym.base_law.base_commands`: the code the residual
+        mode adds inside the step). One chaser per field.
+
+        Raises:
+            ValueError: several chasers per field; a row out of range.
+        """
+        if self.chasers != 1:
+            raise ValueError("the base law flies one chaser per field")
+        return base_commands(self.base_law, self.missions, self.field_arrays, rows)
 
     def captured_counts(self) -> np.ndarray:
         """(N,) int64: targets captured so far in each mission (a new array)."""

@@ -60,8 +60,11 @@ class DebrisFieldEnv(ShellView, gym.Env):
     ``"ball"`` scales vectors longer than 1 onto the unit ball. ``action="discrete"``:
     ``Discrete(2·dim + 1)`` (0 coast, then +x, −x, +y, −y (, +z, −z) at full thrust), and with
     ``fine_thrust`` = f > 0 (v1: 0.1) ``Discrete(4·dim + 1)``, the same directions again at
-    f·``max_accel``. NaN or infinite actions, wrong shapes, and complex, string, boolean or
-    masked-array actions raise ``ValueError`` naming ``action``.
+    f·``max_accel``. ``action="residual"``: the continuous space, the action added to the
+    command of a compiled CW guidance law toward the current goal (:mod:`debris_gym.base_law`;
+    a zero action flies the law) and the sum clipped to [−1, 1] per axis before the thrust
+    model. NaN or infinite actions, wrong shapes, and complex, string, boolean or masked-array
+    actions raise ``ValueError`` naming ``action``.
 
     ## Observation Space
 

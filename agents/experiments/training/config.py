@@ -341,8 +341,10 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
             "must be 'discrete' for dqn (DQN needs a discrete action space); "
             "set env_kwargs: {action: discrete}",
         )
-    if algo in ("sac", "td3") and env_config.action != "continuous":
-        raise config_error(source, "env_kwargs.action", f"must be 'continuous' for {algo}")
+    if algo in ("sac", "td3") and env_config.action == "discrete":
+        raise config_error(
+            source, "env_kwargs.action", f"must be 'continuous' or 'residual' for {algo}"
+        )
 
     try:
         cls = algo_class(algo)
