@@ -268,7 +268,7 @@ class ClassicalAgent:
             self._scenario = scenario
             self.plan(scenario)
         self._episode_time = self.env.elapsed
-        action = np.asarray(self.act(), dtype=self.action_dtype)
+        action: np.ndarray = np.asarray(self.act(), dtype=self.action_dtype)
         if not np.all(np.isfinite(action)):
             raise FloatingPointError(f"{self.name} produced a non-finite action {action}")
         return (action[None] if batched else action), state
