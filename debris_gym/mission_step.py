@@ -130,10 +130,11 @@ def propagate(i, accel, matrix_t, rules, state, time, steps, start, path):
 
 
 @inlined
-def move_bodies(f, matrix_t, centers, velocities, attitude, turns):
+def move_bodies(f, matrix_t, centers, velocities, polygons, attitude, turns):
     """Every body of field ``f`` flies the step unforced: its state (``centers``,
     ``velocities``) times the exact state-transition matrix Φ(dt) (``matrix_t`` = Φᵀ), and every
-    polygon turns by its step's angle (``turns[f, j, 0:2]``).
+    polygon of the field's list ``polygons[f]`` (count, then slots) turns by its step's angle
+    (``turns[f, j, 0:2]``; the other slots' attitudes are never read).
 
     Written out with Φ's structure (:func:`debris_gym.mission_batch.check_transition`): the
     along-track position feeds nothing but itself (Φ_yy = 1), and the cross-track pair (z, ż)
@@ -159,7 +160,8 @@ def move_bodies(f, matrix_t, centers, velocities, attitude, turns):
             z, vz = centers[f, b, 2], velocities[f, b, 2]
             centers[f, b, 2] = pzz * z + pzw * vz
             velocities[f, b, 2] = pwz * z + pww * vz
-    for j in range(attitude.shape[1]):
+    for k in range(polygons[f, 0]):
+        j = polygons[f, 1 + k]
         c, s = attitude[f, j, 0], attitude[f, j, 1]
         cd, sd = turns[f, j, 0], turns[f, j, 1]
         attitude[f, j, 0] = c * cd - s * sd
@@ -621,8 +623,8 @@ def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out, scrat
         if rules.truth_orbits:  # from the states before the step
             fly_truth(i, i, rules, missions.state, scratch.start[0], scratch.accel, field, scratch)
         if rules.moving:  # the bodies fly once the path has been checked against them
-            move_bodies(i, rules.body_matrix_t, field.centers, field.velocities, field.attitude,
-                        field.turns)  # fmt: skip
+            move_bodies(i, rules.body_matrix_t, field.centers, field.velocities, field.polygons,
+                        field.attitude, field.turns)  # fmt: skip
         if rules.truth_orbits:
             land_truth(i, i, scratch.accel.shape[0], missions.state, field, scratch)
         land_row(i, i, 0, rules, shaping, missions, field, out, scratch, dvs[0], False)
@@ -658,8 +660,8 @@ def step_fields(lo, hi, live, actions, rules, shaping, missions, field, out, scr
         if not flying:
             continue
         if rules.moving:
-            move_bodies(f, rules.body_matrix_t, field.centers, field.velocities, field.attitude,
-                        field.turns)  # fmt: skip
+            move_bodies(f, rules.body_matrix_t, field.centers, field.velocities, field.polygons,
+                        field.attitude, field.turns)  # fmt: skip
         if rules.arrived_stay:  # the arrived chasers' paths: held where they ended
             for k in range(n_chasers):
                 i = first + k
