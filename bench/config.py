@@ -17,6 +17,9 @@ DEBRIS_IDS = tuple(debris_gym.ENV_SPECS)
 CARTPOLE = "CartPole-v1"
 ID_2D = "DebrisGym/Rendezvous2D-v2"
 ID_3D = "DebrisGym/Rendezvous3D-v2"
+ID_V1 = "DebrisGym/Rendezvous2D-v1"
+"""The v1 2D default: the vector env's random-action goals are stated for it (and held against
+:data:`ID_2D` too)."""
 SCALING_COUNTS = (10, 50, 100, 200)
 """Debris counts of the single-env scaling rows (the vector rows take theirs from the sizes)."""
 DEFAULT_OBSTACLES = 20

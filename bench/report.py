@@ -11,7 +11,7 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-from bench.config import CARTPOLE, DEFAULT_OBSTACLES, ID_2D, field_size_for
+from bench.config import CARTPOLE, DEFAULT_OBSTACLES, ID_2D, ID_V1, field_size_for
 from bench.decisions import DECISION_SEED
 from bench.harness import RANDOM
 from bench.machine import machine_description
@@ -216,13 +216,13 @@ def _vector_lines(vec: list[dict[str, Any]]) -> list[str]:
     lines += ["", "Goals (2D, 20 debris, kinematics observations):", ""]
     explored = [
         r for r in vec
-        if r["level"] == "native" and r["env_id"] == ID_2D and r["variant"] == RANDOM
+        if r["level"] == "native" and r["env_id"] in (ID_2D, ID_V1) and r["variant"] == RANDOM
         and math.isfinite(r["env_steps_per_s"])
     ]  # fmt: skip
     for r in explored:
         lines.append(
-            f"- uniformly random actions, native N={r['num_envs']} / CartPole native "
-            f"N={cart_n}: {r['ratio_cartpole']:.4f}× (goal ≥ {GOAL_CARTPOLE_RANDOM}×): "
+            f"- uniformly random actions, `{r['env_id']}` native N={r['num_envs']} / CartPole "
+            f"native N={cart_n}: {r['ratio_cartpole']:.4f}× (goal ≥ {GOAL_CARTPOLE_RANDOM}×): "
             f"{_verdict(r['ratio_cartpole'], GOAL_CARTPOLE_RANDOM)}; / SyncVectorEnv's per-env "
             f"rate, random actions too: {r['ratio_sync']:.1f}× (goal ≥ {GOAL_SYNC:.0f}×): "
             f"{_verdict(r['ratio_sync'], GOAL_SYNC)}"

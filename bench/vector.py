@@ -6,13 +6,14 @@ CartPole-v1's native vector env; the 3D env and lidar observations at one N; and
 use two threads, the default env stepped by two threads.
 
 What is timed: ``venv.step(actions)`` with actions pre-generated as for the single env, one
-(N, …) batch per step: gentle thrusts, and for the default 2D env (native at CartPole's N, and
-``SyncVectorEnv``) also uniformly random actions (rows ``actions=random``), which end episodes
-about 30 times as often. Autoresets happen inside ``step`` and are part of the time (they cannot be
-clocked apart); the rows count the episodes that ended in the timed windows. Every vector env
-first runs ``warmup_steps`` steps from ``reset(seed=0)``, so the timed windows are in the steady
-state where episodes end and restart all the time: all sub-envs start at the dock together, and
-no episode ends before the first missions have run their course.
+(N, …) batch per step: gentle thrusts, and for the default 2D env and its v1 world (native at
+CartPole's N, and ``SyncVectorEnv``) also uniformly random actions (rows ``actions=random``),
+which end episodes several times as often. Autoresets happen inside ``step`` and are part of
+the time (they cannot be clocked apart); the rows count the episodes that ended in the timed
+windows. Every vector env first runs ``warmup_steps`` steps from ``reset(seed=0)``, so the
+timed windows are in the steady state where episodes end and restart all the time: all
+sub-envs start at the dock together, and no episode ends before the first missions have run
+their course.
 
 The :class:`VecMeasurement` and the row builder here also serve the ``scaling`` section
 (:mod:`bench.scaling`).
@@ -30,7 +31,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from bench.config import CARTPOLE, ID_2D, ID_3D, MAX_VECTOR_STEPS, MIN_VECTOR_STEPS
+from bench.config import CARTPOLE, ID_2D, ID_3D, ID_V1, MAX_VECTOR_STEPS, MIN_VECTOR_STEPS
 from bench.harness import (
     NAN_RANGE,
     RANDOM,
@@ -194,7 +195,8 @@ def vector_measurements(cfg: dict[str, Any], steps: int | None = None) -> list[V
     out = [vec("native", CARTPOLE, cfg["cartpole_envs"])]
     out += [vec("native", ID_2D, n) for n in cfg["vector_envs"]]
     # uniformly random actions, as an exploring policy gives them: episodes end often
-    out.append(vec("native", ID_2D, cfg["cartpole_envs"], label=RANDOM, action_kind="random"))
+    for env_id in (ID_2D, ID_V1):
+        out.append(vec("native", env_id, cfg["cartpole_envs"], label=RANDOM, action_kind="random"))
     n = cfg["vector_variant_envs"]
     out.append(vec("native", ID_3D, n))
     out.append(vec("native", ID_2D, n, {"observation": "lidar"}, "observation=lidar"))
@@ -204,7 +206,8 @@ def vector_measurements(cfg: dict[str, Any], steps: int | None = None) -> list[V
         for num in dict.fromkeys((cfg["cartpole_envs"], cfg["vector_envs"][-1])):
             out.append(vec("native", ID_2D, num, kw, f"num_threads={threads}"))
     out.append(vec("sync", ID_2D, cfg["sync_envs"]))
-    out.append(vec("sync", ID_2D, cfg["sync_envs"], label=RANDOM, action_kind="random"))
+    for env_id in (ID_2D, ID_V1):
+        out.append(vec("sync", env_id, cfg["sync_envs"], label=RANDOM, action_kind="random"))
     out += [vec("subproc", ID_2D, n) for n in cfg["subproc_envs"]]
     return out
 
@@ -217,15 +220,19 @@ def run_vector(
     interleave(todo, n_repeats, "vector", progress)
     rows = vector_rows(todo)
     cartpole = next((r for r in rows if r["env_id"] == CARTPOLE), None)
-    syncs = {r["actions"]: r for r in rows if r["level"] == "sync" and r["variant"] in ("", RANDOM)}
+    syncs = {
+        (r["env_id"], r["actions"]): r
+        for r in rows
+        if r["level"] == "sync" and r["variant"] in ("", RANDOM)
+    }
     for row in rows:
         if row["env_id"] == CARTPOLE:
             continue
         if row["level"] == "native":
             paired_ratio(row, cartpole, "ratio_cartpole")
         default_env = row["variant"] in ("", RANDOM) or row["variant"].startswith("num_threads=")
-        if row["env_id"] == ID_2D and default_env and row["level"] != "sync":
-            paired_ratio(row, syncs.get(row["actions"]), "ratio_sync")
+        if row["env_id"] in (ID_2D, ID_V1) and default_env and row["level"] != "sync":
+            paired_ratio(row, syncs.get((row["env_id"], row["actions"])), "ratio_sync")
     return drop_rates(rows)
 
 

@@ -181,6 +181,7 @@ class FieldBatch:
         spins: np.ndarray | None = None,
         *,
         vertex_start: int | None = None,
+        sources: np.ndarray | None = None,
     ) -> None:
         """Put K fields given as arrays into the slots ``rows`` (one compiled loop).
 
@@ -195,9 +196,21 @@ class FieldBatch:
             spins: (K, P) tumble rates of bodies ``polygon_start …`` (rad/s); None: 0.
             vertex_start: the body of ``vertices[:, 0]`` (default ``polygon_start``; the
                 bodies from ``polygon_start`` up to it are circles).
+            sources: (K,) the rows of the arrays above that go into ``rows`` (the arrays then
+                have S >= max(sources) + 1 rows each, not K; default: 0 … K − 1).
         """
         rows = np.asarray(rows, dtype=np.int64)
         k, b, dim, p = rows.shape[0], self.n_bodies, self.dim, self.n_vertices.shape[1]
+        if sources is None:
+            sources = np.arange(k, dtype=np.int64)
+        else:
+            sources = np.asarray(sources, dtype=np.int64)
+            if sources.shape != (k,):
+                raise ValueError(f"sources has shape {sources.shape}; needs {(k,)}")
+            given = np.shape(centers)[0]
+            if k and not (0 <= sources.min() and sources.max() < given):
+                raise ValueError(f"sources must lie in [0, {given - 1}], got {sources}")
+            k = given
         start = self.polygon_start if vertex_start is None else vertex_start
         centers = np.ascontiguousarray(centers, dtype=float)
         radii = np.ascontiguousarray(radii, dtype=float)
@@ -230,12 +243,13 @@ class FieldBatch:
                 raise ValueError(f"velocities has shape {velocities.shape}; needs {(k, b, dim)}")
         if spins is None:
             spins = _NO_SPINS
-        else:
-            spins = np.ascontiguousarray(spins, dtype=float)
+        else:  # a column slice of every body's spins is read in place, not copied
+            spins = np.asarray(spins, dtype=float)
             if spins.shape != (k, p):
                 raise ValueError(f"spins has shape {spins.shape}; this batch needs {(k, p)}")
         args = (
             rows,
+            sources,
             centers,
             radii,
             vertices,
@@ -350,28 +364,30 @@ class FieldBatch:
 
 @kernel
 def _load_fields(
-    rows, centers, radii, vertices, counts, velocities, spins, vertex_offset, out_centers,
-    out_radii, out_velocities, out_start, out_spins, out_attitude, polygon_start, out_counts,
-    out_vertices, out_polygons,
+    rows, sources, centers, radii, vertices, counts, velocities, spins, vertex_offset,
+    out_centers, out_radii, out_velocities, out_start, out_spins, out_attitude, polygon_start,
+    out_counts, out_vertices, out_polygons,
 ):  # fmt: skip
     """Copy K fields into the slots ``rows`` and return 0, or write nothing and return the
     largest vertex count when it exceeds the slots' room.
 
-    Centres (K, B, dim), radii (K, B), velocities (K, B, dim; empty: at rest), spins (K, P;
-    empty: 0), the start states and an unturned attitude; when ``counts`` (K, P') is not empty,
-    the relative polygon vertices (K, P', V', 2) of polygon slots ``vertex_offset …`` (the slots
-    before it are circles), zero-padded, with the edge vector from each vertex to the next,
-    computed from the absolute vertices as :class:`~debris_gym.geometry.FieldGeometry` does
-    (vertex + centre, next − this)."""
+    The fields are the rows ``sources`` (K,) of: centres (S, B, dim), radii (S, B), velocities
+    (S, B, dim; empty: at rest), spins (S, P; empty: 0), the start states and an unturned
+    attitude; when ``counts`` (S, P') is not empty, the relative polygon vertices (S, P', V', 2)
+    of polygon slots ``vertex_offset …`` (the slots before it are circles), zero-padded, with
+    the edge vector from each vertex to the next, computed from the absolute vertices as
+    :class:`~debris_gym.geometry.FieldGeometry` does (vertex + centre, next − this)."""
     most = 0
-    for k in range(counts.shape[0]):
-        for j in range(counts.shape[1]):
-            most = max(most, counts[k, j])
+    if counts.shape[0]:
+        for k in range(sources.shape[0]):
+            for j in range(counts.shape[1]):
+                most = max(most, counts[sources[k], j])
     if most > out_vertices.shape[2]:
         return most
     dim = centers.shape[2]
-    for k in range(rows.shape[0]):
-        i = rows[k]
+    for r in range(rows.shape[0]):
+        i = rows[r]
+        k = sources[r]
         for b in range(centers.shape[1]):
             out_radii[i, b] = radii[k, b]
             for a in range(dim):
@@ -418,15 +434,23 @@ def polygon_turns(rows, spins, n, step, sub, out):
     ``rows`` of ``out`` (N, P, 6), then the two angles themselves (rad: cos and sin lose a turn's
     size beyond π, which the swept contact check needs). Scalar ``math.cos`` / ``sin``, bit for
     bit the values Python's give (numpy's vectorised ones may round differently with the array's
-    length, and a field must turn the same in every env that flies it)."""
+    length, and a field must turn the same in every env that flies it). Polygons of one rate
+    (without tumbling, every polygon turns at −n) share the four values of the last one."""
+    last = math.nan
+    c, s, ch, sh = 1.0, 0.0, 1.0, 0.0
     for k in range(rows.shape[0]):
         i = rows[k]
         for j in range(spins.shape[1]):
             rate = spins[i, j] - n
-            out[i, j, 0] = math.cos(rate * step)
-            out[i, j, 1] = math.sin(rate * step)
-            out[i, j, 2] = math.cos(rate * sub)
-            out[i, j, 3] = math.sin(rate * sub)
+            # the same rate gives the same values, bit for bit (a zero's sign included)
+            if rate != last or math.copysign(1.0, rate) != math.copysign(1.0, last):
+                last = rate
+                c, s = math.cos(rate * step), math.sin(rate * step)
+                ch, sh = math.cos(rate * sub), math.sin(rate * sub)
+            out[i, j, 0] = c
+            out[i, j, 1] = s
+            out[i, j, 2] = ch
+            out[i, j, 3] = sh
             out[i, j, 4] = rate * step
             out[i, j, 5] = rate * sub
 
@@ -498,19 +522,34 @@ def field_gaps(
     no branch on each body's kind (measured 12 % faster than one loop that asks). A turned
     polygon (``attitude`` (N, P, 2), see :class:`FieldBatch`) is measured in its loaded frame.
     """
-    dim = centers.shape[2]
-    for b in range(centers.shape[1]):
-        s = 0.0
-        for k in range(dim):
-            d = centers[i, b, k] - point[k]
-            s += d * d
-        out[b] = math.sqrt(s) - radii[i, b]
+    # the axes written out (dim is not known at compile time, and a loop over it keeps the
+    # loop over bodies from being vectorised); each sum in axis order all the same
+    px, py = point[0], point[1]
+    if centers.shape[2] == 2:
+        for b in range(centers.shape[1]):
+            dx = centers[i, b, 0] - px
+            dy = centers[i, b, 1] - py
+            s = 0.0
+            s += dx * dx
+            s += dy * dy
+            out[b] = math.sqrt(s) - radii[i, b]
+    else:
+        pz = point[2]
+        for b in range(centers.shape[1]):
+            dx = centers[i, b, 0] - px
+            dy = centers[i, b, 1] - py
+            dz = centers[i, b, 2] - pz
+            s = 0.0
+            s += dx * dx
+            s += dy * dy
+            s += dz * dz
+            out[b] = math.sqrt(s) - radii[i, b]
     for k in range(polygons[i, 0]):
         j = polygons[i, 1 + k]
         b = polygon_start + j
         cx, cy = centers[i, b, 0], centers[i, b, 1]
-        px, py = to_body_frame(point[0], point[1], cx, cy, attitude[i, j, 0], attitude[i, j, 1])
-        out[b] = polygon_gap(px, py, cx, cy, vertices[i, j], n_vertices[i, j])
+        qx, qy = to_body_frame(px, py, cx, cy, attitude[i, j, 0], attitude[i, j, 1])
+        out[b] = polygon_gap(qx, qy, cx, cy, vertices[i, j], n_vertices[i, j])
 
 
 @kernel

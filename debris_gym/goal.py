@@ -148,6 +148,42 @@ def _tabulated_length(i, order, m, return_to_dock, gaps, chaser_radius, legs, ho
 
 
 @inlined
+def _short_tour(i, order, m, return_to_dock, gaps, chaser_radius, legs, homes):
+    """The shortest of every order of the m <= 3 targets ``order[:m]``, each order's length
+    the sum :func:`_tabulated_length` takes, in its order: the orders written out (Heap's loop
+    over 6 orders costs about as much again in branches)."""
+    a = order[0]
+    ga = max(gaps[i, a] - chaser_radius, 0.0)
+    if m == 1:
+        return ga + homes[a] if return_to_dock else ga
+    b = order[1]
+    gb = max(gaps[i, b] - chaser_radius, 0.0)
+    if m == 2:
+        ab = ga + legs[a, b]
+        ba = gb + legs[b, a]
+        if return_to_dock:
+            ab += homes[b]
+            ba += homes[a]
+        return min(ab, ba)
+    c = order[2]
+    gc = max(gaps[i, c] - chaser_radius, 0.0)
+    abc = ga + legs[a, b] + legs[b, c]
+    acb = ga + legs[a, c] + legs[c, b]
+    bac = gb + legs[b, a] + legs[a, c]
+    bca = gb + legs[b, c] + legs[c, a]
+    cab = gc + legs[c, a] + legs[a, b]
+    cba = gc + legs[c, b] + legs[b, a]
+    if return_to_dock:
+        abc += homes[c]
+        acb += homes[b]
+        bac += homes[c]
+        bca += homes[a]
+        cab += homes[b]
+        cba += homes[a]
+    return min(min(min(abc, acb), min(bac, bca)), min(cab, cba))
+
+
+@inlined
 def remaining_tour(
     i, f, gaps, captured, queued, return_to_dock, chaser_radius, centers, radii, dock, state, order,
     counters, legs, homes,
@@ -198,8 +234,11 @@ def remaining_tour(
         return _order_length(
             i, f, order, m, True, return_to_dock, gaps, chaser_radius, centers, radii, dock
         )
-    # every order, by Heap's algorithm (iterative), over the legs tabulated once
+    # every order, over the legs tabulated once
     _tabulate_legs(i, f, order, m, return_to_dock, centers, radii, dock, legs, homes)
+    if m <= 3:
+        return _short_tour(i, order, m, return_to_dock, gaps, chaser_radius, legs, homes)
+    # by Heap's algorithm (iterative)
     best = _tabulated_length(i, order, m, return_to_dock, gaps, chaser_radius, legs, homes)
     for k in range(m):
         counters[k] = 0

@@ -288,16 +288,19 @@ class MissionBatch:
         self.field.load_scenario(rows, scenario)
         self._set_turns(rows)
 
-    def load_fields(self, rows: np.ndarray, fields: FieldArrays) -> None:
+    def load_fields(
+        self, rows: np.ndarray, fields: FieldArrays, sources: np.ndarray | None = None
+    ) -> None:
         """Put drawn fields (K of them, :class:`~debris_gym.field_spec.FieldArrays`) into the
         fields ``rows``: their vertices are the obstacles' (bodies from T on), their spins every
         body's (see :meth:`FieldBatch.load_arrays
-        <debris_gym.batch_geometry.FieldBatch.load_arrays>`)."""
+        <debris_gym.batch_geometry.FieldBatch.load_arrays>`); ``sources`` (K,): the fields of
+        ``fields`` to load, if not all of them in order."""
         rows = np.asarray(rows, dtype=np.int64)
         spins = None if fields.spins is None else fields.spins[:, self.field.polygon_start :]
         self.field.load_arrays(
             rows, fields.centers, fields.radii, fields.vertices, fields.n_vertices,
-            fields.velocities, spins, vertex_start=fields.n_targets,
+            fields.velocities, spins, vertex_start=fields.n_targets, sources=sources,
         )  # fmt: skip
         self._set_turns(rows)
 
@@ -358,7 +361,7 @@ class MissionBatch:
         f = self.field
         advance_bodies(
             fields, counts, self.rules.moving, self.rules.body_matrix_t, f.centers, f.velocities,
-            f.attitude, self.turns,
+            f.polygons, f.attitude, self.turns,
         )  # fmt: skip
 
     def flown_copy(self, fields: FieldArrays | Any, counts: np.ndarray) -> FieldBatch:
@@ -385,7 +388,8 @@ class MissionBatch:
             polygon_turns(np.arange(k), copy.spins, self.physics.mean_motion, step, sub, turns)
         advance_bodies(
             np.arange(k), np.ascontiguousarray(counts, dtype=np.int64), self.rules.moving,
-            self.rules.body_matrix_t, copy.centers, copy.velocities, copy.attitude, turns,
+            self.rules.body_matrix_t, copy.centers, copy.velocities, copy.polygons, copy.attitude,
+            turns,
         )  # fmt: skip
         return copy
 

@@ -169,7 +169,9 @@ def beside_state(
 
 
 @kernel
-def advance_bodies(fields, counts, moving, matrix_t, centers, velocities, attitude, turns):
+def advance_bodies(
+    fields, counts, moving, matrix_t, centers, velocities, polygons, attitude, turns
+):
     """Fly the bodies of each field ``fields[k]`` on by ``counts[k]`` steps of their natural
     motion, with the step's own moves (:func:`~debris_gym.mission_step.move_bodies`; nothing
     moves unless ``moving``)."""
@@ -178,7 +180,7 @@ def advance_bodies(fields, counts, moving, matrix_t, centers, velocities, attitu
     for k in range(fields.shape[0]):
         f = fields[k]
         for _ in range(counts[k]):
-            move_bodies(f, matrix_t, centers, velocities, attitude, turns)
+            move_bodies(f, matrix_t, centers, velocities, polygons, attitude, turns)
 
 
 @kernel

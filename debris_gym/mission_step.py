@@ -94,17 +94,35 @@ def propagate(i, accel, matrix_t, rules, state, time, steps, start, path):
         start[k] = state[i, k]
     for a in range(dim):
         path[0, a] = start[a]
-    # [x₀, u] @ matrix_t: every sub-step position, then the end velocity
-    for c in range(matrix_t.shape[1]):
-        s = 0.0
-        for k in range(2 * dim):
-            s += start[k] * matrix_t[k, c]
-        for k in range(dim):
-            s += accel[k] * matrix_t[2 * dim + k, c]
-        if c < n_sub * dim:
-            path[1 + c // dim, c % dim] = s
-        else:
-            state[i, dim + c - n_sub * dim] = s
+    # [x₀, u] @ matrix_t: every sub-step position (column p·dim + a), then the end velocity.
+    # Written out for 2 and 3 axes, with [x₀, u] held in locals: dim is not known at compile
+    # time, and loops over it (with the inputs read again after every write to the path,
+    # which might alias them) compile to far more than the 6 or 9 products of a column; each
+    # sum is taken in the row order of matrix_t all the same
+    x0, x1, x2, x3 = start[0], start[1], start[2], start[3]
+    if dim == 2:
+        x4, x5 = accel[0], accel[1]
+        x6 = x7 = x8 = 0.0
+    else:
+        x4, x5, x6, x7, x8 = start[4], start[5], accel[0], accel[1], accel[2]
+    for p in range(n_sub + 1):
+        for a in range(dim):
+            c = p * dim + a
+            s = 0.0
+            s += x0 * matrix_t[0, c]
+            s += x1 * matrix_t[1, c]
+            s += x2 * matrix_t[2, c]
+            s += x3 * matrix_t[3, c]
+            s += x4 * matrix_t[4, c]
+            s += x5 * matrix_t[5, c]
+            if dim == 3:
+                s += x6 * matrix_t[6, c]
+                s += x7 * matrix_t[7, c]
+                s += x8 * matrix_t[8, c]
+            if p < n_sub:
+                path[1 + p, a] = s
+            else:
+                state[i, dim + a] = s
     for a in range(dim):
         state[i, a] = path[n_sub, a]
     time[i] += rules.dt
@@ -112,10 +130,11 @@ def propagate(i, accel, matrix_t, rules, state, time, steps, start, path):
 
 
 @inlined
-def move_bodies(f, matrix_t, centers, velocities, attitude, turns):
+def move_bodies(f, matrix_t, centers, velocities, polygons, attitude, turns):
     """Every body of field ``f`` flies the step unforced: its state (``centers``,
     ``velocities``) times the exact state-transition matrix Φ(dt) (``matrix_t`` = Φᵀ), and every
-    polygon turns by its step's angle (``turns[f, j, 0:2]``).
+    polygon of the field's list ``polygons[f]`` (count, then slots) turns by its step's angle
+    (``turns[f, j, 0:2]``; the other slots' attitudes are never read).
 
     Written out with Φ's structure (:func:`debris_gym.mission_batch.check_transition`): the
     along-track position feeds nothing but itself (Φ_yy = 1), and the cross-track pair (z, ż)
@@ -141,7 +160,8 @@ def move_bodies(f, matrix_t, centers, velocities, attitude, turns):
             z, vz = centers[f, b, 2], velocities[f, b, 2]
             centers[f, b, 2] = pzz * z + pzw * vz
             velocities[f, b, 2] = pwz * z + pww * vz
-    for j in range(attitude.shape[1]):
+    for k in range(polygons[f, 0]):
+        j = polygons[f, 1 + k]
         c, s = attitude[f, j, 0], attitude[f, j, 1]
         cd, sd = turns[f, j, 0], turns[f, j, 1]
         attitude[f, j, 0] = c * cd - s * sd
@@ -608,8 +628,8 @@ def step_rows(lo, hi, live, actions, rules, shaping, missions, field, out, scrat
         if rules.truth_orbits:  # from the states before the step
             fly_truth(i, i, rules, missions.state, scratch.start[0], scratch.accel, field, scratch)
         if rules.moving:  # the bodies fly once the path has been checked against them
-            move_bodies(i, rules.body_matrix_t, field.centers, field.velocities, field.attitude,
-                        field.turns)  # fmt: skip
+            move_bodies(i, rules.body_matrix_t, field.centers, field.velocities, field.polygons,
+                        field.attitude, field.turns)  # fmt: skip
         if rules.truth_orbits:
             land_truth(i, i, scratch.accel.shape[0], missions.state, field, scratch)
         land_row(i, i, 0, rules, shaping, missions, field, out, scratch, dvs[0], False)
@@ -645,8 +665,8 @@ def step_fields(lo, hi, live, actions, rules, shaping, missions, field, out, scr
         if not flying:
             continue
         if rules.moving:
-            move_bodies(f, rules.body_matrix_t, field.centers, field.velocities, field.attitude,
-                        field.turns)  # fmt: skip
+            move_bodies(f, rules.body_matrix_t, field.centers, field.velocities, field.polygons,
+                        field.attitude, field.turns)  # fmt: skip
         if rules.arrived_stay:  # the arrived chasers' paths: held where they ended
             for k in range(n_chasers):
                 i = first + k

@@ -240,7 +240,8 @@ def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
     mates = np.empty(layout.teammate_slots, dtype=np.int64)
     mate_d2 = np.empty(layout.teammate_slots)
     for i in range(lo, hi):
-        f = i // rules.n_chasers  # the row's field
+        # the row's field (an integer division costs more than the test that spares it)
+        f = i if rules.n_chasers == 1 else i // rules.n_chasers
         goal, gap = NO_GOAL, 0.0  # the current goal, for the options that show it
         if layout.goal_slots or layout.goal_near_slots or layout.other_targets:
             goal, gap, _ = current_goal(
@@ -310,9 +311,11 @@ def observe_rows(lo, hi, rules, layout, missions, field, horizon, out):
             else:
                 for s in range(n_near):
                     near[s] = nearest[i, s]
-            n_seen = 0  # the slots within sensor range (nearest first: a prefix)
-            while n_seen < n_near and gaps[i, near[n_seen]] <= layout.sensor_range:
-                n_seen += 1
+            n_seen = n_near  # the slots within sensor range (nearest first: a prefix)
+            if layout.sensor_range != math.inf:
+                n_seen = 0
+                while n_seen < n_near and gaps[i, near[n_seen]] <= layout.sensor_range:
+                    n_seen += 1
             for s in range(n_seen):
                 b = near[s]
                 for a in range(dim):

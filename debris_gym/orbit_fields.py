@@ -60,8 +60,8 @@ as named records (:class:`OrbitRules`, :class:`PlaceScratch`, :class:`DrawnOrbit
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from typing import NamedTuple
+from collections.abc import Callable, Sequence
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -75,7 +75,7 @@ from debris_gym.field_spec import (
     checked_horizon,
     route_by_construction,
 )
-from debris_gym.jit import inlined, kernel
+from debris_gym.jit import inlined, kernel, specialise
 from debris_gym.orbit_separation import apart
 
 __all__ = [
@@ -294,7 +294,7 @@ class OrbitDrawer:
     """Draws moving fields of one checked spec (made by :func:`orbit_drawer`): the kernel's
     rules are built once, so a draw is one word per generator and one compiled call."""
 
-    __slots__ = ("max_tries", "rules", "spec")
+    __slots__ = ("_rows_code", "_rows_scratch", "max_tries", "rules", "spec")
 
     def __init__(self, spec: FieldSpec, max_tries: int, wide_tries: int = WIDE_TRIES) -> None:
         self.spec, self.max_tries = spec, max_tries
@@ -324,6 +324,8 @@ class OrbitDrawer:
             wide_tries=int(wide_tries),
             wide_candidates=WIDE_CANDIDATES,
         )
+        self._rows_code: Callable[..., Any] | None = None
+        self._rows_scratch: PlaceScratch | None = None
 
     def draw(self, rngs: Sequence[np.random.Generator]) -> FieldArrays:
         """One field per generator, each from one 64-bit word of its own generator.
@@ -360,24 +362,50 @@ class OrbitDrawer:
     def place(self, words: np.ndarray) -> DrawnOrbits:
         """Run the compiled draw on ``words`` (K,) uint64; rows whose ``placed`` is False found
         no valid try (their other arrays are meaningless)."""
+        out = self.empty(len(words))
+        rows = np.arange(len(words), dtype=np.int64)
+        words = np.ascontiguousarray(words, dtype=np.uint64)
+        _draw_orbits(words, rows, self.rules, self._scratch(), out)
+        return out
+
+    def empty(self, num: int) -> DrawnOrbits:
+        """Room for ``num`` fields of this spec (zeros; none placed)."""
         rules = self.rules
-        num, dim = len(words), rules.dim
+        dim = rules.dim
         b_all = rules.n_targets + rules.n_obstacles
         v_max = MAX_POLYGON_VERTICES if dim == 2 else 0
-        out = DrawnOrbits(
+        return DrawnOrbits(
             centers=np.zeros((num, b_all, dim)),
             velocities=np.zeros((num, b_all, dim)),
-            radii=np.empty((num, b_all)),
+            radii=np.zeros((num, b_all)),
             vertices=np.zeros((num, rules.n_obstacles, v_max, 2)),
             n_vertices=np.zeros((num, rules.n_obstacles), dtype=np.int64),
             spins=np.zeros((num, b_all)),
             placed=np.zeros(num, dtype=np.bool_),
         )
+
+    def draw_rows(self, words: np.ndarray, rows: np.ndarray, out: DrawnOrbits) -> None:
+        """Draw the fields of ``words`` (K,) uint64 into the rows ``rows`` (K,) int64 of ``out``
+        (made by :meth:`empty`; ``out.placed`` says which found a valid try): the fields
+        :meth:`place` gives, each row overwritten whole.
+
+        One call of machine code resolved once (:func:`~debris_gym.jit.specialise`), with
+        working arrays kept from call to call: what a thread that draws fields ahead calls
+        while the missions fly, holding Python's lock only to enter and leave. Calls must not
+        overlap (one thread draws).
+        """
+        code, scratch = self._rows_code, self._rows_scratch
+        if code is None or scratch is None:
+            scratch = self._rows_scratch = self._scratch()
+            code = self._rows_code = specialise(_draw_orbits, words, rows, self.rules, scratch, out)
+        code(words, rows, self.rules, scratch, out)
+
+    def _scratch(self) -> PlaceScratch:
+        rules = self.rules
+        b_all = rules.n_targets + rules.n_obstacles
         spacing = np.full(b_all, rules.min_gap)
         spacing[: rules.n_targets] += rules.target_clearance
-        scratch = PlaceScratch(spacing, np.zeros((b_all, 6)), np.empty(POLYGON_DRAWS))
-        _draw_orbits(np.ascontiguousarray(words, dtype=np.uint64), rules, scratch, out)
-        return out
+        return PlaceScratch(spacing, np.zeros((b_all, 6)), np.empty(POLYGON_DRAWS))
 
 
 def stream_uniform(key: int, index: int) -> float:
@@ -412,10 +440,10 @@ def _try_key(word, j):
 
 
 @kernel
-def _draw_orbits(words, rules, scratch, out):
+def _draw_orbits(words, rows, rules, scratch, out):
     """The bodies of K moving fields from their words ``words`` (K,) uint64 (module docstring),
-    written into ``out`` (:class:`DrawnOrbits`): each field tried with the keys
-    :func:`_try_key` until every body is placed, ``rules.tries`` times with
+    written into the rows ``rows`` (K,) of ``out`` (:class:`DrawnOrbits`): each field tried
+    with the keys :func:`_try_key` until every body is placed, ``rules.tries`` times with
     ``rules.candidates`` candidates per body, then ``rules.wide_tries`` times with
     ``rules.wide_candidates``.
 
@@ -426,9 +454,10 @@ def _draw_orbits(words, rules, scratch, out):
     give x = x_c + a sin nt + b cos nt, y = y_c − 1.5 n x_c t + 2(a cos nt − b sin nt),
     z = a_z sin nt + b_z cos nt; its state at t = 0 is what the field hands out.
     """
-    for k in range(words.shape[0]):
+    for r in range(words.shape[0]):
+        k = rows[r]
         for attempt in range(rules.tries + rules.wide_tries):
-            key = _try_key(words[k], attempt)
+            key = _try_key(words[r], attempt)
             n_cand = rules.candidates if attempt < rules.tries else rules.wide_candidates
             out.placed[k] = _place(key, k, n_cand, rules, scratch, out)
             if out.placed[k]:

@@ -258,19 +258,26 @@ def moving_path_touches(
     """
     n_points, dim = path.shape
     reach = path_reach(path) + inflate
+    swept = swept_turns and dim == 2 and turns.shape[1] > 0
     for b in range(centers.shape[1]):
         out[b] = False
-        # 1-norms bound the 2-norms from above: a looser bound that needs no square root
-        pos1 = 0.0
-        vel1 = 0.0
-        for a in range(dim):
-            pos1 += abs(centers[i, b, a])
-            vel1 += abs(velocities[i, b, a])
+        # 1-norms bound the 2-norms from above: a looser bound that needs no square root;
+        # the axes written out (dim is not known at compile time: a loop over them compiles
+        # to far more than two or three additions)
+        pos1 = abs(centers[i, b, 0]) + abs(centers[i, b, 1])
+        vel1 = abs(velocities[i, b, 0]) + abs(velocities[i, b, 1])
+        if dim == 3:
+            pos1 += abs(centers[i, b, 2])
+            vel1 += abs(velocities[i, b, 2])
         bound = reach_position * pos1 + reach_velocity * vel1
         j = b - polygon_start
         polygon = dim == 2 and j >= 0
-        if swept_turns and polygon and n_vertices[i, j]:
-            bound += radii[i, b] * min(abs(turns[i, j, 4]), 2.0)
+        if swept:
+            # a turning polygon's pad without a branch on the body's kind (which changes from
+            # body to body, so a branch mispredicts): the others add 0, which changes nothing
+            jj = max(j, 0)
+            turning = 1.0 if (j >= 0) & (n_vertices[i, jj] != 0) else 0.0
+            bound += turning * (radii[i, b] * min(abs(turns[i, jj, 4]), 2.0))
         if not start_gaps[b] <= reach + bound:  # broad phase
             continue
         m = n_vertices[i, j] if polygon else 0  # read past the broad phase: most bodies stop there

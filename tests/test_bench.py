@@ -23,7 +23,7 @@ import pytest
 
 import bench
 from bench import cli, config, decisions, harness, memory, suite, vector
-from bench.config import CARTPOLE, DEBRIS_IDS, DEFAULT_OBSTACLES, ID_2D, ID_3D, TINY
+from bench.config import CARTPOLE, DEBRIS_IDS, DEFAULT_OBSTACLES, ID_2D, ID_3D, ID_V1, TINY
 from debris_gym.files import write_atomic
 from tests.helpers import flies_old_ids
 
@@ -157,9 +157,10 @@ def check_vector_rows(vec: list[dict], sizes: dict) -> None:
     expected |= {("native", ID_2D, "observation=lidar", sizes["vector_variant_envs"])}
     expected |= {("sync", ID_2D, "", sizes["sync_envs"])}
     expected |= {("subproc", ID_2D, "", n) for n in sizes["subproc_envs"]}
-    # uniformly random actions: the native env at CartPole's N and SyncVectorEnv
-    expected |= {("native", ID_2D, "actions=random", sizes["cartpole_envs"])}
-    expected |= {("sync", ID_2D, "actions=random", sizes["sync_envs"])}
+    # uniformly random actions, v2 and v1: the native env at CartPole's N and SyncVectorEnv
+    for env_id in (ID_2D, ID_V1):
+        expected |= {("native", env_id, "actions=random", sizes["cartpole_envs"])}
+        expected |= {("sync", env_id, "actions=random", sizes["sync_envs"])}
     if vector.numba_threads() >= 2:  # the default env again, stepped by two threads
         threaded = {sizes["cartpole_envs"], sizes["vector_envs"][-1]}
         expected |= {("native", ID_2D, "num_threads=2", n) for n in threaded}
@@ -181,11 +182,20 @@ def check_vector_rows(vec: list[dict], sizes: dict) -> None:
         want = row["env_steps_per_s"] / cartpole["env_steps_per_s"]
         assert row["ratio_cartpole"] == pytest.approx(want)
     same_env = [r for r in native_2d if not r["variant"] or r["variant"] == "num_threads=2"]
-    (explored,) = [r for r in native_2d if r["variant"] == "actions=random"]
-    (sync_random,) = [r for r in vec if r["level"] == "sync" and r["variant"] == "actions=random"]
-    assert explored["ratio_sync"] == pytest.approx(
-        explored["env_steps_per_s"] / sync_random["env_steps_per_s"]
-    )
+    for env_id in (ID_2D, ID_V1):  # each against SyncVectorEnv of its own world
+        (explored,) = [
+            r for r in vec
+            if r["level"] == "native" and r["env_id"] == env_id and r["variant"] == "actions=random"
+        ]  # fmt: skip
+        (sync_random,) = [
+            r for r in vec
+            if r["level"] == "sync" and r["env_id"] == env_id and r["variant"] == "actions=random"
+        ]  # fmt: skip
+        assert explored["ratio_sync"] == pytest.approx(
+            explored["env_steps_per_s"] / sync_random["env_steps_per_s"]
+        )
+        want = explored["env_steps_per_s"] / cartpole["env_steps_per_s"]
+        assert explored["ratio_cartpole"] == pytest.approx(want)
     assert {r["actions"] for r in vec if r["variant"] == "actions=random"} == {"random"}
     assert {r["actions"] for r in vec if r["variant"] != "actions=random"} == {"gentle"}
     subproc = [r for r in vec if r["level"] == "subproc"]
@@ -199,6 +209,8 @@ def test_vector_section_rows():
     check_vector_rows(vec, IN_PROCESS)
     report = _report_of(vec, "## Vector env throughput")
     assert "SyncVectorEnv" in report
+    for env_id in (ID_2D, ID_V1):  # the random-action goals, for each world
+        assert f"- uniformly random actions, `{env_id}` native N=" in report
 
 
 @pytest.mark.slow

@@ -8,8 +8,10 @@ row's k-th episode does not depend on when it is drawn, nor on which other rows 
 
 That is what lets :class:`FieldSupply` draw moving fields ahead: when a row takes a field, the
 supply takes the row's next word at once (the *pending* word, already out of the generator) and
-hands its field to a worker thread, which draws it while the missions fly (the compiled draw
-releases the GIL). The row's next reset finds the field ready and pays only for copying it into
+hands its field to a worker thread, which draws it while the missions fly, straight into the
+row's slot of a store of drawn fields (one call of compiled code that releases the GIL: the
+worker holds Python's lock only to enter and leave it, so that it seldom keeps the missions'
+thread waiting). The row's next reset finds the field ready and pays only for copying it into
 the batch. The pending word is part of the row's random state: a reset that fails puts it back
 with the generator's state, and a reset that changes the mission draws the new mission's field
 from the same word — so the fields are those a draw at reset time gives, the same for the same
@@ -18,10 +20,9 @@ seed with or without drawing ahead (tested).
 
 from __future__ import annotations
 
-import math
+import queue
 import threading
 from collections.abc import Mapping, Sequence
-from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
@@ -30,7 +31,7 @@ import numpy as np
 from debris_gym.config import EnvConfig
 from debris_gym.envs.common import field_spec
 from debris_gym.generators import FieldArrays, FieldSpec, paper_field, random_fields
-from debris_gym.orbit_fields import OrbitDrawer, orbit_drawer
+from debris_gym.orbit_fields import DrawnOrbits, OrbitDrawer, orbit_drawer
 from debris_gym.scenario import Scenario
 
 __all__ = ["FieldSupply", "SupplyState"]
@@ -75,16 +76,15 @@ class FieldSupply:
         """(num,) uint64: the word of each row's last moving random field (see
         :meth:`take`)."""
         self._ahead = ahead
-        # fields drawn ahead: row i's is valid while _ready[i], it was drawn from the word
-        # _ready_words[i] that the row takes next, with the drawer now in force
-        # (_ready_drawer); the worker writes them
+        # fields drawn ahead: row i's was handed to the worker while _ready[i], drawn from the
+        # word _ready_words[i] that the row takes next, with the drawer now in force
+        # (_ready_drawer), into row i of _store (valid once the worker is done, if
+        # _store.placed[i])
         self._ready = np.zeros(num, dtype=bool)
         self._ready_words = np.zeros(num, dtype=np.uint64)
         self._ready_drawer: OrbitDrawer | None = None
-        self._store: FieldArrays | None = None
-        self._executor: ThreadPoolExecutor | None = None
-        self._jobs: list[Future] = []
-        self._lock = threading.Lock()
+        self._store: DrawnOrbits | None = None
+        self._worker: _Worker | None = None
         self._paper: Scenario | None = None
         self.configure(config)
 
@@ -182,15 +182,48 @@ class FieldSupply:
             chosen = [self.generators[i] for i in rows.tolist()]
             return random_fields(chosen, self.spec, capture_radius=self.config.capture_radius)
         drawer = self.drawer()
+        self.wait()  # the worker takes words too
         words = self._next_words(rows)
         self.taken_words[rows] = words
-        if self._ahead and self._ready_drawer is drawer:
-            self.wait()
-            ready = self._ready[rows] & (self._ready_words[rows] == words)
-            self._ready[rows] = False
-            if ready.all() and self._store is not None:
-                return _select(self._store, rows)
+        if self._taken_ready(rows, words):
+            assert self._store is not None
+            return _drawn_fields(self._store, drawer, rows)
         return drawer.from_words(words)
+
+    def take_drawn(self, rows: np.ndarray) -> FieldArrays | None:
+        """The next fields of the rows ``rows`` as :meth:`take` gives them, but as the whole
+        store of fields drawn ahead (row i of it is row i's field: load the rows ``rows`` of
+        it), or None when some row's field was not drawn ahead (then nothing changed: call
+        :meth:`take`). Spares the copy of the rows out of the store."""
+        if not self._ahead or self.paper or not self.moving or self._store is None:
+            return None
+        if self._ready_drawer is not self.drawer():
+            return None
+        self.wait()
+        pending = self._pending[rows]
+        if not pending.all():
+            return None
+        words = self._words[rows]
+        store = self._store
+        if not (self._ready[rows].all() and (self._ready_words[rows] == words).all()):
+            return None
+        if not store.placed[rows].all():
+            return None
+        self._pending[rows] = False
+        self._ready[rows] = False
+        self.taken_words[rows] = words
+        return _drawn_fields(store, self.drawer(), None)
+
+    def _taken_ready(self, rows: np.ndarray, words: np.ndarray) -> bool:
+        """Were the fields of ``words`` drawn ahead for ``rows`` (waits for the worker)? Their
+        rows of the store are given away either way."""
+        if not (self._ahead and self._ready_drawer is self.drawer()):
+            return False
+        self.wait()
+        ready = self._ready[rows] & (self._ready_words[rows] == words)
+        self._ready[rows] = False
+        store = self._store
+        return bool(ready.all()) and store is not None and bool(store.placed[rows].all())
 
     def with_words(
         self, fields: FieldArrays, positions: np.ndarray, words: np.ndarray
@@ -213,7 +246,11 @@ class FieldSupply:
             fields.radii.copy(), fields.vertices.copy(), fields.n_vertices.copy(),
             velocities=_moving(fields.velocities).copy(), spins=_moving(fields.spins).copy(),
         )  # fmt: skip
-        _assign(copy, np.asarray(positions, dtype=np.int64), drawn)
+        at = np.asarray(positions, dtype=np.int64)
+        copy.centers[at], copy.radii[at] = drawn.centers, drawn.radii
+        copy.vertices[at], copy.n_vertices[at] = drawn.vertices, drawn.n_vertices
+        _moving(copy.velocities)[at] = _moving(drawn.velocities)
+        _moving(copy.spins)[at] = _moving(drawn.spins)
         return copy
 
     def draw_ahead(self, rows: np.ndarray) -> None:
@@ -226,12 +263,22 @@ class FieldSupply:
             self.wait()
             self._ready[:] = False
             self._ready_drawer = drawer
-        words = self._next_words(rows).copy()
+            self._store = drawer.empty(self.num)
+        rows = np.array(rows, dtype=np.int64)
+        self._ready[rows] = True
+        if self._worker is None:
+            self._worker = _Worker()
+        self._worker.submit(self._draw_next, drawer, rows)
+
+    def _draw_next(self, drawer: OrbitDrawer, rows: np.ndarray) -> None:
+        """The worker's job: take the rows' next words (they become pending) and draw their
+        fields into the store. Until :meth:`wait` returns, only the worker touches the rows'
+        generators, words and store rows."""
+        words = self._next_words(rows)
         self._pending[rows] = True
-        if self._executor is None:
-            self._executor = ThreadPoolExecutor(1, thread_name_prefix="debris-gym-fields")
-        rows = rows.copy()
-        self._jobs.append(self._executor.submit(self._draw_into_store, drawer, rows, words))
+        self._ready_words[rows] = words
+        assert self._store is not None
+        drawer.draw_rows(words, rows, self._store)
 
     def _next_words(self, rows: np.ndarray) -> np.ndarray:
         """The rows' pending words, taken from their generators where there is none; after
@@ -244,88 +291,93 @@ class FieldSupply:
         self._pending[rows] = False
         return words
 
-    def _draw_into_store(self, drawer: OrbitDrawer, rows: np.ndarray, words: np.ndarray) -> None:
-        """The worker's job: draw the fields of ``words`` and keep them for ``rows``."""
-        fields = drawer.from_words(words)  # the compiled draw releases the GIL
-        with self._lock:
-            store = self._store
-            if store is None or not _fits(store, fields, self.num):
-                store = self._store = _empty_store(fields, self.num)
-            _assign(store, rows, fields)
-            self._ready_words[rows] = words
-            self._ready[rows] = True
-
     def wait(self) -> None:
-        """Wait for the worker; fields drawn ahead that failed are dropped (their rows draw
-        again when taken, and raise then)."""
-        jobs, self._jobs = self._jobs, []
-        for job in jobs:
-            try:
-                job.result()
-            except ValueError:
-                pass
+        """Wait for the worker (fields drawn ahead that found no valid try are not ``placed``:
+        their rows draw again when taken, and raise then)."""
+        if self._worker is not None:
+            self._worker.wait()
 
     def close(self) -> None:
         """Stop the worker thread."""
-        self.wait()
-        if self._executor is not None:
-            self._executor.shutdown(wait=True)
-            self._executor = None
+        if self._worker is not None:
+            self._worker.close()
+            self._worker = None
 
     def __getstate__(self) -> dict:
         # threads do not pickle: a copy draws its fields when taken, the same fields
         self.wait()
         state = self.__dict__.copy()
-        state.update(_executor=None, _jobs=[], _lock=None, _store=None, _ready_drawer=None)
+        state.update(_worker=None, _store=None, _ready_drawer=None)
         state["_ready"] = np.zeros(self.num, dtype=bool)
         return state
 
-    def __setstate__(self, state: dict) -> None:
-        self.__dict__.update(state)
-        self._lock = threading.Lock()
-
 
 def _moving(array: np.ndarray | None) -> np.ndarray:
-    """A moving field's velocities or spins (the supply draws ahead only moving fields)."""
+    """A moving field's velocities or spins (only moving fields have field words)."""
     if array is None:
-        raise RuntimeError("a field drawn ahead has no velocities or spins")
+        raise RuntimeError("a moving field has no velocities or spins")
     return array
 
 
-def _select(store: FieldArrays, rows: np.ndarray) -> FieldArrays:
-    """The rows ``rows`` of a store of fields, as fields of their own."""
+def _drawn_fields(store: DrawnOrbits, drawer: OrbitDrawer, rows: np.ndarray | None) -> FieldArrays:
+    """The rows ``rows`` of a store of fields drawn ahead as fields of their own (copies), or
+    with ``rows`` None the whole store (its own arrays)."""
+
+    def pick(array: np.ndarray) -> np.ndarray:
+        return array if rows is None else array[rows]
+
+    rules = drawer.rules
     return FieldArrays(
-        store.dim, store.half_size, store.n_targets, store.centers[rows], store.radii[rows],
-        store.vertices[rows], store.n_vertices[rows], velocities=_moving(store.velocities)[rows],
-        spins=_moving(store.spins)[rows],
+        rules.dim, rules.half_size, rules.n_targets, pick(store.centers), pick(store.radii),
+        pick(store.vertices), pick(store.n_vertices), velocities=pick(store.velocities),
+        spins=pick(store.spins),
     )  # fmt: skip
 
 
-def _fits(store: FieldArrays, fields: FieldArrays, num: int) -> bool:
-    return (
-        store.centers.shape[1:] == fields.centers.shape[1:]
-        and store.vertices.shape[1:] == fields.vertices.shape[1:]
-        and store.n_targets == fields.n_targets
-        and math.isclose(store.half_size, fields.half_size)
-        and len(store) == num
-    )
+class _Worker:
+    """One thread that runs the jobs handed to it in order (the supply's drawing ahead): a
+    job is a queue entry, not a future, so that handing one over costs a few microseconds."""
 
+    def __init__(self) -> None:
+        self._jobs: queue.SimpleQueue = queue.SimpleQueue()
+        self._done: queue.SimpleQueue = queue.SimpleQueue()
+        self._running = 0  # jobs handed over and not yet waited for
+        self._thread = threading.Thread(target=self._run, name="debris-gym-fields", daemon=True)
+        self._thread.start()
 
-def _empty_store(fields: FieldArrays, num: int) -> FieldArrays:
-    def rows_of(array: np.ndarray) -> np.ndarray:
-        return np.zeros((num, *array.shape[1:]), dtype=array.dtype)
+    def _run(self) -> None:
+        while True:
+            job = self._jobs.get()
+            if job is None:
+                return
+            function, args = job
+            try:
+                function(*args)
+            except BaseException as error:  # handed to the waiting thread
+                self._done.put(error)
+            else:
+                self._done.put(None)
 
-    return FieldArrays(
-        fields.dim, fields.half_size, fields.n_targets, rows_of(fields.centers),
-        rows_of(fields.radii), rows_of(fields.vertices), rows_of(fields.n_vertices),
-        velocities=rows_of(_moving(fields.velocities)), spins=rows_of(_moving(fields.spins)),
-    )  # fmt: skip
+    def submit(self, function: Any, *args: Any) -> None:
+        """Run ``function(*args)`` on the thread after the jobs before it."""
+        self._jobs.put((function, args))
+        self._running += 1
 
+    def wait(self) -> None:
+        """Wait for every job handed over; raise the first error one of them raised."""
+        first = None
+        while self._running:
+            error = self._done.get()
+            self._running -= 1
+            if first is None:
+                first = error
+        if first is not None:
+            raise first
 
-def _assign(store: FieldArrays, rows: np.ndarray, fields: FieldArrays) -> None:
-    store.centers[rows] = fields.centers
-    store.radii[rows] = fields.radii
-    store.vertices[rows] = fields.vertices
-    store.n_vertices[rows] = fields.n_vertices
-    _moving(store.velocities)[rows] = _moving(fields.velocities)
-    _moving(store.spins)[rows] = _moving(fields.spins)
+    def close(self) -> None:
+        """Wait for the jobs, then stop the thread."""
+        try:
+            self.wait()
+        finally:
+            self._jobs.put(None)
+            self._thread.join()

@@ -577,13 +577,16 @@ class MissionShell:
             self.on_draw(fields)
         return fields
 
-    def _install(self, rows: np.ndarray, fields: FieldArrays | None) -> None:
-        """Load the drawn ``fields`` (None: the paper world) into the fields ``rows``."""
+    def _install(
+        self, rows: np.ndarray, fields: FieldArrays | None, sources: np.ndarray | None = None
+    ) -> None:
+        """Load the drawn ``fields`` (None: the paper world; ``sources``: the ones to load, if
+        not all in order) into the fields ``rows``."""
         if fields is None:
             self._install_scenario(rows, self.supply.paper_field())
             return
         batch = self.batch_in_use
-        batch.load_fields(rows, fields)
+        batch.load_fields(rows, fields, sources)
         for i in rows.tolist():
             self.pinned[i] = self._built[i] = None
         stale = rows[~self._random_world[rows]]
@@ -652,8 +655,11 @@ class MissionShell:
         fields = np.flatnonzero(mask)
         k = self.chasers
         rows = fields if k == 1 else (fields[:, None] * k + np.arange(k)).ravel()
-        drawn, plan = None, None
-        if self._pin is None:
+        drawn, plan, in_place = None, None, False
+        if self._pin is None and self.on_draw is None and self.start_sampler is None:
+            drawn = self.supply.take_drawn(fields)  # the fields drawn ahead, in place
+            in_place = drawn is not None
+        if self._pin is None and drawn is None:
             drawn = self._take(fields)
         if self.start_sampler is not None:
             batch = self.batch_in_use
@@ -665,6 +671,8 @@ class MissionShell:
                 plan = plan_starts(starts, batch, self.config, drawn, flown)
         if self._pin is not None:
             self._install_scenario(fields, self._pin)
+        elif in_place:
+            self._install(fields, drawn, sources=fields)
         else:
             self._install(fields, drawn)
         placed = None if self.on_install is None else self.on_install(fields)
