@@ -5,6 +5,7 @@ progress), and a policy of a v1 ID flies a v2 ID without the element it never sa
 from __future__ import annotations
 
 import gymnasium as gym
+import numpy as np
 import pytest
 
 pytest.importorskip("stable_baselines3")
@@ -127,3 +128,21 @@ def test_a_v2_policy_fine_tuned_on_a_v1_id_keeps_its_hold_element(tmp_path):
     config, _ = resolve_config(TrainOptions(config=recipe, init=init, n_envs=2))
     assert config.env_id == "DebrisGym/Rendezvous2D-v1"
     assert {k: config.env_kwargs[k] for k in V2_OPTIONS} == V2_OPTIONS
+
+
+def test_the_residual_policy_is_flown_in_its_mode_and_refused_outside_it():
+    """The shipped residual policy: evaluate.py's options for it name the residual mode, it
+    loads and acts in an env made with them, and an env without the mode is refused (the same
+    Box of actions would be flown as whole thrusts)."""
+    from agents import load_agent
+    from agents.policies.learned import observation_options
+
+    spec = f"ppo:{PRETRAINED_DIR / 'rendezvous2d_v2_residual.zip'}"
+    options = observation_options(spec, "DebrisGym/Rendezvous2D-v2")
+    assert options.get("action") == "residual"
+    env = gym.make("DebrisGym/Rendezvous2D-v2", **options)
+    obs, _ = env.reset(seed=0)
+    action, _ = load_agent(spec, env).predict(obs)
+    assert action.shape == (2,) and np.all(np.isfinite(action))
+    with pytest.raises(ValueError, match="action='residual'"):
+        load_agent(spec, gym.make("DebrisGym/Rendezvous2D-v2"))

@@ -283,6 +283,25 @@ RUN_CONFIG_MAPPINGS = {
 """Entries of a run's ``config.yaml`` the loader reads, each a mapping (or absent / null)."""
 
 
+def _check_action_mode(path: Path, config: dict[str, Any] | None, env: Any) -> None:
+    """Refuse to fly a policy trained in the residual mode in an env without it, or the
+    reverse: the same Box of actions means a correction in one and the whole thrust in the
+    other.
+
+    Raises:
+        ValueError: naming both modes and how to make the env.
+    """
+    trained = ((config or {}).get("env_kwargs") or {}).get("action", "continuous")
+    env_config = getattr(getattr(env, "unwrapped", env), "config", None)
+    flown = getattr(env_config, "action", None)
+    if flown is None or trained == flown or RESIDUAL not in (trained, flown):
+        return
+    raise ValueError(
+        f"{path}: the policy was trained with action={trained!r} but the env has "
+        f"action={flown!r}; make the env with action={trained!r} (evaluate.py does this itself)"
+    )
+
+
 def _checked_run_config(path: Path) -> dict[str, Any] | None:
     """The config of the run that wrote model ``path`` (None: none found), with the entries the
     loader reads (:data:`RUN_CONFIG_MAPPINGS`) checked — whether or not the statistics file is
@@ -607,6 +626,7 @@ def load_agent(spec: str, env: Any, device: str = "cpu") -> LearnedAgent:
             "trained with another algorithm?"
         ) from exc
     table = _check_spaces(model, env, path)
+    _check_action_mode(path, config, env)
     _warn_if_other_env(path, config, env)  # only for a model that can fly the env at all
     normalizer = _load_normalizer(path, model.observation_space)
     return LearnedAgent(model, algo, path, normalizer, model.observation_space, table)
