@@ -447,3 +447,25 @@ def test_a_bank_refuses_the_seeds_of_an_evaluation_suite():
     seed = min(suite_seeds("standard-2d-v2"))
     with pytest.raises(ValueError, match="evaluation suite"):
         build_start_bank(ENV_2D, missions=3, seed=seed - 1, progress=False)
+
+
+def test_the_field_word_of_an_autoreset_row_names_its_field():
+    """Rows restarted by the vector env (fields drawn ahead and loaded in place): each row's
+    field_word, given to a single env, flies that row's field."""
+    env = gym.make_vec(ENV_2D, num_envs=8, vectorization_mode="vector_entry_point")
+    env.reset(seed=3)
+    rng = np.random.default_rng(0)
+    restarted = np.zeros(8, dtype=bool)
+    for _ in range(200):
+        _, _, terminated, truncated, _ = env.step(rng.uniform(-1, 1, (8, 2)).astype(np.float32))
+        restarted |= terminated | truncated
+    assert restarted.sum() >= 2
+    shell = env.unwrapped.shell
+    single = gym.make(ENV_2D)
+    for i in np.flatnonzero(restarted)[:3].tolist():
+        env.step(np.zeros((8, 2), np.float32))  # let a pending next-step autoreset happen
+        word = shell.field_word(i)
+        single.reset(seed=0, options={"start": {"field_word": word}})
+        np.testing.assert_array_equal(
+            single.unwrapped.scenario.body_states(0.0), shell.scenario(i).body_states(0.0)
+        )
