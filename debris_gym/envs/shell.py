@@ -42,6 +42,7 @@ from debris_gym.envs.common import (
     warn_if_physics_differ,
 )
 from debris_gym.envs.field_supply import FieldSupply
+from debris_gym.envs.loop_shield import LoopShield, check_shield_support
 from debris_gym.field_spec import MAX_POLYGON_VERTICES, FieldArrays, scenario_from_arrays
 from debris_gym.geometry import FieldGeometry
 from debris_gym.mission_batch import MissionBatch, Physics, check_threads
@@ -87,6 +88,8 @@ INFO_KEYS = (
     "applied_accel",
     "task_score",
     "reward_terms",
+    "shield_intervened",
+    "shield_interventions",
 )
 """The keys of every step's and reset's ``info`` (docs/environments.md, "Info")."""
 
@@ -173,6 +176,7 @@ class MissionShell:
                 f"obs_teammates={config.obs_teammates} is a swarm option (teammate slots); "
                 "single-agent envs have none: use 0, or debris_gym.swarm.make"
             )
+        check_shield_support(config, chasers)
         self.chasers, self.n_fields = chasers, num // chasers
         self.chaser_separation = chaser_separation
         self.field_loop = field_loop  # make_rules adds "or chasers > 1"
@@ -206,6 +210,8 @@ class MissionShell:
         may edit their arrays in place (a reconfiguration shrinks the place the generator kept
         for its formation to the body at the formation's centre)."""
         self._live = np.ones(num, dtype=bool)
+        self._shield = LoopShield(config, num) if config.shield else None
+        """The compiled safety shield (the ``shield`` option), or None."""
         self._estimates: dict[int, tuple[int, Scenario, Scenario]] = {}
         self._noise: list[np.random.Generator | None] = [None] * fields
         """Per field, the generator of its episodes' error keys (the uncertain world): a child
@@ -301,7 +307,8 @@ class MissionShell:
             "is_success": m.success.copy(),
             "applied_accel": m.accel.copy(),
             "task_score": m.score.copy(),
-            "reward_terms": dict(zip(REWARD_TERMS, terms.T.copy())),
+            "reward_terms": self._shield_term(dict(zip(REWARD_TERMS, terms.T.copy()))),
+            **self._shield_info(),
         }
 
     def row_info(self, i: int, terms: Sequence[float]) -> dict[str, Any]:
@@ -325,8 +332,33 @@ class MissionShell:
             "is_success": bool(m.success[i]),
             "applied_accel": m.accel[i].copy(),
             "task_score": float(m.score[i]),
-            "reward_terms": dict(zip(REWARD_TERMS, terms)),
+            "reward_terms": self._shield_term(dict(zip(REWARD_TERMS, terms)), i),
+            **{key: value[i].item() for key, value in self._shield_info().items()},
         }
+
+    def _shield_info(self) -> dict[str, np.ndarray]:
+        """The shield's info keys of every row (False / 0 without the shield, and in an
+        episode that has not stepped yet)."""
+        shield, steps = self._shield, self.batch_in_use.missions.steps
+        if shield is None:
+            return {
+                "shield_intervened": np.zeros(self.num, dtype=bool),
+                "shield_interventions": np.zeros(self.num, dtype=np.int64),
+            }
+        return {
+            "shield_intervened": shield.intervened & (steps > 0),
+            "shield_interventions": shield.counts(steps),
+        }
+
+    def _shield_term(self, terms: dict[str, Any], i: int | None = None) -> dict[str, Any]:
+        """``terms`` with the shield's penalty term ``"shield"`` (<= 0) when the shield is on
+        (of row ``i``, or of every row)."""
+        if self._shield is None:
+            return terms
+        steps = self.batch_in_use.missions.steps
+        penalty = np.where(steps > 0, 0.0 - self._shield.penalties(), 0.0)
+        terms["shield"] = penalty if i is None else float(penalty[i])
+        return terms
 
     # --- reset --------------------------------------------------------------------------------
 
@@ -548,11 +580,12 @@ class MissionShell:
             raise RuntimeError("call reset() before step()")
         batch = self.batch
         if self.autoreset is Autoreset.NEVER:
-            out = batch.step(actions, self._live if live is None else live)
-            return StepResult(out.reward, out.terminated, out.truncated, out.terms)
+            live = self._live if live is None else live
+            out = batch.step(self._shielded(batch, actions, live), live)
+            return StepResult(self._penalised(out.reward), out.terminated, out.truncated, out.terms)
         restart = self._restart
-        out = batch.step(actions, ~restart)
-        reward, terminated = out.reward.copy(), out.terminated.copy()
+        out = batch.step(self._shielded(batch, actions, ~restart), ~restart)
+        reward, terminated = self._penalised(out.reward).copy(), out.terminated.copy()
         truncated, terms = out.truncated.copy(), out.terms
         ended = terminated | truncated
         if self.autoreset is Autoreset.SAME_STEP:
@@ -566,6 +599,19 @@ class MissionShell:
             self.restart(restart)
         self._restart = ended
         return StepResult(reward, terminated, truncated, terms)
+
+    def _shielded(self, batch: MissionBatch, actions: np.ndarray, live: np.ndarray) -> np.ndarray:
+        """``actions`` filtered by the shield in the rows ``live`` (``actions`` itself without
+        the shield)."""
+        if self._shield is None:
+            return actions
+        return self._shield.filter(batch, actions, live)
+
+    def _penalised(self, reward: np.ndarray) -> np.ndarray:
+        """The step's rewards less the shield's penalties (``reward`` itself without them)."""
+        if self._shield is None or self._shield.penalty == 0.0:
+            return reward
+        return reward - self._shield.penalties()
 
     def restart(self, mask: np.ndarray) -> None:
         """New episodes in the fields in ``mask`` (F,) (an autoreset; with one chaser per field
