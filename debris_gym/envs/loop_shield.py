@@ -18,10 +18,11 @@ from debris_gym.config import EnvConfig
 from debris_gym.envs.common import discrete_action_table
 from debris_gym.jit import specialise
 from debris_gym.mission_batch import MissionBatch
+from debris_gym.mission_data import Missions
 from debris_gym.shield_kernel import shield_rows
 from debris_gym.shield_model import ShieldModel, make_shield_model
 
-__all__ = ["LoopShield", "check_shield_support"]
+__all__ = ["LoopShield", "check_shield_support", "shield_info", "shield_term"]
 
 
 def check_shield_support(config: EnvConfig, chasers: int) -> None:
@@ -98,3 +99,31 @@ class LoopShield:
         """(N,) interventions of each row's current episode (0 in an episode that has not
         stepped yet, given each row's ``steps``)."""
         return np.where(steps == 0, 0, self.interventions)
+
+
+def shield_info(shield: LoopShield | None, missions: Missions) -> dict[str, np.ndarray]:
+    """The shield's ``info`` keys of every row, new arrays: ``shield_intervened`` (bool) and
+    ``shield_interventions`` (int64), False / 0 without the shield and in an episode that has
+    not stepped yet."""
+    if shield is None:
+        n = missions.steps.shape[0]
+        return {
+            "shield_intervened": np.zeros(n, dtype=bool),
+            "shield_interventions": np.zeros(n, dtype=np.int64),
+        }
+    return {
+        "shield_intervened": shield.intervened & (missions.steps > 0),
+        "shield_interventions": shield.counts(missions.steps),
+    }
+
+
+def shield_term(
+    shield: LoopShield | None, terms: dict[str, Any], missions: Missions, row: int | None = None
+) -> dict[str, Any]:
+    """``terms`` (the reward terms by name) with the shield's penalty term ``"shield"``
+    (<= 0; of ``row``, or an array of every row) when the shield is on; as they are without it."""
+    if shield is None:
+        return terms
+    penalty = np.where(missions.steps > 0, 0.0 - shield.penalties(), 0.0)
+    terms["shield"] = penalty if row is None else float(penalty[row])
+    return terms

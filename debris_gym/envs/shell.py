@@ -42,7 +42,7 @@ from debris_gym.envs.common import (
     warn_if_physics_differ,
 )
 from debris_gym.envs.field_supply import FieldSupply
-from debris_gym.envs.loop_shield import LoopShield, check_shield_support
+from debris_gym.envs.loop_shield import LoopShield, check_shield_support, shield_info, shield_term
 from debris_gym.field_spec import MAX_POLYGON_VERTICES, FieldArrays, scenario_from_arrays
 from debris_gym.geometry import FieldGeometry
 from debris_gym.mission_batch import MissionBatch, Physics, check_threads
@@ -307,8 +307,8 @@ class MissionShell:
             "is_success": m.success.copy(),
             "applied_accel": m.accel.copy(),
             "task_score": m.score.copy(),
-            "reward_terms": self._shield_term(dict(zip(REWARD_TERMS, terms.T.copy()))),
-            **self._shield_info(),
+            "reward_terms": shield_term(self._shield, dict(zip(REWARD_TERMS, terms.T.copy())), m),
+            **shield_info(self._shield, m),
         }
 
     def row_info(self, i: int, terms: Sequence[float]) -> dict[str, Any]:
@@ -332,33 +332,9 @@ class MissionShell:
             "is_success": bool(m.success[i]),
             "applied_accel": m.accel[i].copy(),
             "task_score": float(m.score[i]),
-            "reward_terms": self._shield_term(dict(zip(REWARD_TERMS, terms)), i),
-            **{key: value[i].item() for key, value in self._shield_info().items()},
+            "reward_terms": shield_term(self._shield, dict(zip(REWARD_TERMS, terms)), m, i),
+            **{key: value[i].item() for key, value in shield_info(self._shield, m).items()},
         }
-
-    def _shield_info(self) -> dict[str, np.ndarray]:
-        """The shield's info keys of every row (False / 0 without the shield, and in an
-        episode that has not stepped yet)."""
-        shield, steps = self._shield, self.batch_in_use.missions.steps
-        if shield is None:
-            return {
-                "shield_intervened": np.zeros(self.num, dtype=bool),
-                "shield_interventions": np.zeros(self.num, dtype=np.int64),
-            }
-        return {
-            "shield_intervened": shield.intervened & (steps > 0),
-            "shield_interventions": shield.counts(steps),
-        }
-
-    def _shield_term(self, terms: dict[str, Any], i: int | None = None) -> dict[str, Any]:
-        """``terms`` with the shield's penalty term ``"shield"`` (<= 0) when the shield is on
-        (of row ``i``, or of every row)."""
-        if self._shield is None:
-            return terms
-        steps = self.batch_in_use.missions.steps
-        penalty = np.where(steps > 0, 0.0 - self._shield.penalties(), 0.0)
-        terms["shield"] = penalty if i is None else float(penalty[i])
-        return terms
 
     # --- reset --------------------------------------------------------------------------------
 
@@ -601,17 +577,13 @@ class MissionShell:
         return StepResult(reward, terminated, truncated, terms)
 
     def _shielded(self, batch: MissionBatch, actions: np.ndarray, live: np.ndarray) -> np.ndarray:
-        """``actions`` filtered by the shield in the rows ``live`` (``actions`` itself without
-        the shield)."""
-        if self._shield is None:
-            return actions
-        return self._shield.filter(batch, actions, live)
+        """``actions`` through the shield in the rows ``live`` (as they are without it)."""
+        return actions if self._shield is None else self._shield.filter(batch, actions, live)
 
     def _penalised(self, reward: np.ndarray) -> np.ndarray:
-        """The step's rewards less the shield's penalties (``reward`` itself without them)."""
-        if self._shield is None or self._shield.penalty == 0.0:
-            return reward
-        return reward - self._shield.penalties()
+        """The step's rewards less the shield's penalties (as they are without any)."""
+        shield = self._shield
+        return reward if shield is None or shield.penalty == 0.0 else reward - shield.penalties()
 
     def restart(self, mask: np.ndarray) -> None:
         """New episodes in the fields in ``mask`` (F,) (an autoreset; with one chaser per field
