@@ -14,14 +14,18 @@ that a large share of the decisions are interventions; the share is asserted.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 import pytest
+import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import debris_gym.swarm
+from agents.experiments.training.config import TrainConfig
+from agents.experiments.training.models import make_eval_env, make_train_env
 from agents.policies.shield import SafetyShield, ShieldParams
 from debris_gym import shield_model
 from debris_gym.config import MAX_WEIGHT, EnvConfig
@@ -30,6 +34,7 @@ from debris_gym.envs.loop_shield import LoopShield
 from debris_gym.envs.shell import INFO_KEYS
 from tests.helpers import flies_old_ids
 
+ROOT = Path(__file__).resolve().parents[1]
 ID_2D = "DebrisGym/Rendezvous2D-v2"
 ID_3D = "DebrisGym/Rendezvous3D-v2"
 ACTION_TOLERANCE = 1e-9
@@ -293,3 +298,22 @@ def test_with_the_shield_off_nothing_changes():
             np.testing.assert_array_equal(a[0][clean], c[0][clean])  # observations
             np.testing.assert_array_equal(a[1][clean], c[1][clean])  # rewards
     assert touched.any() and (~touched).any()  # both kinds of rows were compared
+
+
+# --- the training recipe -----------------------------------------------------------------------
+
+
+def test_the_shield_recipe_trains_shielded_and_evaluates_unshielded():
+    recipe = ROOT / "agents" / "configs" / "rendezvous2d_v2_shield_ppo.yaml"
+    data = yaml.safe_load(recipe.read_text())
+    data.update(n_envs=2, eval={"freq": 1000, "n_episodes": 2, "n_envs": 2})
+    config = TrainConfig.from_dict(data, source=str(recipe))
+    assert config.env_kwargs["shield"] is True and config.env_kwargs["shield_penalty"] > 0
+    train, evaluation = make_train_env(config, seed=0), make_eval_env(config)
+    try:
+        assert train.unwrapped.venv.config.shield is True
+        assert train.unwrapped.venv.config.shield_penalty == config.env_kwargs["shield_penalty"]
+        assert evaluation.unwrapped.venv.config.shield is False
+    finally:
+        train.close()
+        evaluation.close()
