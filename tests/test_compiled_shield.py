@@ -14,6 +14,7 @@ that a large share of the decisions are interventions; the share is asserted.
 from __future__ import annotations
 
 import math
+import pickle
 from pathlib import Path
 
 import gymnasium as gym
@@ -263,6 +264,20 @@ def test_the_single_env_is_the_vector_envs_row():
         assert r_s == r_v[0] and info_s["shield_intervened"] == info_v["shield_intervened"][0]
         if term_s:
             break
+
+
+def test_a_shielded_env_pickles_mid_episode():
+    env = gym.make(ID_2D, shield=True, shield_penalty=0.5)
+    env.reset(seed=3)
+    rng = np.random.default_rng(8)
+    for _ in range(5):
+        env.step(_command(env.unwrapped, rng))
+    clone = pickle.loads(pickle.dumps(env))
+    for _ in range(20):
+        action = _command(env.unwrapped, rng)
+        a, b = env.step(action), clone.step(action)
+        np.testing.assert_array_equal(a[0], b[0])
+        assert a[1] == b[1] and a[4]["shield_interventions"] == b[4]["shield_interventions"]
 
 
 def test_the_filtered_actions_are_finite_for_any_finite_command():

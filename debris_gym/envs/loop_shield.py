@@ -59,6 +59,12 @@ class LoopShield:
         self._key: tuple[Any, ...] | None = None
         self._code: Callable[..., Any] | None = None
 
+    def __getstate__(self) -> dict:
+        # the resolved machine code does not pickle: it is resolved again on first use
+        state = self.__dict__.copy()
+        state.update(_code=None, _model=None, _key=None)
+        return state
+
     def _model_of(self, batch: MissionBatch) -> ShieldModel:
         """The shield's model for ``batch`` (rebuilt when the batch's physics changed)."""
         key = (id(batch), batch.config, batch.physics, batch.n_targets)
