@@ -25,10 +25,14 @@ each other), for a batch of missions with one chaser per field, inside the envs'
   is safe, the one with the largest predicted clearance.
 
 Work is saved without changing a decision: a command is judged by its first safe backup, a
-backup by its first body in contact, and a body whose distance bound (centres' and paths'
-excursions from where they are now) keeps it clear is not checked at all. The candidates are
-judged in order and the first safe one ends the search; all their paths are still flown first,
-since the chord error bound takes the largest acceleration of all of them.
+backup by its first body in contact, a body whose distance bound (centres' and paths'
+excursions from where they are now) keeps it clear is not checked, and a body's motion is
+sampled only when a check or the choice of the backups needs it. The candidates are flown and
+judged in order, and the first safe one ends the search. The chord error bound of the Python
+shield takes the largest natural acceleration over *all* candidates' paths; each candidate is
+therefore judged with the largest one flown so far (a lower bound: unsafe then is unsafe) and
+with an upper bound from the present state and the thrust limit (safe then is safe), and only
+when the two disagree are all paths flown for the exact value.
 
 :class:`~debris_gym.shield_model.ShieldModel` holds the fixed data; :func:`shield_rows` is the
 kernel, one call per step.
@@ -161,10 +165,11 @@ def _fly(model, x0, accel, refs, n_refs, paths, dev, scratch):
 
 
 @inlined
-def _body_gap(path, bodies, b, need, stop):
+def _body_gap(path, bodies, b, need, limit, inclusive):
     """The least distance (m) between ``path`` (T + 1, dim) and body ``b``'s centres on the
     sample grid (``bodies`` (T + 1, B, dim)), chords between samples, minus ``need``; with
-    ``stop`` the first negative one found (enough to know the body is in contact)."""
+    the first one found below ``limit`` (or equal to it, ``inclusive``) instead: enough to know
+    that the least one is too."""
     d = path.shape[1]
     best = math.inf
     for k in range(path.shape[0] - 1):
@@ -183,7 +188,8 @@ def _body_gap(path, bodies, b, need, stop):
             near = a + s * seg
             dist += near * near
         best = min(best, dist)
-        if stop and math.sqrt(dist) - need < 0.0:
+        gap = math.sqrt(dist) - need
+        if gap < limit or (inclusive and gap == limit):
             break
     return math.sqrt(best) - need
 
@@ -255,10 +261,11 @@ def _slack(model, natural):
 
 
 @inlined
-def _path_gap(model, path, dev, slack, stop, state):
+def _path_gap(model, path, dev, slack, limit, inclusive, state):
     """The least clearance (m, beyond each body's required distance) of one path over every
-    body that its bound does not keep clear (+inf when all are); with ``stop`` the first
-    negative one found. ``state``: the row's bodies and working arrays (see
+    body that its bound does not keep clear (+inf when all are), or the first one found below
+    ``limit`` (or equal to it, ``inclusive``): enough to know that the least one is too.
+    ``state``: the row's bodies and working arrays (see
     :func:`shield_rows`); a body's motion is sampled here when first needed."""
     center, velocity, radius, margins, bodies, sampled, reach, reach_hi, devs, gap_now, x, xn = (
         state
@@ -278,11 +285,30 @@ def _path_gap(model, path, dev, slack, stop, state):
             if bound > _PRUNE_SLACK * (1.0 + gap_now[b]):
                 continue
         need = _need(reach[b], slack, gap_now[b], margins[b])
-        gap = _body_gap(path, bodies, b, need, stop)
+        gap = _body_gap(path, bodies, b, need, limit, inclusive)
         worst = min(worst, gap)
-        if stop and worst < 0.0:
+        if worst < limit or (inclusive and worst == limit):
             break
     return worst
+
+
+@inlined
+def _natural_bound(model, x0):
+    """An upper bound (m/s²) of the natural CWH acceleration on every path from ``x0`` whose
+    thrust never exceeds the thrust limit (:attr:`~debris_gym.shield_model.ShieldModel.
+    natural_phi`, ``natural_gain``)."""
+    d = model.dim
+    phi, gain = model.natural_phi, model.natural_gain
+    best = 0.0
+    for k in range(phi.shape[0]):
+        s = 0.0
+        for r in range(d):
+            a = 0.0
+            for c in range(2 * d):
+                a += phi[k, r, c] * x0[c]
+            s += a * a
+        best = max(best, math.sqrt(s) + gain[k] * model.thrust_bound)
+    return best * (1.0 + 1e-9) + 1e-15
 
 
 @inlined
@@ -387,7 +413,7 @@ def _references(model, state, chosen, refs):
 def _first_safe(model, paths, devs, n_refs, slack, state):
     """Whether some backup of the paths ``paths`` (F, T + 1, dim) keeps clear of every body."""
     for j in range(n_refs):
-        if _path_gap(model, paths[j], devs[j], slack, True, state) >= 0.0:
+        if _path_gap(model, paths[j], devs[j], slack, 0.0, False, state) >= 0.0:
             return True
     return False
 
@@ -429,6 +455,7 @@ def shield_rows(model, live, actions, state, centers, velocities, radii, out, in
     acts = np.empty((c_max, d))
     dist = np.empty(c_max)
     rank = np.empty(c_max, dtype=np.int64)
+    flown = np.zeros(c_max, dtype=np.bool_)
     paths = np.empty((c_max, f_max, samples, d))
     path_devs = np.empty((c_max, f_max))
     x0 = np.empty(2 * d)
@@ -500,32 +527,60 @@ def shield_rows(model, live, actions, state, centers, velocities, radii, out, in
                 count += 1
             for m in range(count):
                 thrust_row(acts[m], model.max_accel, model.box_thrust, accels[m])
-        natural = 0.0
         for m in range(count):
-            flown = _fly(model, x0, accels[m], refs, n_refs, paths[m], path_devs[m], scratch)
-            natural = max(natural, flown)
             s = 0.0
             for k in range(d):
                 s += (accels[m, k] - u_cmd[k]) * (accels[m, k] - u_cmd[k])
             dist[m] = math.sqrt(s)
+            flown[m] = False
             # stable insertion by distance: the order of a stable argsort
             p = m
             while p > 0 and dist[rank[p - 1]] > dist[m]:
                 rank[p] = rank[p - 1]
                 p -= 1
             rank[p] = m
-        slack = _slack(model, natural)
+        # the candidates in order, each flown when reached: judged with the largest natural
+        # acceleration of the paths flown so far (a lower bound of the decisive one, so unsafe
+        # then is unsafe) and with an upper bound of it (safe then is safe); a candidate that
+        # is safe by the first and not the second needs every path flown
+        low = 0.0
+        high = _natural_bound(model, x0)
         best = -1
+        exact = False
         for q in range(count):
-            if _first_safe(model, paths[rank[q]], path_devs[rank[q]], n_refs, slack, row):
-                best = rank[q]
-                break
+            m = rank[q]
+            low = max(
+                low, _fly(model, x0, accels[m], refs, n_refs, paths[m], path_devs[m], scratch)
+            )
+            flown[m] = True
+            if not _first_safe(model, paths[m], path_devs[m], n_refs, _slack(model, low), row):
+                continue
+            if _first_safe(model, paths[m], path_devs[m], n_refs, _slack(model, high), row):
+                best = m
+            else:
+                exact = True
+            break
+        if exact:  # every path flown: the decisive acceleration itself
+            for m in range(count):
+                if not flown[m]:
+                    nat = _fly(model, x0, accels[m], refs, n_refs, paths[m], path_devs[m], scratch)
+                    low = max(low, nat)
+            slack = _slack(model, low)
+            for q in range(count):
+                if _first_safe(model, paths[rank[q]], path_devs[rank[q]], n_refs, slack, row):
+                    best = rank[q]
+                    break
+        slack = _slack(model, low)  # nothing safe: every path was flown
         if best < 0:  # nothing is safe: the largest predicted clearance
             best_score = -math.inf
             for m in range(count):
+                # a backup whose clearance is found at or below the best so far cannot make
+                # this candidate the first with the largest: its search stops there
                 score = -math.inf
                 for j in range(n_refs):
-                    gap = _path_gap(model, paths[m, j], path_devs[m, j], slack, False, row)
+                    gap = _path_gap(
+                        model, paths[m, j], path_devs[m, j], slack, best_score, True, row
+                    )
                     score = max(score, gap)
                 if best < 0 or score > best_score:
                     best, best_score = m, score

@@ -97,6 +97,13 @@ class ShieldModel(NamedTuple):
     body's natural acceleration over the horizon, ≤ this·|p| + that·|v|."""
     accel_velocity: float
     """Largest 2-norm of the velocity block of N·Φ(t) over the body samples (1/s)."""
+    natural_phi: np.ndarray
+    """(H·S + 1, dim, 2·dim) N·Φ(k·h): the natural acceleration at sample k of a chaser that
+    starts in state x₀ and does not thrust is natural_phi[k] · x₀."""
+    natural_gain: np.ndarray
+    """(H·S + 1,) Σ_{m<k} ‖N·Φ(m·h)·Γ(h)‖₂ (s): with thrust of at most ``thrust_bound`` in every
+    sample interval, the natural acceleration at sample k strays from the unthrusted one by at
+    most natural_gain[k] · thrust_bound."""
 
 
 def candidate_grid(dim: int, box: bool, max_accel: float) -> np.ndarray:
@@ -145,6 +152,7 @@ def make_shield_model(
     grid = table * max_accel if discrete else candidate_grid(d, box, max_accel)
     samples = max(2, math.ceil(HORIZON_STEPS * dt / h) + 1)
     reach = motion_bounds(mean_motion, h, d, samples)
+    phis, gains = natural_bounds(mean_motion, h, d, HORIZON_STEPS * SUBSTEPS + 1)
     return ShieldModel(
         dim=d,
         horizon_steps=HORIZON_STEPS,
@@ -172,6 +180,8 @@ def make_shield_model(
         reach_velocity=reach[1],
         accel_position=reach[2],
         accel_velocity=reach[3],
+        natural_phi=phis,
+        natural_gain=gains,
     )
 
 
@@ -192,3 +202,21 @@ def motion_bounds(mean_motion: float, h: float, dim: int, samples: int) -> tuple
             bounds[m] = max(bounds[m], float(np.linalg.norm(block, 2)))
         phi = step @ phi
     return tuple(float(b) * (1.0 + 1e-9) for b in bounds)
+
+
+def natural_bounds(mean_motion: float, h: float, dim: int, samples: int) -> tuple[np.ndarray, ...]:
+    """:attr:`ShieldModel.natural_phi` and :attr:`ShieldModel.natural_gain` over ``samples``
+    sample times k·h (s); the gains widened by 1e-9 of themselves."""
+    a, _ = cwh_matrices(mean_motion, dim)
+    natural = a[dim:]
+    sub = discretize(mean_motion, h, dim)
+    phis = np.empty((samples, dim, 2 * dim))
+    gains = np.zeros(samples)
+    phi = np.eye(2 * dim)
+    total = 0.0
+    for k in range(samples):
+        phis[k] = natural @ phi
+        gains[k] = total * (1.0 + 1e-9)
+        total += float(np.linalg.norm(natural @ phi @ sub.bd, 2))
+        phi = sub.ad @ phi
+    return np.ascontiguousarray(phis), gains
