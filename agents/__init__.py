@@ -14,6 +14,8 @@
                free balls, minimum-snap smoothing, tracked by the MPC ([Zhou24])
 ``se-scp``     spherical expansion and sequential convex programming of a
                fuel-optimal trajectory, tracked by the MPC ([Bandyopadhyay17])
+``base-law``   the compiled CW guidance law of ``action="residual"`` flown alone:
+               line of sight to the goal's hold point, bent around near bodies
 =============  ==================================================================
 
 Every name of :data:`BASELINES` is listed here (``tests/test_docs.py`` checks it);

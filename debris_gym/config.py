@@ -126,7 +126,12 @@ OPTIONS: dict[str, Option] = {
     "dt": Option("s", 1e-3, 600.0, doc="decision step length (thrust held constant over a step)"),
     "max_accel": Option("m/s²", 1e-6, 100.0, doc="thrust acceleration limit"),
     "observation": Option(choices=("kinematics", "lidar"), doc="observation mode"),
-    "action": Option(choices=("continuous", "discrete"), doc="action mode"),
+    "action": Option(
+        choices=("continuous", "discrete", "residual"),
+        doc="action mode: 'continuous' thrust in [-1, 1]^dim; 'discrete' coast or thrust "
+        "along an axis; 'residual' a correction in [-1, 1]^dim added to the compiled base "
+        "law's command toward the current goal (debris_gym.base_law), the sum clipped per axis",
+    ),
     "fine_thrust": Option(
         "",
         0.0,
@@ -623,6 +628,13 @@ def _check_cross_keys(cfg: EnvConfig) -> None:
         raise ValueError(
             f"debris_motion={cfg.debris_motion!r} needs an orbit (mean_motion > 0): in free "
             "space (mean_motion=0) relative orbits do not exist; use debris_motion='frozen'"
+        )
+    if cfg.action == "residual" and cfg.navigation_errors:
+        raise ValueError(
+            "action='residual' adds a base law computed on the true state; with navigation "
+            f"errors (nav_sigma_position={cfg.nav_sigma_position!r} m, nav_sigma_velocity="
+            f"{cfg.nav_sigma_velocity!r} m/s) the policy would see through them: use "
+            "action='continuous', or no navigation errors"
         )
     if cfg.truth_model == "j2_drag":
         if cfg.debris_motion == "frozen" or cfg.scenario == "paper":

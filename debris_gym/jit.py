@@ -28,6 +28,7 @@ if TYPE_CHECKING:
     from numba.core.dispatcher import Dispatcher
 
 COMPILED_MODULES = (
+    "base_law",
     "batch_geometry",
     "swept_contacts",
     "generators",
@@ -38,6 +39,7 @@ COMPILED_MODULES = (
     "geometry_kernels",
     "goal",
     "mission_step",
+    "mission_starts",
     "potential",
     "observation",
     "shield_kernel",

@@ -23,6 +23,7 @@ from typing import Any, NamedTuple
 import numba
 import numpy as np
 
+from debris_gym.base_law import BaseLaw, base_commands, make_base_law, residual_rows
 from debris_gym.batch_geometry import FieldBatch, polygon_turns
 from debris_gym.config import EnvConfig
 from debris_gym.dynamics import discretize, substep_position_matrix
@@ -37,6 +38,7 @@ from debris_gym.mission_data import (
     new_missions,
     new_step_outputs,
 )
+from debris_gym.mission_starts import advance_bodies, resume_rows
 from debris_gym.mission_step import begin_rows, count_rows, step_all, step_all_threaded
 from debris_gym.observation import (
     OBS_LIMIT,
@@ -223,6 +225,14 @@ class MissionBatch:
         self._observe_code: Callable[..., Any] | None = None
         self._begin_code: dict[bool, Callable[..., Any]] = {}
         self._observed: tuple[np.ndarray, ...] | None = None
+        self.base_law: BaseLaw = make_base_law(cfg, mean_motion, dt, max_accel)
+        """The base law of these missions' rules and physics (:mod:`debris_gym.base_law`):
+        with ``action="residual"`` each step adds its command to the actions."""
+        self.residual = cfg.action == "residual"
+        if self.residual and chasers != 1:
+            raise ValueError("action='residual' is for one chaser per field")
+        self._commands = np.zeros((n, d))  # the residual mode's summed commands
+        self._residual_code: Callable[..., Any] | None = None
         if cfg.navigation_errors:
             if chasers != 1:
                 raise ValueError("navigation errors are for one chaser per field")
@@ -237,7 +247,7 @@ class MissionBatch:
         # the resolved machine code does not pickle: it is resolved again on first use
         state = self.__dict__.copy()
         state.update(_step_code=None, _observe_code=None, _begin_code={}, _field_view=None)
-        state.update(_heads=None)
+        state.update(_heads=None, _residual_code=None)
         return state
 
     @property
@@ -339,13 +349,76 @@ class MissionBatch:
             code = self._begin_code[states is None] = specialise(begin_rows, *args)
         code(*args)
 
+    def advance(self, fields: np.ndarray, counts: np.ndarray) -> None:
+        """Fly the bodies of each field ``fields[k]`` on by ``counts[k]`` steps of their
+        natural motion, exactly as that many steps would (a start part-way; a frozen field
+        stays)."""
+        fields = np.ascontiguousarray(fields, dtype=np.int64)
+        counts = np.ascontiguousarray(counts, dtype=np.int64)
+        f = self.field
+        advance_bodies(
+            fields, counts, self.rules.moving, self.rules.body_matrix_t, f.centers, f.velocities,
+            f.attitude, self.turns,
+        )  # fmt: skip
+
+    def flown_copy(self, fields: FieldArrays | Any, counts: np.ndarray) -> FieldBatch:
+        """A :class:`~debris_gym.batch_geometry.FieldBatch` of its own holding the drawn
+        ``fields`` (K of them; or a pinned scenario, K = len(counts) copies of it), each flown
+        on by ``counts[k]`` steps as :meth:`advance` flies them: where a start's chaser can be
+        checked before anything of the batch changes."""
+        k = len(counts)
+        copy = FieldBatch(
+            k, self.field.n_bodies, self.dim, MAX_POLYGON_VERTICES, self.field.polygon_start
+        )
+        if isinstance(fields, FieldArrays):
+            spins = None if fields.spins is None else fields.spins[:, copy.polygon_start :]
+            copy.load_arrays(
+                np.arange(k), fields.centers, fields.radii, fields.vertices, fields.n_vertices,
+                fields.velocities, spins, vertex_start=fields.n_targets,
+            )  # fmt: skip
+        else:
+            copy.load_scenario(np.arange(k), fields)
+        turns = np.zeros((k, copy.spins.shape[1], 6))
+        turns[:, :, 0] = turns[:, :, 2] = 1.0
+        if self.rules.moving and turns.shape[1]:
+            step, sub = self._turn_angles
+            polygon_turns(np.arange(k), copy.spins, self.physics.mean_motion, step, sub, turns)
+        advance_bodies(
+            np.arange(k), np.ascontiguousarray(counts, dtype=np.int64), self.rules.moving,
+            self.rules.body_matrix_t, copy.centers, copy.velocities, copy.attitude, turns,
+        )  # fmt: skip
+        return copy
+
+    def resume(
+        self,
+        rows: np.ndarray,
+        states: np.ndarray,
+        captured: np.ndarray,
+        counts: np.ndarray,
+        spent: np.ndarray,
+    ) -> None:
+        """Rows ``rows``, just begun (:meth:`begin`), resume part-way: the chasers at
+        ``states`` (R, 2·dim), ``captured`` (R, T) bool targets already taken, ``counts`` (R,)
+        steps on their clocks, ``spent`` (R,) Δv spent (m/s); gaps, clearance and potential
+        measured again (see :mod:`debris_gym.mission_starts`)."""
+        resume_rows(
+            np.ascontiguousarray(rows, dtype=np.int64),
+            np.ascontiguousarray(states, dtype=float),
+            np.ascontiguousarray(captured, dtype=np.bool_),
+            np.ascontiguousarray(counts, dtype=np.int64),
+            np.ascontiguousarray(spent, dtype=float),
+            self.rules, self.shaping, self.missions, self.field_arrays,
+        )  # fmt: skip
+
     def step(self, actions: np.ndarray, live: np.ndarray) -> StepOutputs:
         """One decision step of the missions in ``live`` (the others are left as they are).
 
         Args:
             actions: (N, dim) normalised thrust commands (validated: finite), held over the step;
                 the thrust model turns them into accelerations, and a burn that would overspend
-                the Δv budget is cut to spend it exactly.
+                the Δv budget is cut to spend it exactly. With ``action="residual"`` they are
+                corrections: each live row flies its base law's command plus its action,
+                clipped to [−1, 1] per axis (:func:`~debris_gym.base_law.residual_rows`).
             live: (N,) bool, the missions that step.
 
         Returns:
@@ -359,6 +432,8 @@ class MissionBatch:
             live = np.ascontiguousarray(live, dtype=np.bool_)
         if actions.dtype != np.float64 or not actions.flags.c_contiguous:
             actions = np.ascontiguousarray(actions, dtype=np.float64)
+        if self.residual:
+            actions = self._with_base(actions, live)
         head = self._head()
         code = self._step_code
         if code is None:
@@ -366,6 +441,28 @@ class MissionBatch:
             code = self._step_code = specialise(kernel, *head["step"], live, actions, *head["tail"])
         code(*head["step"], live, actions, *head["tail"])
         return self._outputs
+
+    def _with_base(self, actions: np.ndarray, live: np.ndarray) -> np.ndarray:
+        """The residual mode's commands: ``actions`` plus the base law's, clipped per axis, in
+        the live rows of a buffer the next call overwrites."""
+        args = (live, actions, self.base_law, self.missions, self.field_arrays, self._commands)
+        code = self._residual_code
+        if code is None:
+            code = self._residual_code = specialise(residual_rows, *args)
+        code(*args)
+        return self._commands
+
+    def base_commands(self, rows: np.ndarray | None = None) -> np.ndarray:
+        """(R, dim) the base law's normalised commands for missions ``rows`` (default: all) in
+        their current state (:func:`~debris_gym.base_law.base_commands`: the code the residual
+        mode adds inside the step). One chaser per field.
+
+        Raises:
+            ValueError: several chasers per field; a row out of range.
+        """
+        if self.chasers != 1:
+            raise ValueError("the base law flies one chaser per field")
+        return base_commands(self.base_law, self.missions, self.field_arrays, rows)
 
     def captured_counts(self) -> np.ndarray:
         """(N,) int64: targets captured so far in each mission (a new array)."""

@@ -378,13 +378,8 @@ def begin_rows(rows, states, rules, shaping, missions, field):
     state, time, steps, delta_v = missions.state, missions.time, missions.steps, missions.delta_v
     captured, hold, score = missions.captured, missions.hold, missions.score
     collision, out_of_bounds, success = missions.collision, missions.out_of_bounds, missions.success
-    gaps, nearest, min_clearance = missions.gaps, missions.nearest, missions.min_clearance
-    potential_of, accel = missions.potential, missions.accel
-    budget_spent = missions.budget_spent
-    centers, radii, polygon_start = field.centers, field.radii, field.polygon_start
-    polygons, n_vertices, vertices = field.polygons, field.n_vertices, field.vertices
-    attitude, dock = field.attitude, field.dock
-    length_scale, speed_scale = field.length_scale, field.speed_scale
+    nearest, accel, budget_spent = missions.nearest, missions.accel, missions.budget_spent
+    dock = field.dock
     dim = dock.shape[1]
     n_targets = rules.n_targets
     order = np.empty(n_targets, dtype=np.int64)  # scratch of the tour potential
@@ -417,21 +412,31 @@ def begin_rows(rows, states, rules, shaping, missions, field):
         budget_spent[i] = False
         missions.teammate_collision[i] = False
         missions.separation[i] = math.inf
-        measure(
-            i, f, state, gaps, nearest, centers, radii, polygon_start, polygons, n_vertices,
-            vertices, attitude,
+        settle_row(i, f, rules, shaping, missions, field, order, counters, legs, homes)
+
+
+@inlined
+def settle_row(i, f, rules, shaping, missions, field, order, counters, legs, homes):
+    """Row ``i`` where it now is, in field ``f``, as an episode's first state: its gaps and
+    ranked obstacles, its clearance so far (this state's) and its shaping potential
+    (``order`` … ``homes``: the tour potential's scratch)."""
+    state, gaps, captured = missions.state, missions.gaps, missions.captured
+    centers, radii, dock = field.centers, field.radii, field.dock
+    measure(
+        i, f, state, gaps, missions.nearest, centers, radii, field.polygon_start,
+        field.polygons, field.n_vertices, field.vertices, field.attitude,
+    )  # fmt: skip
+    missions.min_clearance[i] = nearest_obstacle(i, rules.n_targets, gaps, math.inf)
+    if rules.tour_potential:
+        missions.potential[i] = tour_potential(
+            i, f, rules, shaping, state, gaps, captured, centers, radii, dock,
+            field.length_scale, field.speed_scale, order, counters, legs, homes,
         )  # fmt: skip
-        min_clearance[i] = nearest_obstacle(i, n_targets, gaps, math.inf)
-        if rules.tour_potential:
-            potential_of[i] = tour_potential(
-                i, f, rules, shaping, state, gaps, captured, centers, radii, dock, length_scale,
-                speed_scale, order, counters, legs, homes,
-            )  # fmt: skip
-        else:
-            potential_of[i] = potential(
-                i, f, rules, shaping, state, gaps, captured, centers, dock, length_scale,
-                speed_scale,
-            )  # fmt: skip
+    else:
+        missions.potential[i] = potential(
+            i, f, rules, shaping, state, gaps, captured, centers, dock, field.length_scale,
+            field.speed_scale,
+        )  # fmt: skip
 
 
 @kernel

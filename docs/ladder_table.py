@@ -2,7 +2,8 @@
 
 Reads the ``episodes.csv`` that ``evaluate.py`` wrote for each rung and prints one Markdown
 table: per agent and rung, the success rate, the median and mean episode return (the shaped
-reward a learner maximises) and the mean task score (the unshaped one).
+reward a learner maximises), the mean task score (the unshaped one) and the success of each leg
+(the flight to the k-th target over the missions that reached its start, then the return).
 
     python evaluate.py --env DebrisGym/Rendezvous2D-Easy-v1 --agents zero,random,apf,... \
         --episodes 20 --out runs/ladder/easy
@@ -31,7 +32,11 @@ def rung_rows(folder: Path) -> tuple[str, dict[str, dict[str, float]]]:
     figures = {}
     for agent, rows in episodes.items():
         returns = np.array([float(r["return"]) for r in rows])
+        captured = np.array([int(r["targets_captured"]) for r in rows])
+        success = np.array([r["success"] in ("1", "True", "true") for r in rows])
+        n = max(int(r["n_targets"]) for r in rows)
         figures[agent] = {
+            "legs": leg_counts(captured, success, n),
             "n": len(rows),
             "success": float(np.mean([r["success"] in ("1", "True", "true") for r in rows])),
             "return_median": float(np.median(returns)),
@@ -58,17 +63,27 @@ def table(folders: list[Path]) -> str:
                 if f is None
                 else (
                     f"{f['success']:.0%} · {f['return_median']:.1f} "
-                    f"({f['return_mean']:.1f}) · {f['task_score']:.1f}"
+                    f"({f['return_mean']:.1f}) · {f['task_score']:.1f} · legs "
+                    + "/".join("–" if s == 0 else f"{d / s:.0%}" for d, s in f["legs"])
                 )
             )
         lines.append(f"| {agent} | " + " | ".join(cells) + " |")
     counts = sorted({f["n"] for _, figures in rungs for f in figures.values()})
     lines.append("")
     lines.append(
-        "Each cell: success · median (mean) return · mean task score, over "
+        "Each cell: success · median (mean) return · mean task score · the success of each leg "
+        "(to target 1, 2, …, then home; over the missions that reached its start), over "
         f"{'/'.join(map(str, counts))} missions per agent and rung (reset seeds 0…)."
     )
     return "\n".join(lines)
+
+
+def leg_counts(captured: np.ndarray, success: np.ndarray, n: int) -> list[tuple[int, int]]:
+    """(missions that completed, missions that reached the start) of each leg: to target
+    k = 1 … n, then the return after the n-th capture."""
+    counts = [(int(np.sum(captured >= k)), int(np.sum(captured >= k - 1))) for k in range(1, n + 1)]
+    counts.append((int(np.sum(success)), int(np.sum(captured == n))))
+    return counts
 
 
 def leg_table(folder: Path) -> str:
@@ -86,13 +101,7 @@ def leg_table(folder: Path) -> str:
     for agent, rows in rows_by_agent.items():
         captured = np.array([int(r["targets_captured"]) for r in rows])
         success = np.array([r["success"] in ("1", "True", "true") for r in rows])
-        cells = []
-        for k in range(1, n + 1):
-            started = int(np.sum(captured >= k - 1))
-            done = int(np.sum(captured >= k))
-            cells.append(f"{done}/{started}" if started else "–")
-        home = int(np.sum(captured == n))
-        cells.append(f"{int(np.sum(success))}/{home}" if home else "–")
+        cells = [f"{d}/{s}" if s else "–" for d, s in leg_counts(captured, success, n)]
         lines.append(f"| {agent} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 

@@ -332,3 +332,25 @@ def test_the_shield_recipe_trains_shielded_and_evaluates_unshielded():
     finally:
         train.close()
         evaluation.close()
+
+
+def test_a_part_way_start_counts_its_interventions_from_zero():
+    env = gym.make(ID_2D, shield=True)
+    rng = np.random.default_rng(6)
+    _start_beside_a_body(env, rng, 4)
+    count = 0
+    for _ in range(10):
+        _, _, terminated, truncated, info = env.step(_command(env.unwrapped, rng))
+        count = info["shield_interventions"]
+        if terminated or truncated:
+            break
+    assert count > 0
+    _, info = env.reset(seed=5, options={"start": {"step": 60}})
+    assert info["shield_interventions"] == 0 and info["shield_intervened"] is False
+    _, _, _, _, info = env.step(np.zeros(2, dtype=np.float32))
+    assert info["shield_interventions"] == int(info["shield_intervened"])
+
+
+def test_the_residual_action_mode_refuses_the_shield():
+    with pytest.raises(ValueError, match="action='residual'"):
+        gym.make(ID_2D, shield=True, action="residual").reset(seed=0)

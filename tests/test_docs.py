@@ -141,6 +141,6 @@ def test_the_ladder_table_counts_success_returns_and_legs(tmp_path):
         for agent, success, captured, ret, score in rows:
             writer.writerow([agent, success, captured, 2, ret, score])
     text = ladder.table([folder])
-    assert "| a | 33% · 10.0 (23.3) · 2.7 |" in text
+    assert "| a | 33% · 10.0 (23.3) · 2.7 · legs 100%/67%/50% |" in text
     legs = ladder.leg_table(folder)
     assert "| a | 3/3 | 2/3 | 1/2 |" in legs  # leg 1 all, leg 2 two of three, home one of two

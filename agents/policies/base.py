@@ -223,6 +223,10 @@ class ClassicalAgent:
 
     name = "classical"
 
+    action_dtype: type = np.float32
+    """The dtype of :meth:`predict`'s actions (the action space's; a subclass whose command
+    must reach the env unrounded says float64)."""
+
     episode_independent = True
     """Whether an episode's actions depend only on that episode (:meth:`plan` starts every
     episode afresh, random generators reseeded): episodes may then be flown in any order, by
@@ -264,7 +268,7 @@ class ClassicalAgent:
             self._scenario = scenario
             self.plan(scenario)
         self._episode_time = self.env.elapsed
-        action = np.asarray(self.act(), dtype=np.float32)
+        action = np.asarray(self.act(), dtype=self.action_dtype)
         if not np.all(np.isfinite(action)):
             raise FloatingPointError(f"{self.name} produced a non-finite action {action}")
         return (action[None] if batched else action), state

@@ -64,6 +64,11 @@ OBSERVATION_KEYS = (
 """Env options that shape the observation (and nothing else): a learned policy needs the ones
 it was trained with."""
 
+RESIDUAL = "residual"
+"""The action mode whose actions are corrections to the env's base law: a policy trained in it
+is flown in it (:func:`observation_options` adds ``action``), as its thrust alone means
+nothing."""
+
 PRETRAINED = "pretrained"
 
 PRETRAINED_DIR = Path(__file__).resolve().parent.parent / "pretrained"
@@ -454,7 +459,8 @@ def observation_options(spec: str, env_id: str) -> dict[str, Any]:
     trained with, to fly it on env ``env_id``: those its run's config set, those the
     registration of the run's env set, and, for an option ``env_id``'s registration sets that
     neither did, the run's env's value (so a policy of a v1 ID, trained without the hold's
-    progress, flies a v2 ID with ``obs_hold: False``). Empty if none is found.
+    progress, flies a v2 ID with ``obs_hold: False``); and ``action: "residual"`` for a policy
+    trained in that mode (:data:`RESIDUAL`). Empty if none is found.
 
     ``evaluate.py`` makes a learned agent's env with them: same fields, dynamics and rules as
     every other agent's, observed the way the policy was trained to see them.
@@ -495,6 +501,8 @@ def _run_observation_options(path: Path, env_id: str | None = None) -> dict[str,
     env_kwargs = data.get("env_kwargs") or {}
     run_env = _registered_observation_options(data.get("env_id"))
     options = {**run_env, **{k: env_kwargs[k] for k in OBSERVATION_KEYS if k in env_kwargs}}
+    if env_kwargs.get("action") == RESIDUAL:  # its actions are corrections to the base law
+        options["action"] = RESIDUAL
     if env_id is not None:
         for key in _registered_observation_options(env_id):
             if key not in options:  # the run's env left it at the default

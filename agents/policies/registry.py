@@ -21,6 +21,7 @@ BASELINES: dict[str, str] = {
     "astar": "agents.policies.astar:AStarAgent",
     "st-rrt": "agents.policies.st_rrt:STRRTAgent",
     "se-scp": "agents.policies.se_scp:SESCPAgent",
+    "base-law": "agents.policies.base_law:BaseLawAgent",
 }
 """Baseline name → ``module:Class`` (imported on first use)."""
 

@@ -61,7 +61,7 @@ def single_spaces(cfg: EnvConfig) -> tuple[spaces.Box, spaces.Space]:
     obs_space = spaces.Box(
         -OBS_LIMIT, OBS_LIMIT, shape=(len(observation_names(cfg)),), dtype=np.float32
     )
-    if cfg.action == "continuous":
+    if cfg.action != "discrete":  # "continuous", "residual"
         act_space: spaces.Space = spaces.Box(-1.0, 1.0, shape=(cfg.dim,), dtype=np.float32)
     else:
         act_space = spaces.Discrete(len(discrete_action_table(cfg.dim, cfg.fine_thrust)))
@@ -190,7 +190,7 @@ def warn_if_physics_differ(cfg: EnvConfig, scenario: Scenario) -> None:
 
 # --- user input at reset and step: one check each, shared by the single and the vector env ---
 
-RESET_OPTIONS = ("chaser_state", "mission", "scenario")
+RESET_OPTIONS = ("chaser_state", "mission", "scenario", "start")
 """Keys ``reset(options=...)`` accepts."""
 
 MISSION_KEYS = ("n_targets", "n_obstacles", "return_to_dock")

@@ -60,8 +60,11 @@ class DebrisFieldEnv(ShellView, gym.Env):
     ``"ball"`` scales vectors longer than 1 onto the unit ball. ``action="discrete"``:
     ``Discrete(2·dim + 1)`` (0 coast, then +x, −x, +y, −y (, +z, −z) at full thrust), and with
     ``fine_thrust`` = f > 0 (v1: 0.1) ``Discrete(4·dim + 1)``, the same directions again at
-    f·``max_accel``. NaN or infinite actions, wrong shapes, and complex, string, boolean or
-    masked-array actions raise ``ValueError`` naming ``action``.
+    f·``max_accel``. ``action="residual"``: the continuous space, the action added to the
+    command of a compiled CW guidance law toward the current goal (:mod:`debris_gym.base_law`;
+    a zero action flies the law) and the sum clipped to [−1, 1] per axis before the thrust
+    model. NaN or infinite actions, wrong shapes, and complex, string, boolean or masked-array
+    actions raise ``ValueError`` naming ``action``.
 
     ## Observation Space
 
@@ -206,8 +209,17 @@ class DebrisFieldEnv(ShellView, gym.Env):
 
     @property
     def elapsed(self) -> float:
-        """Simulated time since reset (s)."""
+        """The mission clock (s): simulated time since reset, plus the steps a mission started
+        part-way had already flown."""
         return float(self._missions.missions.time[0])
+
+    @property
+    def field_word(self) -> int | None:
+        """The 64-bit word this episode's moving random field was drawn from: with
+        ``reset(options={"start": {"field_word": w, ...}})`` any env of the same ID and
+        options flies that field again (None: a pinned field, the paper world or a frozen v0
+        field)."""
+        return self._shell.field_word(0)
 
     @property
     def trail(self) -> np.ndarray:
@@ -283,7 +295,13 @@ class DebrisFieldEnv(ShellView, gym.Env):
                 ``{"mission": {"n_targets": 1, "n_obstacles": 5, "return_to_dock": False}}``
                 changes what the missions ask (:data:`~debris_gym.envs.common.MISSION_KEYS`)
                 from this reset on, until a reset names another mission (``{}``: the env's
-                own again) — a curriculum's rung, with the spaces unchanged.
+                own again) — a curriculum's rung, with the spaces unchanged;
+                ``{"start": {"captured": [2, 0], "step": 140, "delta_v": 3.1, ...}}`` starts
+                the mission part-way (:class:`~debris_gym.mission_starts.MissionStart`:
+                targets already captured in that order, the bodies and the clock ``step``
+                steps on, Δv already spent, the chaser holding beside the last capture unless
+                ``chaser_state`` puts it elsewhere, ``field_word`` the field of a recorded
+                episode).
 
         Raises:
             ValueError: naming the bad option; the env is unchanged.
@@ -310,16 +328,20 @@ class DebrisFieldEnv(ShellView, gym.Env):
         """Apply one thrust command for ``dt`` seconds.
 
         Returns:
-            observation, reward, terminated, truncated (always False: the time limit belongs to
-            the ``TimeLimit`` wrapper), info.
+            observation, reward, terminated, truncated, info. The time limit belongs to the
+            ``TimeLimit`` wrapper, which counts steps from the reset; a mission started
+            part-way (``options={"start": {"step": k, ...}}``) is truncated here when its own
+            clock reaches the limit, k steps before the wrapper would.
         """
         shell = self._shell
         result = shell.step(self._action(action))
-        self._trail.append(shell.batch_in_use.missions.state[0, : self.dim].copy())
+        missions = shell.batch_in_use.missions
+        self._trail.append(missions.state[0, : self.dim].copy())
         if self.render_mode == "human":
             self.render()
         info = shell.row_info(0, result.terms[0].tolist())
-        return self._observe(), float(result.reward[0]), bool(result.terminated[0]), False, info
+        truncated = bool(shell.started_late[0]) and int(missions.steps[0]) >= shell.horizon
+        return self._observe(), float(result.reward[0]), bool(result.terminated[0]), truncated, info
 
     # --- step hooks ---------------------------------------------------------------------------
 

@@ -45,6 +45,7 @@ class SupplyState:
     states: tuple[Mapping[str, Any], ...]
     pending: np.ndarray
     words: np.ndarray
+    taken: np.ndarray
     config: EnvConfig
     spec: FieldSpec
     drawer: OrbitDrawer | None
@@ -70,6 +71,9 @@ class FieldSupply:
         self.generators: list[np.random.Generator] = [np.random.default_rng() for _ in range(num)]
         self._pending = np.zeros(num, dtype=bool)  # the row's next word is out of its generator
         self._words = np.zeros(num, dtype=np.uint64)
+        self.taken_words = np.zeros(num, dtype=np.uint64)
+        """(num,) uint64: the word of each row's last moving random field (see
+        :meth:`take`)."""
         self._ahead = ahead
         # fields drawn ahead: row i's is valid while _ready[i], it was drawn from the word
         # _ready_words[i] that the row takes next, with the drawer now in force
@@ -138,6 +142,7 @@ class FieldSupply:
             states=tuple(g.bit_generator.state for g in self.generators),
             pending=self._pending.copy(),
             words=self._words.copy(),
+            taken=self.taken_words.copy(),
             config=self.config,
             spec=self.spec,
             drawer=self._drawer,
@@ -151,6 +156,7 @@ class FieldSupply:
             generator.bit_generator.state = dict(state)
         self._pending[:] = saved.pending
         self._words[:] = saved.words
+        self.taken_words[:] = saved.taken
         self.config, self.spec, self._drawer = saved.config, saved.spec, saved.drawer
 
     def set_generators(self, rows: np.ndarray, generators: Sequence[np.random.Generator]) -> None:
@@ -177,6 +183,7 @@ class FieldSupply:
             return random_fields(chosen, self.spec, capture_radius=self.config.capture_radius)
         drawer = self.drawer()
         words = self._next_words(rows)
+        self.taken_words[rows] = words
         if self._ahead and self._ready_drawer is drawer:
             self.wait()
             ready = self._ready[rows] & (self._ready_words[rows] == words)
@@ -184,6 +191,30 @@ class FieldSupply:
             if ready.all() and self._store is not None:
                 return _select(self._store, rows)
         return drawer.from_words(words)
+
+    def with_words(
+        self, fields: FieldArrays, positions: np.ndarray, words: np.ndarray
+    ) -> FieldArrays:
+        """``fields`` (what :meth:`take` gave for some rows) with the fields at ``positions``
+        replaced by those of the moving-field ``words`` (a copy; ``fields`` is unchanged).
+
+        Raises:
+            ValueError: the fields are not moving random ones (only those have words), or a
+                word's field cannot be placed in this mission.
+        """
+        if self.paper or not self.moving:
+            raise ValueError(
+                "a field_word names a moving random field; this env's fields are "
+                f"{'the paper world' if self.paper else 'frozen (v0)'}"
+            )
+        drawn = self.drawer().from_words(np.asarray(words, dtype=np.uint64))
+        copy = FieldArrays(
+            fields.dim, fields.half_size, fields.n_targets, fields.centers.copy(),
+            fields.radii.copy(), fields.vertices.copy(), fields.n_vertices.copy(),
+            velocities=_moving(fields.velocities).copy(), spins=_moving(fields.spins).copy(),
+        )  # fmt: skip
+        _assign(copy, np.asarray(positions, dtype=np.int64), drawn)
+        return copy
 
     def draw_ahead(self, rows: np.ndarray) -> None:
         """Start drawing the next field of each row in ``rows`` on the worker thread (moving

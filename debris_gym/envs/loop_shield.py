@@ -18,7 +18,6 @@ from debris_gym.config import EnvConfig
 from debris_gym.envs.common import discrete_action_table
 from debris_gym.jit import specialise
 from debris_gym.mission_batch import MissionBatch
-from debris_gym.mission_data import Missions
 from debris_gym.shield_kernel import shield_rows
 from debris_gym.shield_model import ShieldModel, make_shield_model
 
@@ -30,8 +29,15 @@ def check_shield_support(config: EnvConfig, chasers: int) -> None:
 
     Raises:
         ValueError: ``shield=True`` with several chasers per field (the compiled shield does
-            not predict teammates).
+            not predict teammates), or with ``action="residual"`` (the shield judges the
+            commands it is given, and a residual is not the command flown).
     """
+    if config.shield and config.action == "residual":
+        raise ValueError(
+            "shield=True filters the thrust commands the env is given; with action='residual' "
+            "they are corrections to the base law, not the commands flown: use "
+            "action='continuous' or 'discrete' with the shield"
+        )
     if config.shield and chasers != 1:
         raise ValueError(
             "shield=True is for one chaser per field: the compiled shield does not predict "
@@ -77,13 +83,16 @@ class LoopShield:
             self._key = key
         return self._model
 
+    def begin(self, rows: np.ndarray) -> None:
+        """New episodes in ``rows``: their counts start from zero."""
+        self.interventions[rows] = 0
+        self.intervened[rows] = False
+
     def filter(self, batch: MissionBatch, actions: np.ndarray, live: np.ndarray) -> np.ndarray:
         """The commands to fly instead of ``actions`` (N, dim) in the rows ``live`` (N,) bool;
-        updates :attr:`intervened` and :attr:`interventions` (rows whose episode has not
-        stepped yet start counting from zero). Returns a buffer the next call overwrites."""
+        updates :attr:`intervened` and :attr:`interventions`. Returns a buffer the next call
+        overwrites."""
         missions, field = batch.missions, batch.field
-        fresh = missions.steps == 0
-        self.interventions[fresh] = 0
         actions = np.ascontiguousarray(actions, dtype=np.float64)
         live = np.ascontiguousarray(live, dtype=np.bool_)
         args = (
@@ -101,35 +110,28 @@ class LoopShield:
         replaced its command."""
         return self.penalty * self.intervened
 
-    def counts(self, steps: np.ndarray) -> np.ndarray:
-        """(N,) interventions of each row's current episode (0 in an episode that has not
-        stepped yet, given each row's ``steps``)."""
-        return np.where(steps == 0, 0, self.interventions)
 
-
-def shield_info(shield: LoopShield | None, missions: Missions) -> dict[str, np.ndarray]:
-    """The shield's ``info`` keys of every row, new arrays: ``shield_intervened`` (bool) and
-    ``shield_interventions`` (int64), False / 0 without the shield and in an episode that has
-    not stepped yet."""
+def shield_info(shield: LoopShield | None, num: int) -> dict[str, np.ndarray]:
+    """The shield's ``info`` keys of the ``num`` rows, new arrays: ``shield_intervened`` (bool)
+    and ``shield_interventions`` (int64), False / 0 without the shield."""
     if shield is None:
-        n = missions.steps.shape[0]
         return {
-            "shield_intervened": np.zeros(n, dtype=bool),
-            "shield_interventions": np.zeros(n, dtype=np.int64),
+            "shield_intervened": np.zeros(num, dtype=bool),
+            "shield_interventions": np.zeros(num, dtype=np.int64),
         }
     return {
-        "shield_intervened": shield.intervened & (missions.steps > 0),
-        "shield_interventions": shield.counts(missions.steps),
+        "shield_intervened": shield.intervened.copy(),
+        "shield_interventions": shield.interventions.copy(),
     }
 
 
 def shield_term(
-    shield: LoopShield | None, terms: dict[str, Any], missions: Missions, row: int | None = None
+    shield: LoopShield | None, terms: dict[str, Any], row: int | None = None
 ) -> dict[str, Any]:
     """``terms`` (the reward terms by name) with the shield's penalty term ``"shield"``
     (<= 0; of ``row``, or an array of every row) when the shield is on; as they are without it."""
     if shield is None:
         return terms
-    penalty = np.where(missions.steps > 0, 0.0 - shield.penalties(), 0.0)
+    penalty = 0.0 - shield.penalties()
     terms["shield"] = penalty if row is None else float(penalty[row])
     return terms

@@ -43,6 +43,14 @@ from debris_gym.envs.common import (
 )
 from debris_gym.envs.field_supply import FieldSupply
 from debris_gym.envs.loop_shield import LoopShield, check_shield_support, shield_info, shield_term
+from debris_gym.envs.starts import (
+    EpisodeEnds,
+    StartPlan,
+    StartSampler,
+    plan_starts,
+    starts_for_reset,
+    with_words,
+)
 from debris_gym.field_spec import MAX_POLYGON_VERTICES, FieldArrays, scenario_from_arrays
 from debris_gym.geometry import FieldGeometry
 from debris_gym.mission_batch import MissionBatch, Physics, check_threads
@@ -177,6 +185,11 @@ class MissionShell:
                 "single-agent envs have none: use 0, or debris_gym.swarm.make"
             )
         check_shield_support(config, chasers)
+        if chasers > 1 and config.action == "residual":
+            raise ValueError(
+                "action='residual' is not allowed with several chasers per field (its base law "
+                "flies one chaser to its goal); allowed: 'continuous', 'discrete'"
+            )
         self.chasers, self.n_fields = chasers, num // chasers
         self.chaser_separation = chaser_separation
         self.field_loop = field_loop  # make_rules adds "or chasers > 1"
@@ -214,6 +227,13 @@ class MissionShell:
         """The compiled safety shield (the ``shield`` option), or None."""
         self._estimates: dict[int, tuple[int, Scenario, Scenario]] = {}
         self._noise: list[np.random.Generator | None] = [None] * fields
+        self.start_sampler: StartSampler | None = None
+        """Gives the starts of the missions a reset or an autoreset begins (part-way; see
+        :mod:`debris_gym.envs.starts`), unless the reset names its own; None: every mission
+        starts at the dock."""
+        self.started_late = np.zeros(num, dtype=bool)
+        """(N,) bool: the mission's clock did not start at 0 (its time limit is the mission
+        clock's, which a step counter outside the shell cannot know)."""
         """Per field, the generator of its episodes' error keys (the uncertain world): a child
         of the field's generator, spawned when first needed, so that it never moves the field
         draws on."""
@@ -307,8 +327,8 @@ class MissionShell:
             "is_success": m.success.copy(),
             "applied_accel": m.accel.copy(),
             "task_score": m.score.copy(),
-            "reward_terms": shield_term(self._shield, dict(zip(REWARD_TERMS, terms.T.copy())), m),
-            **shield_info(self._shield, m),
+            "reward_terms": shield_term(self._shield, dict(zip(REWARD_TERMS, terms.T.copy()))),
+            **shield_info(self._shield, self.num),
         }
 
     def row_info(self, i: int, terms: Sequence[float]) -> dict[str, Any]:
@@ -332,8 +352,8 @@ class MissionShell:
             "is_success": bool(m.success[i]),
             "applied_accel": m.accel[i].copy(),
             "task_score": float(m.score[i]),
-            "reward_terms": shield_term(self._shield, dict(zip(REWARD_TERMS, terms)), m, i),
-            **{key: value[i].item() for key, value in shield_info(self._shield, m).items()},
+            "reward_terms": shield_term(self._shield, dict(zip(REWARD_TERMS, terms)), i),
+            **{key: value[i].item() for key, value in shield_info(self._shield, self.num).items()},
         }
 
     # --- reset --------------------------------------------------------------------------------
@@ -388,10 +408,17 @@ class MissionShell:
                 else:
                     self._fit(self._drawn_shape(fields))
             states = options.get("chaser_state")
+            starts = starts_for_reset(self, options.get("start"), states is not None)
+            if starts is not None:
+                fields = with_words(self.supply, starts, fields)
             if states is not None:
                 states = self._checked_states(states, pinned, fields)
-            elif pinned is not None:
+            elif pinned is not None and starts is None:
                 check_dock_clear(pinned, self.config.chaser_radius)  # every row at the dock
+            plan = None
+            if starts is not None:
+                flown = pinned if pinned is not None or fields is not None else self._paper()
+                plan = plan_starts(starts, self.batch_in_use, self.config, fields, flown)
         except BaseException:
             self.supply.restore(saved_supply)
             self.config, self.batch = saved
@@ -407,13 +434,65 @@ class MissionShell:
         else:
             self._install(fields_rows, fields)
         if self.on_install is not None:
-            starts = self.on_install(fields_rows)
+            placed = self.on_install(fields_rows)
             if states is None:
-                states = starts
-        self.batch_in_use.begin(rows, states, self._error_keys(fields_rows))
+                states = placed
+        self._begin(rows, fields_rows, states, plan)
         self._restart[:] = False
         if pinned is None:
             self.supply.draw_ahead(fields_rows)
+
+    @property
+    def horizon_steps(self) -> int:
+        """The mission's time limit in steps (``max_episode_steps``, else the horizon the
+        observation counts down from)."""
+        return self.max_episode_steps or self.horizon
+
+    def batch_n_targets(self) -> int:
+        """Targets per mission of the fields the config draws (the batch's once it holds
+        them)."""
+        if self.batch is not None:
+            return self.batch.n_targets
+        return self.config.n_targets
+
+    def _paper(self) -> Scenario:
+        return self.supply.paper_field()
+
+    def _begin(
+        self,
+        rows: np.ndarray,
+        fields: np.ndarray,
+        states: np.ndarray | None,
+        plan: StartPlan | None,
+    ) -> None:
+        """Begin the missions of ``rows`` (in ``fields``, installed): at ``states`` or their
+        docks, then those of ``plan`` resumed part-way."""
+        batch = self.batch_in_use
+        if plan is not None:
+            batch.advance(fields[plan.positions], plan.counts)
+        batch.begin(rows, states, self._error_keys(fields))
+        if self._shield is not None:
+            self._shield.begin(rows)
+        self.started_late[rows] = False
+        if plan is None:
+            return
+        late = rows[plan.positions]
+        batch.resume(late, plan.states, plan.captured, plan.counts, plan.spent)
+        self.started_late[late] = plan.counts > 0
+        if plan.has_word.any():
+            self.supply.taken_words[fields[plan.positions[plan.has_word]]] = plan.words[
+                plan.has_word
+            ]
+
+    def field_word(self, i: int) -> int | None:
+        """The 64-bit word field ``i``'s moving random field was drawn from (what
+        ``options={"start": {"field_word": ...}}`` takes to fly it again), or None: a pinned
+        field, the paper world or a frozen (v0) field."""
+        if self.batch is None or self.pinned[i] is not None or not self.supply.moving:
+            return None
+        if self.supply.paper:
+            return None
+        return int(self.supply.taken_words[i])
 
     def checked_mission(self, mission: Any) -> EnvConfig:
         """The config a ``{"mission": ...}`` reset option gives
@@ -593,12 +672,23 @@ class MissionShell:
         fields = np.flatnonzero(mask)
         k = self.chasers
         rows = fields if k == 1 else (fields[:, None] * k + np.arange(k)).ravel()
+        drawn, plan = None, None
+        if self._pin is None:
+            drawn = self._take(fields)
+        if self.start_sampler is not None:
+            batch = self.batch_in_use
+            ended = EpisodeEnds(batch.captured_counts()[rows], batch.missions.success[rows].copy())
+            starts = list(self.start_sampler(fields, ended))
+            if any(s is not None for s in starts):
+                drawn = with_words(self.supply, starts, drawn)
+                flown = self._pin if self._pin is not None or drawn is not None else self._paper()
+                plan = plan_starts(starts, batch, self.config, drawn, flown)
         if self._pin is not None:
             self._install_scenario(fields, self._pin)
         else:
-            self._install(fields, self._take(fields))
-        starts = None if self.on_install is None else self.on_install(fields)
-        self.batch_in_use.begin(rows, starts, self._error_keys(fields))
+            self._install(fields, drawn)
+        placed = None if self.on_install is None else self.on_install(fields)
+        self._begin(rows, fields, placed, plan)
         if self._pin is None:
             self.supply.draw_ahead(fields)
 

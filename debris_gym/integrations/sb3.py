@@ -107,6 +107,11 @@ class NativeVecEnv(BatchVecEnv):
         self.venv.shell.checked_mission(mission)
         self._new_mission = dict(mission)
 
+    def set_start_sampler(self, sampler: Any) -> None:
+        """Start the missions the env restarts from now on where ``sampler`` says (a
+        :class:`~debris_gym.envs.starts.StartSampler`; None: at the dock)."""
+        self.venv.shell.start_sampler = sampler
+
     def step_async(self, actions: np.ndarray) -> None:
         self._actions = np.asarray(actions)
 

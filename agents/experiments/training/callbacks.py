@@ -7,6 +7,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import io
+import json
 import os
 import sys
 import time
@@ -34,6 +35,7 @@ from agents.experiments.training.checkpoints import (
 )
 from agents.experiments.training.config import EVAL_SEED, TrainConfig
 from agents.policies.model_files import sidecar_path
+from debris_gym.files import write_atomic
 
 __all__ = [
     "CurriculumCallback",
@@ -42,6 +44,7 @@ __all__ = [
     "PruningCheckpointCallback",
     "RunProgressBar",
     "SaveBestCallback",
+    "StartLegsCallback",
     "close_progress_bar",
     "make_callbacks",
 ]
@@ -79,6 +82,38 @@ class CurriculumCallback(BaseCallback):
             f"mission {mission or 'of ' + config.env_id}",
             flush=True,
         )
+
+    def _on_step(self) -> bool:
+        return True
+
+
+class StartLegsCallback(BaseCallback):
+    """Log the start sampler's legs after every rollout: ``starts/leg{k}_failure`` (moving-
+    average failure rate) and ``starts/leg{k}_p`` (chance of a bank start on leg k) in SB3's
+    log, and the whole state in ``DIR/start_legs.json`` (written atomically).
+
+    Args:
+        path: the JSON file.
+    """
+
+    def __init__(self, path: Path) -> None:
+        super().__init__()
+        self.path = path
+
+    def _sampler(self) -> Any:
+        native: Any = self.training_env.unwrapped
+        return native.venv.shell.start_sampler
+
+    def _on_rollout_end(self) -> None:
+        sampler = self._sampler()
+        if sampler is None:
+            return
+        stats = sampler.stats()
+        for k, (fail, p) in enumerate(zip(stats["failure"], stats["probability"])):
+            self.logger.record(f"starts/leg{k}_failure", fail)
+            self.logger.record(f"starts/leg{k}_p", p)
+        stats["timesteps"] = int(self.num_timesteps)
+        write_atomic(self.path, json.dumps(stats, indent=1) + "\n")
 
     def _on_step(self) -> bool:
         return True
@@ -381,6 +416,8 @@ def make_callbacks(
     callbacks: list[Any] = [episodes]
     if config.curriculum:
         callbacks.insert(0, CurriculumCallback(config))
+    if config.starts.bank is not None:
+        callbacks.append(StartLegsCallback(out / "start_legs.json"))
     n = config.n_envs
     evaluation = None
     if config.eval.freq > 0:

@@ -163,6 +163,28 @@ class InitConfig:
 
 
 @dataclass(frozen=True)
+class StartsConfig:
+    """Training missions that start part-way, from a bank of recorded states (``python
+    starts.py``), the legs chosen by prioritised level replay
+    (:class:`agents.experiments.starts.LegSampler`; docs/training.md, "Starting part-way").
+
+    Attributes:
+        bank: path of the start bank (``.npz``); None = every mission starts at the dock.
+            Relative paths are read from the working directory.
+        usual: share of missions that start as usual, at the dock.
+        temperature: β of the legs' rank prioritisation (> 0).
+        staleness: ρ, weight of the staleness term.
+        smoothing: rate of each leg's moving-average failure rate.
+    """
+
+    bank: str | None = None
+    usual: float = 0.5
+    temperature: float = 0.3
+    staleness: float = 0.1
+    smoothing: float = 0.05
+
+
+@dataclass(frozen=True)
 class TrainConfig:
     """One training recipe: env × algorithm × hyper-parameters (a YAML file's typed form).
 
@@ -190,6 +212,7 @@ class TrainConfig:
             flies the final task.
         init: RL fine-tuning from another run's policy (:class:`InitConfig`; ppo only).
         encoder: how the policy reads the observation (:class:`EncoderConfig`).
+        starts: training missions that start part-way (:class:`StartsConfig`).
         sweep: the search space of a hyper-parameter sweep over this recipe
             (:class:`~agents.experiments.training.sweep_config.SweepConfig`, ``sweep.py``);
             None: none. A plain ``train.py`` run ignores it.
@@ -211,6 +234,7 @@ class TrainConfig:
     curriculum: list[dict[str, Any]] = field(default_factory=list)
     init: InitConfig = field(default_factory=InitConfig)
     encoder: EncoderConfig = field(default_factory=EncoderConfig)
+    starts: StartsConfig = field(default_factory=StartsConfig)
     sweep: SweepConfig | None = None
     notes: str = ""
 
@@ -317,8 +341,10 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
             "must be 'discrete' for dqn (DQN needs a discrete action space); "
             "set env_kwargs: {action: discrete}",
         )
-    if algo in ("sac", "td3") and env_config.action != "continuous":
-        raise config_error(source, "env_kwargs.action", f"must be 'continuous' for {algo}")
+    if algo in ("sac", "td3") and env_config.action == "discrete":
+        raise config_error(
+            source, "env_kwargs.action", f"must be 'continuous' or 'residual' for {algo}"
+        )
 
     try:
         cls = algo_class(algo)
@@ -374,6 +400,11 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
     )
     init = _validate_init(data.get("init"), algo, normalize, source)
     encoder = _validate_encoder(data.get("encoder"), init, source)
+    starts = _validate_starts(data.get("starts"), swarm, source)
+    if starts.bank is not None and curriculum:
+        raise config_error(
+            source, "starts.bank", "and a curriculum both change where missions start: use one"
+        )
     recipe = {key: value for key, value in data.items() if key != "sweep"}
 
     def check_values(key: str, value: Any) -> None:  # the recipe with one swept value set
@@ -396,9 +427,25 @@ def _validate(data: dict[str, Any], source: str) -> TrainConfig:
         curriculum=curriculum,
         init=init,
         encoder=encoder,
+        starts=starts,
         sweep=sweep,
         notes=notes,
     )
+
+
+def _validate_starts(data: Any, swarm: bool, source: str) -> StartsConfig:
+    starts = section(StartsConfig, data, "starts.", source)
+    if starts.bank is not None:
+        typed(starts.bank, str, "starts.bank", source)
+        if swarm:
+            raise config_error(source, "starts.bank", "is for single-chaser envs (use null)")
+    try:
+        from agents.experiments.starts.sampler import SamplerParams
+
+        SamplerParams(starts.usual, starts.temperature, starts.staleness, starts.smoothing)
+    except ValueError as exc:
+        raise config_error(source, "starts", str(exc)) from None
+    return starts
 
 
 def _validate_encoder(data: Any, init: InitConfig, source: str) -> EncoderConfig:

@@ -58,6 +58,8 @@ def make_train_env(config: TrainConfig, seed: int, stats: Path | None = None) ->
     from stable_baselines3.common.vec_env import VecNormalize
 
     venv = _vec_env(config, config.n_envs)
+    if config.starts.bank is not None:
+        attach_start_sampler(venv.venv, config)
     norm = config.normalize
     if config.init.path is not None:  # fine-tuning: the init run's statistics, frozen
         venv = finetune_train_env(venv, config, stats)
@@ -70,6 +72,30 @@ def make_train_env(config: TrainConfig, seed: int, stats: Path | None = None) ->
             venv = _vec_normalize(venv, config, training=True)
     venv.seed(seed)
     return venv
+
+
+def attach_start_sampler(native: Any, config: TrainConfig) -> Any:
+    """Give the native training env ``native`` a :class:`~agents.experiments.starts.LegSampler`
+    over the config's start bank (its missions restart part-way from then on); returns it.
+
+    Raises:
+        ConfigError: the bank cannot be read, or was recorded in another env.
+    """
+    from agents.experiments.starts import LegSampler, SamplerParams
+    from debris_gym.start_bank import StartBank
+
+    starts = config.starts
+    assert starts.bank is not None
+    try:
+        bank = StartBank.load(starts.bank)
+        bank.check_config(native.venv.config)
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"starts.bank: {exc}") from None
+    shell = native.venv.shell
+    params = SamplerParams(starts.usual, starts.temperature, starts.staleness, starts.smoothing)
+    sampler = LegSampler(bank, shell.num, shell.batch_n_targets(), params)
+    native.set_start_sampler(sampler)
+    return sampler
 
 
 def make_eval_env(config: TrainConfig) -> Any:
