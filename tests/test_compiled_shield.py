@@ -319,7 +319,7 @@ def test_with_the_shield_off_nothing_changes():
 
 
 def test_the_shield_recipe_trains_shielded_and_evaluates_unshielded():
-    recipe = ROOT / "agents" / "configs" / "rendezvous2d_v2_shield_ppo.yaml"
+    recipe = ROOT / "agents" / "configs" / "experiments" / "rendezvous2d_v2_shield_ppo.yaml"
     data = yaml.safe_load(recipe.read_text())
     data.update(n_envs=2, eval={"freq": 1000, "n_episodes": 2, "n_envs": 2})
     config = TrainConfig.from_dict(data, source=str(recipe))
