@@ -65,7 +65,8 @@ def main(
         metavar="SECTIONS",
         help=f"comma-separated sections to run, from: {','.join(SECTIONS)} (default: all). "
         "single = single-env step, scaling and reset tables; scaling = the vector env "
-        "against the debris count; swarm = chaser-steps/s of the swarm core at K = 1, 8, 48, "
+        "against the debris count; shield = the compiled safety shield's cost per decision in "
+        "the vector env; swarm = chaser-steps/s of the swarm core at K = 1, 8, 48, "
         "256 chasers per field next to VMAS navigation (needs the bench extra)",
     )
     parser.add_argument("--out", metavar="FILE", help="also write the Markdown report to FILE")

@@ -68,6 +68,8 @@ QUICK: dict[str, Any] = {
     "swarm_warmup_steps": 150,
     "vmas_warmup_steps": 1,
     "swarm_seconds": 0.25,
+    # the compiled shield: N of the shield-off and shield-on rows (one thread)
+    "shield_envs": 1024,
 }
 """Sizes of ``--quick``: fewer and shorter repeats, smaller N."""
 
@@ -119,6 +121,7 @@ TINY: dict[str, Any] = {
     "swarm_chasers_total": 6,
     "swarm_warmup_steps": 3,
     "vmas_warmup_steps": 1,
+    "shield_envs": 4,
 }
 """Sizes for smoke tests (``run(sizes=TINY)``): every code path, seconds not minutes."""
 

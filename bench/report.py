@@ -70,6 +70,7 @@ def format_report(
         (("step", "scaling", "reset"), _single_lines),
         (("vector",), _vector_lines),
         (("vector_scaling",), _vector_scaling_lines),
+        (("shield",), _shield_lines),
         (("swarm",), _swarm_lines),
         (("memory",), _memory_lines),
         (("train",), _train_lines),
@@ -299,6 +300,31 @@ def _vector_scaling_lines(scal: list[dict[str, Any]]) -> list[str]:
         label = f"{n} (reference)" if n == DEFAULT_OBSTACLES else str(n)
         first = [label, _f(row["field_size"], 0), str(row["num_envs"])]
         rest = [*_throughput_cells(row), _f(row["reset_ms_per_env"], 2), _range(row, "ratio")]
+        lines.append(_line(row, first, rest, "env_steps_per_s"))
+    return [*lines, ""]
+
+
+def _shield_lines(rows: list[dict[str, Any]]) -> list[str]:
+    """The compiled shield's cost per decision in the vector env."""
+    n = rows[0]["num_envs"]
+    lines = _heading(
+        f"## Compiled safety shield in the vector env (native, N={n}, one thread)",
+        "Uniformly random actions; each env timed with `shield=False` and `shield=True` in "
+        "interleaved rounds. µs per decision = µs per env-step with the shield − without, "
+        "per round (median and range over the rounds); decisions changed per 1000 counted "
+        "from `info['shield_intervened']`.",
+        "| env | shield | steps/repeat | env-steps/s (median) | env-steps/s (best) "
+        "| µs per env-step | episodes ended / 1000 env-steps | decisions changed / 1000 "
+        "| µs per decision (range) |",
+        "|:--|:--|--:|--:|--:|--:|--:|--:|--:|",
+    )
+    for row in rows:
+        cost = "–"
+        if math.isfinite(row["us_per_decision"]):
+            lo, hi = row["us_per_decision_range"]
+            cost = f"{row['us_per_decision']:.1f} ({lo:.1f}–{hi:.1f})"
+        first = [f"`{row['env_id']}`", "on" if row["shield"] else "off"]
+        rest = [*_throughput_cells(row), _f(row["intervened_per_1000"], 1), cost]
         lines.append(_line(row, first, rest, "env_steps_per_s"))
     return [*lines, ""]
 

@@ -16,12 +16,13 @@ from bench.decisions import run_decisions
 from bench.harness import pin_torch
 from bench.memory import run_memory
 from bench.scaling import run_scaling
+from bench.shield import run_shield
 from bench.single import run_single
 from bench.swarm import run_swarm
 from bench.train import run_train
 from bench.vector import run_vector
 
-SECTIONS = ("single", "vector", "scaling", "swarm", "memory", "train", "decisions")
+SECTIONS = ("single", "vector", "scaling", "shield", "swarm", "memory", "train", "decisions")
 """Section names for ``--only`` / ``run(sections=…)``, in the order they run."""
 
 
@@ -75,6 +76,7 @@ def run(
         is reported in its row, not raised). Their other fields are described by
         :func:`bench.single.single_rows` (sections "step", "scaling", "reset"),
         :func:`bench.vector.vector_rows` ("vector", "vector_scaling"),
+        :func:`bench.shield.run_shield` ("shield"),
         :func:`bench.swarm.swarm_rows` ("swarm"), :func:`bench.memory.run_memory` ("memory"),
         :func:`bench.train.train_rows` ("train") and :func:`bench.decisions.decision_rows`
         ("decisions").
@@ -95,6 +97,8 @@ def run(
         rows += run_vector(cfg, n_repeats, steps, progress)
     if "scaling" in chosen:
         rows += run_scaling(cfg, n_repeats, steps, progress)
+    if "shield" in chosen:
+        rows += run_shield(cfg, n_repeats, steps, progress)
     if "swarm" in chosen:
         rows += run_swarm(cfg, n_repeats, steps, progress)
     if "memory" in chosen:

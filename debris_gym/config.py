@@ -371,6 +371,17 @@ OPTIONS: dict[str, Option] = {
         doc="limited sensing: obstacle slots and lidar rays show nothing beyond this gap "
         "(targets, the mission's own, are always shown); None = unlimited",
     ),
+    "shield": Option(
+        choices=(False, True),
+        doc="filter every command through the compiled safety shield before it is flown "
+        "(one chaser per field; info 'shield_intervened', 'shield_interventions')",
+    ),
+    "shield_penalty": Option(
+        "",
+        0.0,
+        MAX_WEIGHT,
+        doc="shield=True: reward subtracted per command the shield replaces (reward term 'shield')",
+    ),
 }
 
 UNCERTAINTY_KEYS = (
@@ -468,6 +479,8 @@ class EnvConfig:
     chaser_ballistic_coefficient: float = 100.0
     orbit_inclination: float = 51.6
     sensor_range: float | None = None
+    shield: bool = False
+    shield_penalty: float = 0.0
 
     def __post_init__(self) -> None:
         # each key alone (stored normalised: whole numbers as int, reals as float, flags as
@@ -640,6 +653,11 @@ def _check_cross_keys(cfg: EnvConfig) -> None:
                 f"truth_model='j2_drag' needs orbit_radius >= {R_EARTH + MIN_DRAG_ALTITUDE:g} m "
                 f"(an altitude of {MIN_DRAG_ALTITUDE / 1e3:g} km or more), got {cfg.orbit_radius!r}"
             )
+    if cfg.shield_penalty > 0.0 and not cfg.shield:
+        raise ValueError(
+            f"shield_penalty={cfg.shield_penalty!r} penalises the shield's interventions; "
+            "it needs shield=True"
+        )
     if cfg.scenario == "random":
         limit = WORLD_FRACTION * cfg.field_size
         for key in _WORLD_TIED:

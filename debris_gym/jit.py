@@ -42,12 +42,13 @@ COMPILED_MODULES = (
     "mission_starts",
     "potential",
     "observation",
+    "shield_kernel",
     "thrust",
     "uncertainty",
 )
 """Modules of this package with numba-compiled functions (their caches are dropped together)."""
 
-STRUCTURE_MODULES = ("mission_data", "field_spec")
+STRUCTURE_MODULES = ("mission_data", "field_spec", "shield_model")
 """Modules whose named tuples the compiled signatures are made of (the compiled code reads their
 fields by position), or whose constants compiled code bakes in (``MAX_POLYGON_VERTICES``): a
 change to them drops the cache too."""

@@ -132,7 +132,7 @@ def test_write_atomic_replaces_the_file(tmp_path):
 def test_sections_are_selectable():
     assert bench.SECTIONS is suite.SECTIONS
     assert suite.SECTIONS == (
-        "single", "vector", "scaling", "swarm", "memory", "train", "decisions"
+        "single", "vector", "scaling", "shield", "swarm", "memory", "train", "decisions"
     )  # fmt: skip
     assert suite.choose_sections(["train", "vector"]) == ("vector", "train")  # run order
     assert suite.choose_sections(None) == suite.SECTIONS
@@ -542,3 +542,23 @@ def test_an_empty_only_is_refused_listing_the_sections(only, capsys, no_sections
     assert exc.value.code == 2 and "argument --only: names no section" in err
     assert ", ".join(suite.SECTIONS) in err
     assert no_sections == []
+
+
+def test_the_shield_section_times_the_shield_off_and_on_and_reports_its_cost():
+    rows = tiny_run("shield")
+    assert [(r["env_id"], r["shield"]) for r in rows] == [
+        (ID_2D, False), (ID_2D, True), (ID_3D, False), (ID_3D, True)
+    ]  # fmt: skip
+    for row in rows:
+        assert row["error"] is None and row["actions"] == "random"
+        assert _finite_positive(row["env_steps_per_s"])
+        if row["shield"]:
+            assert math.isfinite(row["us_per_decision"])
+            lo, hi = row["us_per_decision_range"]
+            assert lo <= row["us_per_decision"] <= hi
+        else:
+            assert row["intervened_per_1000"] == 0.0  # the off rows count nothing
+            assert math.isnan(row["us_per_decision"])
+    report = bench.format_report(rows, command="bench", elapsed=1.0, machine=[])
+    assert "Compiled safety shield in the vector env" in report
+    assert report.count("| `DebrisGym/") == 4

@@ -42,6 +42,7 @@ from debris_gym.envs.common import (
     warn_if_physics_differ,
 )
 from debris_gym.envs.field_supply import FieldSupply
+from debris_gym.envs.loop_shield import LoopShield, check_shield_support, shield_info, shield_term
 from debris_gym.envs.starts import (
     EpisodeEnds,
     StartPlan,
@@ -95,6 +96,8 @@ INFO_KEYS = (
     "applied_accel",
     "task_score",
     "reward_terms",
+    "shield_intervened",
+    "shield_interventions",
 )
 """The keys of every step's and reset's ``info`` (docs/environments.md, "Info")."""
 
@@ -181,6 +184,7 @@ class MissionShell:
                 f"obs_teammates={config.obs_teammates} is a swarm option (teammate slots); "
                 "single-agent envs have none: use 0, or debris_gym.swarm.make"
             )
+        check_shield_support(config, chasers)
         if chasers > 1 and config.action == "residual":
             raise ValueError(
                 "action='residual' is not allowed with several chasers per field (its base law "
@@ -219,6 +223,8 @@ class MissionShell:
         may edit their arrays in place (a reconfiguration shrinks the place the generator kept
         for its formation to the body at the formation's centre)."""
         self._live = np.ones(num, dtype=bool)
+        self._shield = LoopShield(config, num) if config.shield else None
+        """The compiled safety shield (the ``shield`` option), or None."""
         self._estimates: dict[int, tuple[int, Scenario, Scenario]] = {}
         self._noise: list[np.random.Generator | None] = [None] * fields
         self.start_sampler: StartSampler | None = None
@@ -321,7 +327,8 @@ class MissionShell:
             "is_success": m.success.copy(),
             "applied_accel": m.accel.copy(),
             "task_score": m.score.copy(),
-            "reward_terms": dict(zip(REWARD_TERMS, terms.T.copy())),
+            "reward_terms": shield_term(self._shield, dict(zip(REWARD_TERMS, terms.T.copy()))),
+            **shield_info(self._shield, self.num),
         }
 
     def row_info(self, i: int, terms: Sequence[float]) -> dict[str, Any]:
@@ -345,7 +352,8 @@ class MissionShell:
             "is_success": bool(m.success[i]),
             "applied_accel": m.accel[i].copy(),
             "task_score": float(m.score[i]),
-            "reward_terms": dict(zip(REWARD_TERMS, terms)),
+            "reward_terms": shield_term(self._shield, dict(zip(REWARD_TERMS, terms)), i),
+            **{key: value[i].item() for key, value in shield_info(self._shield, self.num).items()},
         }
 
     # --- reset --------------------------------------------------------------------------------
@@ -463,6 +471,8 @@ class MissionShell:
         if plan is not None:
             batch.advance(fields[plan.positions], plan.counts)
         batch.begin(rows, states, self._error_keys(fields))
+        if self._shield is not None:
+            self._shield.begin(rows)
         self.started_late[rows] = False
         if plan is None:
             return
@@ -628,11 +638,12 @@ class MissionShell:
             raise RuntimeError("call reset() before step()")
         batch = self.batch
         if self.autoreset is Autoreset.NEVER:
-            out = batch.step(actions, self._live if live is None else live)
-            return StepResult(out.reward, out.terminated, out.truncated, out.terms)
+            live = self._live if live is None else live
+            out = batch.step(self._shielded(batch, actions, live), live)
+            return StepResult(self._penalised(out.reward), out.terminated, out.truncated, out.terms)
         restart = self._restart
-        out = batch.step(actions, ~restart)
-        reward, terminated = out.reward.copy(), out.terminated.copy()
+        out = batch.step(self._shielded(batch, actions, ~restart), ~restart)
+        reward, terminated = self._penalised(out.reward).copy(), out.terminated.copy()
         truncated, terms = out.truncated.copy(), out.terms
         ended = terminated | truncated
         if self.autoreset is Autoreset.SAME_STEP:
@@ -646,6 +657,15 @@ class MissionShell:
             self.restart(restart)
         self._restart = ended
         return StepResult(reward, terminated, truncated, terms)
+
+    def _shielded(self, batch: MissionBatch, actions: np.ndarray, live: np.ndarray) -> np.ndarray:
+        """``actions`` through the shield in the rows ``live`` (as they are without it)."""
+        return actions if self._shield is None else self._shield.filter(batch, actions, live)
+
+    def _penalised(self, reward: np.ndarray) -> np.ndarray:
+        """The step's rewards less the shield's penalties (as they are without any)."""
+        shield = self._shield
+        return reward if shield is None or shield.penalty == 0.0 else reward - shield.penalties()
 
     def restart(self, mask: np.ndarray) -> None:
         """New episodes in the fields in ``mask`` (F,) (an autoreset; with one chaser per field

@@ -34,13 +34,21 @@ DEVICES = ("cpu", "auto", "cuda", "cuda:<N>", "mps")
 """The ``--device`` values train.py knows; GPU ones only where that GPU is present."""
 
 
-def _vec_env(config: TrainConfig, n_envs: int) -> Any:
+SHIELD_KEYS = ("shield", "shield_penalty")
+"""Env options of the safety shield in the training loop: the evaluation env leaves them out,
+so that model selection sees the policy fly alone."""
+
+
+def _vec_env(config: TrainConfig, n_envs: int, shielded: bool = True) -> Any:
     from stable_baselines3.common.vec_env import VecMonitor
 
     from debris_gym.integrations.sb3 import make_vec_env
 
+    kwargs = config.env_kwargs
+    if not shielded:
+        kwargs = {k: v for k, v in kwargs.items() if k not in SHIELD_KEYS}
     # swarm IDs: one SB3 env per chaser, one policy for all (parameter sharing, IPPO)
-    venv = make_vec_env(config.env_id, n_envs, **config.env_kwargs)
+    venv = make_vec_env(config.env_id, n_envs, **kwargs)
     return VecMonitor(venv, info_keywords=("is_success", "targets_captured"))
 
 
@@ -91,8 +99,9 @@ def attach_start_sampler(native: Any, config: TrainConfig) -> Any:
 
 
 def make_eval_env(config: TrainConfig) -> Any:
-    """Evaluation VecEnv (seeds ``EVAL_SEED + i``; VecNormalize frozen, synced from training)."""
-    venv = _vec_env(config, config.eval.n_envs)
+    """Evaluation VecEnv (seeds ``EVAL_SEED + i``; VecNormalize frozen, synced from training;
+    without the safety shield even when training flies with it)."""
+    venv = _vec_env(config, config.eval.n_envs, shielded=False)
     if config.normalize.enabled:
         venv = _vec_normalize(venv, config, training=False)
     venv.seed(EVAL_SEED)
