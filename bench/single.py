@@ -33,6 +33,7 @@ from bench.config import (
     CARTPOLE,
     DEBRIS_IDS,
     ID_2D,
+    ID_V1,
     MAX_RESETS,
     MAX_STEPS,
     SCALING_COUNTS,
@@ -211,7 +212,9 @@ def measurements(
             )
     # uniformly random actions, as an exploring policy acts: episodes end often, and the
     # resets count (CartPole's actions are uniform already: its default row is the reference)
-    out.append(step_measurement(ID_2D, cfg, steps, label=RANDOM, action_kind="random"))
+    # (and on the v1 world, whose goal the mission-shell work was set on)
+    for env_id in (ID_2D, ID_V1):
+        out.append(step_measurement(env_id, cfg, steps, label=RANDOM, action_kind="random"))
     for n in SCALING_COUNTS:
         kwargs = {"n_obstacles": n, "field_size": field_size_for(n)}
         out.append(

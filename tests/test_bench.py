@@ -94,11 +94,13 @@ def test_every_env_has_a_step_row_at_both_wrapper_levels(rows):
 def test_variants_scaling_and_resets_are_measured(rows):
     variants = {r["variant"] for r in rows if r["section"] == "step"}
     assert {"observation=lidar", "action=discrete", "actions=random"} <= variants
-    (explored,) = [r for r in rows if r["variant"] == "actions=random"]
-    assert explored["env_id"] == ID_2D and explored["level"] == "make"
-    assert _finite_positive(explored["ratio_wall"])  # resets included on both sides
-    low, high = explored["ratio_wall_range"]
-    assert low <= explored["ratio_wall"] <= high
+    explored_rows = [r for r in rows if r["variant"] == "actions=random"]
+    assert {r["env_id"] for r in explored_rows} == {ID_2D, config.ID_V1}  # v2 and v1
+    for explored in explored_rows:
+        assert explored["level"] == "make"
+        assert _finite_positive(explored["ratio_wall"])  # resets included on both sides
+        low, high = explored["ratio_wall_range"]
+        assert low <= explored["ratio_wall"] <= high
     scaling = {r["n_obstacles"]: r for r in rows if r["section"] == "scaling"}
     assert sorted(scaling) == sorted(config.SCALING_COUNTS)
     for n, row in scaling.items():
