@@ -31,6 +31,31 @@ def fly(env: gym.Env, agent, seed: int) -> dict:
 
 
 @pytest.mark.parametrize(
+    "env_id, name",
+    [
+        ("DebrisGym/Rendezvous2D-v2", "rendezvous2d_v2_residual.zip"),
+        ("DebrisGym/Rendezvous3D-v2", "rendezvous3d_v2_residual.zip"),
+    ],
+)
+def test_the_pretrained_v2_policies_are_residual_ones(env_id, name):
+    """On the v2 IDs `pretrained` is the residual policy: its files ship, it is flown in the
+    residual mode with the v2 ID's observation (the hold's progress among it), and it
+    completes a held-out mission of the default difficulty (a seed outside every training,
+    evaluation and suite range) under the hold rule."""
+    assert pretrained_path(env_id)[1].name == name
+    stem = name.removesuffix(".zip")
+    assert (PRETRAINED_DIR / f"{stem}_vecnormalize.pkl").is_file()
+    assert (PRETRAINED_DIR / f"{stem}.yaml").is_file()
+    options = agents.observation_options("pretrained", env_id)
+    assert options == {"obs_hold": True, "action": "residual"}  # the v2 ID's own observation
+    env = gym.make(env_id, **options)
+    agent = agents.load_agent("pretrained", env)
+    info = fly(env, agent, 20_000_001)
+    assert info["is_success"] and info["targets_captured"] == 3 and not info["collision"]
+    env.close()
+
+
+@pytest.mark.parametrize(
     "env_id, name, expected",
     [
         # the 2D policy also observes the goal's near field (obs_near: DAgger, then fine-tuned)
@@ -38,19 +63,16 @@ def fly(env: gym.Env, agent, seed: int) -> dict:
         ("DebrisGym/Rendezvous3D-v2", "rendezvous3d_v2.zip", V2_OPTIONS),
     ],
 )
-def test_the_pretrained_v2_policies_are_fine_tuned_for_the_hold(env_id, name, expected):
-    """On the v2 IDs `pretrained` is the policy fine-tuned for v2: it observes the hold's
-    progress and completes a held-out mission of the default difficulty (a seed outside every
-    training, evaluation and suite range) under the hold rule."""
-    assert pretrained_path(env_id)[1].name == name
+def test_the_direct_thrust_v2_policies_still_fly_their_ids(env_id, name, expected):
+    """The DAgger + PPO v2 policies (the swarm's `pretrained`) stay shipped: named by file
+    they are flown with their own observation options and complete a held-out mission."""
+    spec = f"ppo:{PRETRAINED_DIR / name}"
     stem = name.removesuffix(".zip")
     assert (PRETRAINED_DIR / f"{stem}_vecnormalize.pkl").is_file()
-    assert (PRETRAINED_DIR / f"{stem}.yaml").is_file()
-    options = agents.observation_options("pretrained", env_id)
+    options = agents.observation_options(spec, env_id)
     assert options == expected
     env = gym.make(env_id, **options)
-    agent = agents.load_agent("pretrained", env)
-    info = fly(env, agent, 20_000_001)
+    info = fly(env, agents.load_agent(spec, env), 20_000_001)
     assert info["is_success"] and info["targets_captured"] == 3 and not info["collision"]
     env.close()
 

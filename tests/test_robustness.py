@@ -78,3 +78,79 @@ def test_a_condition_already_flown_is_kept_and_a_changed_one_flown_again(tmp_pat
     )
     run_robustness(more, tmp_path, run, conditions, echo=lambda _: None)
     assert len(flown) == 4  # other episodes: flown again
+
+
+def test_an_agent_that_cannot_fly_an_error_is_left_out_of_it_with_the_reason(tmp_path):
+    """The base law and the residual `pretrained` read the true state, so neither flies with
+    navigation errors: they are left out of those conditions (the cells say so and the reason
+    is listed), flown in the others, and a table stopped there is kept when run again."""
+    flown = []
+
+    def run(options):
+        flown.append(options.env_kwargs)
+        return run_evaluation(options)
+
+    conditions = _pick("exact", "navigation-low")
+    options = EvaluateOptions(
+        suite="standard-2d-v2", agents="zero,base-law,pretrained", episodes=1, workers=1,
+        progress=False,
+    )  # fmt: skip
+    table = run_robustness(options, tmp_path, run, conditions, echo=lambda _: None)
+    rows = {line.split(" | ")[0][2:]: line for line in table.splitlines() if line[:2] == "| "}
+    for agent in ("base-law", "pretrained"):
+        exact, navigation = rows[agent].strip(" |").split(" | ")[1:]
+        assert exact.startswith("100% / 0% /")  # flown, and the mission completed
+        assert navigation == "not flown"
+        assert f"- **{agent}** in navigation-low: " in table
+    assert rows["zero"].count("not flown") == 0
+    payload = json.loads((tmp_path / "robustness.json").read_text())
+    assert set(payload["skipped"]["navigation-low"]) == {"base-law", "pretrained"}
+    assert "true state" in payload["skipped"]["navigation-low"]["base-law"]
+    assert payload["skipped"]["exact"] == {}
+    run_robustness(options, tmp_path, run, conditions, echo=lambda _: None)
+    assert len(flown) == 2  # the conditions with agents left out are kept too
+
+
+def test_an_explicit_agent_that_cannot_fly_is_still_refused_outside_the_table(tmp_path):
+    options = EvaluateOptions(
+        suite="standard-2d-v2", agents="zero,base-law", episodes=1, workers=1, progress=False,
+        env_kwargs={"nav_sigma_position": 1.0}, out=tmp_path,
+    )  # fmt: skip
+    with pytest.raises(UsageError, match="true state"):
+        run_evaluation(options)
+
+
+def test_the_default_agents_leave_out_those_that_cannot_fly_navigation_errors(tmp_path):
+    """Without --agents, the base law and the residual `pretrained` are skipped with their
+    reasons in a world with navigation errors (the env for the residual policy refuses them)."""
+    options = EvaluateOptions(
+        env_kwargs={"nav_sigma_position": 1.0}, episodes=1, max_steps=3, workers=1,
+        progress=False, out=tmp_path,
+    )  # fmt: skip
+    run_evaluation(options)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert set(summary["skipped"]) == {"base-law", "pretrained"}
+    assert "apf-mpc" in summary["agents"] and "zero" in summary["agents"]
+
+
+def test_a_condition_no_agent_can_fly_is_noted_and_kept(tmp_path):
+    """Only agents that read the true state: the navigation condition flies no one; its cells
+    say so, its reasons are listed, and a second run keeps it."""
+    flown = []
+
+    def run(options):
+        flown.append(options.env_kwargs)
+        return run_evaluation(options)
+
+    conditions = _pick("exact", "navigation-high")
+    options = EvaluateOptions(
+        suite="standard-2d-v2", agents="base-law", episodes=1, workers=1, progress=False
+    )
+    table = run_robustness(options, tmp_path, run, conditions, echo=lambda _: None)
+    row = next(line for line in table.splitlines() if line.startswith("| base-law"))
+    assert row.strip(" |").split(" | ")[2] == "not flown"
+    assert "- **base-law** in navigation-high: " in table
+    summary = json.loads((tmp_path / "navigation-high" / "summary.json").read_text())
+    assert summary["agents"] == {} and "true state" in summary["skipped"]["base-law"]
+    run_robustness(options, tmp_path, run, conditions, echo=lambda _: None)
+    assert len(flown) == 2  # both kept: neither is flown again

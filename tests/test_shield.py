@@ -381,3 +381,72 @@ def test_evaluate_py_takes_the_shield_flag(tmp_path):
     assert summary["agents"]["zero"]["shield_interventions_mean"] == 0
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["evaluation"]["shield"] is True
+
+
+class FixedCommand:
+    """An agent of the residual mode that asks for ``command`` (normalised thrust) every step:
+    its correction is ``command`` minus the base law's command now."""
+
+    episode_independent = True
+
+    def __init__(self, env: DebrisFieldEnv, command: np.ndarray) -> None:
+        self.env, self.command = env, np.asarray(command, dtype=float)
+
+    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+        base = self.env.batch.base_commands(np.zeros(1, dtype=np.int64))[0]
+        return self.command - base, state
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_in_the_residual_mode_the_shield_judges_and_flies_the_whole_command(dim):
+    """With ``action="residual"`` the shield judges base + correction (the command flown), and
+    a replaced command is flown exactly: full thrust at a body, asked for as a correction,
+    collides unshielded and is stopped behind the shield."""
+    env = free_env(dim, action="residual")
+    command = np.zeros(dim)
+    command[1] = 1.0
+    env.reset(seed=0, options={"scenario": wall_ahead(dim)})
+    agent = FixedCommand(env, command)
+    infos, _ = fly(env, lambda e: agent.predict(None)[0], None, 25)
+    assert infos[-1]["collision"]
+
+    obs, _ = env.reset(seed=0, options={"scenario": wall_ahead(dim)})
+    shielded = ShieldedAgent(agent, env)
+    judged: list[tuple[np.ndarray, np.ndarray]] = []
+    decide = shielded.shield.decide
+
+    def recording(action):
+        decision = decide(action)
+        judged.append((np.array(action, dtype=float), np.array(decision.action, dtype=float)))
+        return decision
+
+    shielded.shield.decide = recording  # type: ignore[method-assign]
+    infos = []
+    for _ in range(25):
+        base = env.batch.base_commands(np.zeros(1, dtype=np.int64))[0]
+        correction, _ = shielded.predict(obs)
+        np.testing.assert_allclose(judged[-1][0], np.clip(base + command - base, -1, 1))
+        np.testing.assert_allclose(np.clip(base + correction, -1, 1), judged[-1][1], atol=1e-12)
+        obs, _, terminated, truncated, info = env.step(correction)
+        infos.append(info)
+        if terminated or truncated:
+            break
+    assert len(infos) == 25 and not any(info["collision"] for info in infos)
+    assert shielded.stats.interventions > 0
+
+
+def test_the_wrapper_filters_the_whole_command_in_the_residual_mode():
+    """ShieldWrapper on a residual env: a correction asking for full thrust at a body is
+    replaced, and the episode is flown without a collision."""
+    env = ShieldWrapper(free_env(2, action="residual"))
+    env.reset(seed=0, options={"scenario": wall_ahead(2)})
+    agent = FixedCommand(env.unwrapped, np.array([0.0, 1.0]))
+    infos = []
+    for _ in range(25):
+        *_, terminated, truncated, info = env.step(agent.predict(None)[0])
+        infos.append(info)
+        if terminated or truncated:
+            break
+    assert not any(info["collision"] for info in infos)
+    assert infos[-1]["shield_interventions"] > 0
+    assert any(info["shield_intervened"] for info in infos)

@@ -247,6 +247,27 @@ def test_a_team_needs_given_assignments_and_a_known_rule_and_member():
         TeamOfSingles(env, "pretrained")  # made without the policy's observation options
 
 
+def test_a_pretrained_team_flies_the_direct_thrust_v2_policy():
+    """The single-agent v2 IDs' `pretrained` is a residual policy (its base law flies one
+    chaser per field, so a swarm refuses the mode); a team's `pretrained` member is the
+    shipped v2 policy that commands the thrust itself, and the swarm made for it flies."""
+    from agents.policies.learned import PRETRAINED_DIR, pretrained_path
+    from agents.policies.team import member_spec, team_options
+
+    assert pretrained_path("DebrisGym/Rendezvous2D-v2")[1].name == "rendezvous2d_v2_residual.zip"
+    for dim in (2, 3):
+        spec = member_spec("pretrained", dim)
+        assert spec == f"ppo:{PRETRAINED_DIR / f'rendezvous{dim}d_v2.zip'}"
+        assert "action" not in team_options("pretrained", dim)
+    assert member_spec("ppo:runs/a/model.zip", 2) == "ppo:runs/a/model.zip"
+    env = swarm.make(SWARM, **SMALL, **team_options("pretrained", 2))
+    team = TeamOfSingles(env, "pretrained")
+    observations, _, _ = start_episode(env, team, 5)
+    actions = team.predict(observations)
+    assert sorted(actions) == sorted(env.agents)
+    assert all(np.all(np.isfinite(a)) and a.shape == (2,) for a in actions.values())
+
+
 def test_team_names_parse_with_the_balanced_rule_by_default():
     specs = parse_teams("team-apf-mpc@optimal, team-zero")
     assert [(s.label, s.agent, s.rule) for s in specs] == [

@@ -79,10 +79,11 @@ PRETRAINED_POLICIES: dict[str, tuple[str, str]] = {
     "DebrisGym/Rendezvous2D-Easy-v1": ("ppo", "rendezvous2d-easy_ppo.zip"),
     "DebrisGym/Rendezvous2D-v1": ("ppo", "rendezvous2d_finetuned.zip"),
     "DebrisGym/Rendezvous3D-v1": ("ppo", "rendezvous3d_finetuned.zip"),
-    "DebrisGym/Rendezvous2D-v2": ("ppo", "rendezvous2d_v2.zip"),
-    "DebrisGym/Rendezvous3D-v2": ("ppo", "rendezvous3d_v2.zip"),
+    "DebrisGym/Rendezvous2D-v2": ("ppo", "rendezvous2d_v2_residual.zip"),
+    "DebrisGym/Rendezvous3D-v2": ("ppo", "rendezvous3d_v2_residual.zip"),
 }
-"""Env ID → (algorithm, file in :data:`PRETRAINED_DIR`)."""
+"""Env ID → (algorithm, file in :data:`PRETRAINED_DIR`). The v2 policies are residual ones
+(:data:`RESIDUAL`): they fly in the env made with :func:`observation_options`."""
 
 
 class LearnedAgent:

@@ -20,8 +20,11 @@ import numpy as np
 
 from agents.policies.base import unwrap
 from agents.policies.shield import SafetyShield, ShieldParams
+from debris_gym.envs import DebrisFieldEnv
 
 __all__ = ["ShieldFilter", "ShieldStats", "ShieldWrapper", "ShieldedAgent", "TeamShield"]
+
+_FIRST_ROW = np.zeros(1, dtype=np.int64)
 
 
 @dataclass
@@ -77,19 +80,44 @@ class ShieldFilter:
         self.shield = SafetyShield(env, params)
         self.stats = ShieldStats()
         self._clock: tuple[Any, float] | None = None  # (scenario, elapsed) of the last call
+        try:
+            inner: Any = unwrap(env)
+        except TypeError:  # a field view (one chaser of a swarm): no residual mode
+            inner = None
+        residual = isinstance(inner, DebrisFieldEnv) and inner.config.action == "residual"
+        self._residual_env = inner if residual else None
+        """The env when its actions are corrections to its base law (``action="residual"``):
+        the shield then judges the command flown, base + correction."""
 
     def filter(self, action: Any, new_episode: bool = False) -> Any:
         """``action`` itself when the shield lets it pass, else the shield's safe action; the
-        decision is counted in :attr:`stats`."""
+        decision is counted in :attr:`stats`.
+
+        In a residual env the shield judges the command the env will fly, the base law's
+        command plus ``action`` clipped to [−1, 1] per axis, and a replaced command is
+        returned as the correction that flies it (safe − base)."""
         env = self.shield.env
         clock = (env.scenario, env.elapsed)
         fresh = self._clock is None or clock[0] is not self._clock[0] or clock[1] < self._clock[1]
         if fresh or new_episode:
             self.stats = ShieldStats()
         self._clock = clock
-        decision = self.shield.decide(action)
+        base = None
+        command = action
+        if self._residual_env is not None:
+            batch = self._residual_env.batch
+            if batch is None:
+                raise RuntimeError("reset the env before filtering its actions")
+            base = batch.base_commands(_FIRST_ROW)[0]
+            command = np.clip(base + np.asarray(action, dtype=float), -1.0, 1.0)
+        decision = self.shield.decide(command)
         self.stats.add(decision.intervened, decision.size)
-        return decision.action if decision.intervened else action
+        if not decision.intervened:
+            return action
+        if base is None:
+            return decision.action
+        correction = np.asarray(decision.action, dtype=float) - base
+        return correction.astype(np.asarray(action).dtype, copy=False)
 
 
 class ShieldedAgent:
@@ -192,19 +220,30 @@ class ShieldWrapper(gym.Wrapper):
     def __init__(self, env: gym.Env, params: ShieldParams | None = None) -> None:
         unwrap(env)  # a DebrisGym env, or a clear TypeError
         super().__init__(env)
-        self.shield = SafetyShield(env, params)
-        self.stats = ShieldStats()
+        self.filter = ShieldFilter(env, params)
+
+    @property
+    def shield(self) -> SafetyShield:
+        """The shield."""
+        return self.filter.shield
+
+    @property
+    def stats(self) -> ShieldStats:
+        """This episode's counters."""
+        return self.filter.stats
 
     def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
         """Reset the env and the episode's counters."""
         obs, info = self.env.reset(**kwargs)
-        self.stats = ShieldStats()
+        self.filter.stats = ShieldStats()
         return obs, {**info, "shield_intervened": False, **self.stats.as_info()}
 
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
-        """Step with the shield's action in place of ``action``."""
-        decision = self.shield.decide(action)
-        self.stats.add(decision.intervened, decision.size)
-        obs, reward, terminated, truncated, info = self.env.step(decision.action)
-        info = {**info, "shield_intervened": decision.intervened, **self.stats.as_info()}
+        """Step with the shield's action in place of ``action`` (in a residual env, the
+        correction that flies the shield's command: :meth:`ShieldFilter.filter`)."""
+        before = self.stats.interventions
+        safe = self.filter.filter(action)
+        intervened = self.stats.interventions > before
+        obs, reward, terminated, truncated, info = self.env.step(safe)
+        info = {**info, "shield_intervened": intervened, **self.stats.as_info()}
         return obs, reward, terminated, truncated, info

@@ -20,10 +20,10 @@ with ``assignment="given"`` and reset with that assignment (the reset option ``a
   (:class:`~agents.policies.chaser_view.TeamPlans`), so each one predicts the teammates that
   decided before it in this step by their new plans and the others by their plans of the
   step before, flown on from where they are now;
-* a learned single-agent policy (``"pretrained"``, the one shipped for the single-agent ID of
-  the swarm's world, or ``"ALGO:PATH"``), given the single-agent part of each chaser's swarm
-  observation (its first elements, when the swarm is made with the policy's observation
-  options: :func:`team_options`), all chasers in one batch.
+* a learned single-agent policy (``"pretrained"``, the v2 policy shipped for a swarm's
+  world (:data:`SWARM_PRETRAINED`), or ``"ALGO:PATH"``), given the single-agent part of each
+  chaser's swarm observation (its first elements, when the swarm is made with the policy's
+  observation options: :func:`team_options`), all chasers in one batch.
 """
 
 from __future__ import annotations
@@ -45,6 +45,7 @@ from agents.policies.learned import (
     LEARNED_ALGOS,
     OBSERVATION_KEYS,
     PRETRAINED,
+    PRETRAINED_DIR,
     observation_options,
 )
 from agents.policies.registry import BASELINES, load_agent, make_agent
@@ -52,9 +53,11 @@ from agents.policies.shield import ShieldParams
 from agents.policies.shielded import ShieldStats, TeamShield
 
 __all__ = [
+    "SWARM_PRETRAINED",
     "TeamOfSingles",
     "TeamPolicy",
     "check_team_env",
+    "member_spec",
     "single_agent_id",
     "start_episode",
     "team_field",
@@ -83,6 +86,21 @@ def single_agent_id(dim: int) -> str:
     return f"DebrisGym/Rendezvous{int(dim)}D-v2"
 
 
+SWARM_PRETRAINED: dict[int, str] = {2: "rendezvous2d_v2.zip", 3: "rendezvous3d_v2.zip"}
+"""Dimension → the shipped file (in :data:`~agents.policies.learned.PRETRAINED_DIR`) a team's
+``"pretrained"`` member flies: the v2 policy that commands the thrust itself. The single-agent
+v2 IDs' ``pretrained`` is a residual policy, whose base law flies one chaser per field, so a
+swarm cannot fly it."""
+
+
+def member_spec(agent: str, dim: int) -> str:
+    """The learned-policy spec a team member ``agent`` is loaded from: ``"pretrained"`` names
+    the swarm's shipped policy (:data:`SWARM_PRETRAINED`), anything else is kept."""
+    if agent.strip() != PRETRAINED:
+        return agent
+    return f"ppo:{PRETRAINED_DIR / SWARM_PRETRAINED[int(dim)]}"
+
+
 def _is_learned(agent: str) -> bool:
     text = agent.strip().replace("=", ":")
     head, sep, _ = text.partition(":")
@@ -95,7 +113,7 @@ def team_options(agent: str, dim: int) -> dict[str, Any]:
     with the single-agent layout it knows)."""
     options: dict[str, Any] = {"assignment": "given"}
     if _is_learned(agent):
-        options.update(observation_options(agent, single_agent_id(dim)))
+        options.update(observation_options(member_spec(agent, dim), single_agent_id(dim)))
     return options
 
 
@@ -209,7 +227,7 @@ class TeamOfSingles:
                     f"{agent!r} reads; make the swarm with team_options({agent!r}, "
                     f"{config.dim})"
                 )
-            policy = load_agent(agent, single)
+            policy = load_agent(member_spec(agent, config.dim), single)
         finally:
             single.close()
         return policy, len(names)

@@ -22,6 +22,14 @@ class UsageError(ValueError):
         self.flag = flag
 
 
+class NoAgentFits(UsageError):
+    """None of the agents listed can fly the env; ``skipped`` holds each one's reason."""
+
+    def __init__(self, flag: str, message: str, skipped: dict[str, str]) -> None:
+        super().__init__(flag, message)
+        self.skipped = skipped
+
+
 @dataclass(frozen=True)
 class EvaluateOptions:
     """The arguments of ``evaluate.py`` (see its ``--help``); None means the default.
@@ -35,6 +43,11 @@ class EvaluateOptions:
     cluster to join (None: a local Ray) and ``workers`` the number of Ray workers (None: one
     per CPU of the cluster), both for ``"ray"`` only. They say where episodes run, not what the
     evaluation is, so they are not part of the :class:`EvaluationPlan`.
+
+    ``skip_unfit``: an agent listed in ``agents`` that cannot fly the env is left out with its
+    reason (in the summary's ``skipped``) instead of refused; the robustness table sets it, as
+    not every agent flies every error (the base law reads the true state, so neither it nor a
+    residual policy flies with navigation errors).
     """
 
     out: Path | None = None
@@ -55,6 +68,7 @@ class EvaluateOptions:
     backend: str = "local"
     address: str | None = None
     workers: int | None = None
+    skip_unfit: bool = False
 
 
 BACKENDS = ("local", "ray")

@@ -22,7 +22,12 @@ import gymnasium as gym
 
 from agents.experiments.evaluation.journal import EvaluationJournal, JournalError
 from agents.experiments.evaluation.paper import PAPER_AGENTS, PAPER_ENV_ID
-from agents.experiments.evaluation.plan import EvaluateOptions, EvaluationPlan, UsageError
+from agents.experiments.evaluation.plan import (
+    EvaluateOptions,
+    EvaluationPlan,
+    NoAgentFits,
+    UsageError,
+)
 from agents.experiments.evaluation.runner import make_env
 from agents.experiments.evaluation.specs import (
     PRETRAINED,
@@ -76,15 +81,18 @@ def _default_agents(
     import agents
 
     names = list(agents.BASELINES)
-    env = make_env(env_id, {**env_kwargs, **agent_env_options(PRETRAINED, env_id)}, max_steps)
+    env = None
     try:
+        # a residual policy's env may refuse the run's options (navigation errors, say)
+        env = make_env(env_id, {**env_kwargs, **agent_env_options(PRETRAINED, env_id)}, max_steps)
         agents.load_agent(PRETRAINED, env)
     except (FileNotFoundError, NotImplementedError, ValueError, KeyError) as exc:
         reason = str(exc)  # it names the env and why
     else:
         return [*names, PRETRAINED], {}
     finally:
-        env.close()
+        if env is not None:
+            env.close()
     note(f"skipped 'pretrained' — {reason}")
     return names, {PRETRAINED: reason}
 
@@ -233,10 +241,12 @@ def _choose_agents(
         kwargs = {**env_kwargs, **agent_env_options(spec, env_id)}
         return make_env(env_id, kwargs, options.max_steps)
 
-    specs, skipped, warned = _usable(specs, explicit, "--agents", env_for)
+    strict = explicit and not options.skip_unfit
+    specs, skipped, warned = _usable(specs, strict, "--agents", env_for)
     if not specs:
         flag = "--paper" if options.paper else "--agents"
-        raise UsageError(flag, "none of its agents can be built (see the notes above)")
+        message = "none of its agents can be built (see the notes above)"
+        raise NoAgentFits(flag, message, {**unregistered, **skipped})
     labels = [spec.label for spec in specs]
     if options.reference is not None and options.reference not in labels:
         raise UsageError(

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from agents.experiments.evaluation.plan import EvaluateOptions, UsageError
+from agents.experiments.evaluation.plan import EvaluateOptions, NoAgentFits, UsageError
 from debris_gym.config import UNCERTAINTY_KEYS
 from debris_gym.files import write_atomic
 
@@ -125,15 +125,20 @@ def run_robustness(
             summaries[condition.name] = done
             continue
         echo(f"robustness: {condition.name} {condition.options or ''}")
-        run(
-            dataclasses.replace(
-                options,
-                out=target,
-                env_kwargs={**base, **condition.options} or None,
-                plots=0,
-                video=0,
+        added = {**base, **condition.options}
+        try:
+            run(
+                dataclasses.replace(
+                    options,
+                    out=target,
+                    env_kwargs=added or None,
+                    plots=0,
+                    video=0,
+                    skip_unfit=True,
+                )
             )
-        )
+        except NoAgentFits as exc:  # a condition none of the agents flies: noted, kept
+            _write_unflown(target, options, added, exc.skipped)
         summaries[condition.name] = json.loads((target / "summary.json").read_text())
     table = robustness_table(conditions, summaries)
     write_atomic(out / "robustness.md", table)
@@ -146,9 +151,26 @@ def run_robustness(
             }
             for name, summary in summaries.items()
         },
+        "skipped": {name: summary.get("skipped") or {} for name, summary in summaries.items()},
     }
     write_atomic(out / "robustness.json", json.dumps(payload, indent=2) + "\n")
     return table
+
+
+def _write_unflown(
+    target: Path, options: EvaluateOptions, added: dict[str, Any], skipped: dict[str, str]
+) -> None:
+    """A condition's ``summary.json`` when none of the agents can fly it: no agent flown,
+    each one's reason in ``skipped`` (what :func:`_finished` reads to keep it)."""
+    target.mkdir(parents=True, exist_ok=True)
+    summary = {
+        "suite": {"name": options.suite},
+        "episodes": options.episodes,
+        "env_kwargs": added,
+        "agents": {},
+        "skipped": skipped,
+    }
+    write_atomic(target / "summary.json", json.dumps(summary, indent=2) + "\n")
 
 
 def _finished(
@@ -166,9 +188,19 @@ def _finished(
         (summary.get("suite") or {}).get("name") == options.suite
         and (options.episodes is None or summary.get("episodes") == options.episodes)
         and all(flown.get(k) == added.get(k) for k in set(added) | set(UNCERTAINTY_KEYS))
-        and (wanted_agents is None or list(summary.get("agents", {})) == wanted_agents)
+        and (wanted_agents is None or _flown_or_skipped(summary) == set(wanted_agents))
     )
     return summary if same else None
+
+
+def _flown_or_skipped(summary: dict[str, Any]) -> set[str]:
+    """The agents a condition's evaluation flew or left out with a reason."""
+    return set(summary.get("agents", {})) | set(summary.get("skipped") or {})
+
+
+NOT_FLOWN = "not flown"
+"""The cell of an agent left out of a condition (it cannot fly that error; the reason is
+listed under the table)."""
 
 
 def _cell(entry: dict[str, Any]) -> str:
@@ -182,20 +214,37 @@ def _cell(entry: dict[str, Any]) -> str:
 def robustness_table(conditions: Sequence[Condition], summaries: dict[str, dict[str, Any]]) -> str:
     """The Markdown table: one row per agent, one column per condition, each cell
     success / collisions / Δv / time (:data:`METRICS`)."""
-    first = summaries[conditions[0].name]
-    agents = list(first["agents"])
+    first = next(
+        (summaries[c.name] for c in conditions if summaries[c.name]["agents"]),
+        summaries[conditions[0].name],
+    )
+    agents = list(dict.fromkeys(a for c in conditions for a in summaries[c.name]["agents"]))
     names = [c.name for c in conditions]
     title = " / ".join(title for _, title, _ in METRICS)
     lines = [
         f"Each cell: {title} (Δv and time over the successful episodes); "
-        f"{first['episodes']} episodes of `{first['env_id']}`.",
+        f"{first['episodes']} episodes of `{first.get('env_id') or first['suite']['name']}`.",
         "",
         "| agent | " + " | ".join(names) + " |",
         "|---|" + "---|" * len(names),
     ]
+    unfit: dict[tuple[str, str], list[str]] = {}  # (agent, reason) -> conditions
     for agent in agents:
-        cells = [_cell(summaries[n]["agents"].get(agent, {})) for n in names]
+        cells = []
+        for n in names:
+            entry = summaries[n]["agents"].get(agent)
+            if entry is None:
+                reason = (summaries[n].get("skipped") or {}).get(agent, "not in this run")
+                reason = reason.split("; agents that can act")[0]
+                unfit.setdefault((agent, reason), []).append(n)
+                cells.append(NOT_FLOWN)
+            else:
+                cells.append(_cell(entry))
         lines.append(f"| {agent} | " + " | ".join(cells) + " |")
+    if unfit:
+        lines += ["", "Not flown:", ""]
+        for (agent, reason), where in unfit.items():
+            lines.append(f"- **{agent}** in {', '.join(where)}: {reason}")
     lines += ["", "Conditions:", ""]
     for c in conditions:
         shown = ", ".join(f"`{k}={v}`" for k, v in c.options.items()) or "every error off"
