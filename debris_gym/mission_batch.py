@@ -47,6 +47,7 @@ from debris_gym.observation import (
     observe_all_threaded,
 )
 from debris_gym.orbit_truth import ATMOSPHERE, reference_start, substeps_for
+from debris_gym.step_observe import step_observe
 from debris_gym.uncertainty import navigate_rows
 
 __all__ = ["OBS_LIMIT", "MissionBatch", "Physics", "check_threads"]
@@ -233,6 +234,7 @@ class MissionBatch:
             raise ValueError("action='residual' is for one chaser per field")
         self._commands = np.zeros((n, d))  # the residual mode's summed commands
         self._residual_code: Callable[..., Any] | None = None
+        self._step_observe_code: Callable[..., Any] | None = None
         if cfg.navigation_errors:
             if chasers != 1:
                 raise ValueError("navigation errors are for one chaser per field")
@@ -247,7 +249,7 @@ class MissionBatch:
         # the resolved machine code does not pickle: it is resolved again on first use
         state = self.__dict__.copy()
         state.update(_step_code=None, _observe_code=None, _begin_code={}, _field_view=None)
-        state.update(_heads=None, _residual_code=None)
+        state.update(_heads=None, _residual_code=None, _step_observe_code=None)
         return state
 
     @property
@@ -431,13 +433,7 @@ class MissionBatch:
             rows not in ``live`` are zero / False. ``terms`` columns follow
             :data:`debris_gym.rewards.REWARD_TERMS`.
         """
-        # the machine code is resolved for exactly these types (see jit.specialise)
-        if live.dtype != np.bool_ or not live.flags.c_contiguous:
-            live = np.ascontiguousarray(live, dtype=np.bool_)
-        if actions.dtype != np.float64 or not actions.flags.c_contiguous:
-            actions = np.ascontiguousarray(actions, dtype=np.float64)
-        if self.residual:
-            actions = self._with_base(actions, live)
+        live, actions = self._step_arguments(actions, live)
         head = self._head()
         code = self._step_code
         if code is None:
@@ -445,6 +441,37 @@ class MissionBatch:
             code = self._step_code = specialise(kernel, *head["step"], live, actions, *head["tail"])
         code(*head["step"], live, actions, *head["tail"])
         return self._outputs
+
+    def step_observe(
+        self, actions: np.ndarray, live: np.ndarray, out: np.ndarray, horizon: int
+    ) -> StepOutputs:
+        """:meth:`step`, then :meth:`observe` into ``out``: the same results, in one compiled
+        call where the two share their records (one thread, no navigation errors; see
+        :mod:`debris_gym.step_observe`)."""
+        if self.threads > 1 or self._observed is not None:
+            outputs = self.step(actions, live)
+            self.observe(out, horizon)
+            return outputs
+        live, actions = self._step_arguments(actions, live)
+        head = self._head()
+        args = (live, actions, *head["tail"], head["observe"][1], float(horizon), out)
+        code = self._step_observe_code
+        if code is None:
+            code = self._step_observe_code = specialise(step_observe, *args)
+        code(*args)
+        return self._outputs
+
+    def _step_arguments(self, actions: np.ndarray, live: np.ndarray) -> tuple[np.ndarray, ...]:
+        """``live`` and the commands the step kernel flies, in the types its machine code was
+        resolved for (see :func:`~debris_gym.jit.specialise`): with ``action="residual"`` the
+        base law's commands plus ``actions``."""
+        if live.dtype != np.bool_ or not live.flags.c_contiguous:
+            live = np.ascontiguousarray(live, dtype=np.bool_)
+        if actions.dtype != np.float64 or not actions.flags.c_contiguous:
+            actions = np.ascontiguousarray(actions, dtype=np.float64)
+        if self.residual:
+            actions = self._with_base(actions, live)
+        return live, actions
 
     def _with_base(self, actions: np.ndarray, live: np.ndarray) -> np.ndarray:
         """The residual mode's commands: ``actions`` plus the base law's, clipped per axis, in

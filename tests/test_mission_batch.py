@@ -329,3 +329,44 @@ def test_the_env_reports_its_current_goal():
     env.step(np.zeros(2, dtype=np.float32))
     assert env.captured.all()
     assert env.current_goal == (DOCK_GOAL, pytest.approx(92.0), 0)
+
+
+@pytest.mark.parametrize(
+    "env_id, kwargs",
+    [
+        ("DebrisGym/Rendezvous2D-v1", {}),
+        ("DebrisGym/Rendezvous3D-v2", {}),
+        ("DebrisGym/Rendezvous2D-v2", {"action": "residual"}),
+        ("DebrisGym/Rendezvous2D-v2", {"shield": True, "shield_penalty": 0.5}),
+    ],
+)
+def test_step_observe_equals_a_step_then_an_observation(env_id, kwargs):
+    """The single env's one compiled call for a step and its observation gives the same
+    missions, outputs and observation as two calls (the vector env's way), step after step."""
+    single = gym.make(env_id, **kwargs).unwrapped
+    twin = gym.make(env_id, **kwargs).unwrapped
+    single.reset(seed=3)
+    twin.reset(seed=3)
+    rng = np.random.default_rng(0)
+    buffer = np.empty((1, single.observation_space.shape[0]), dtype=np.float32)
+    for _ in range(60):
+        action = rng.uniform(-1, 1, (1, single.dim))
+        one = single.shell.step(action, observe_into=buffer)
+        two = twin.shell.step(action)
+        observed = twin.shell.observe()
+        np.testing.assert_array_equal(buffer, observed)
+        np.testing.assert_array_equal(one.reward, two.reward)
+        np.testing.assert_array_equal(one.terms, two.terms)
+        np.testing.assert_array_equal(single.batch.missions.state, twin.batch.missions.state)
+        if one.terminated[0] or one.truncated[0]:
+            break
+
+
+def test_observe_into_is_refused_with_an_autoreset():
+    from debris_gym.envs.shell import Autoreset, MissionShell
+
+    shell = MissionShell(EnvConfig(), 2, autoreset=Autoreset.NEXT_STEP)
+    shell.reset()
+    with pytest.raises(ValueError, match="observe_into"):
+        shell.step(np.zeros((2, 2)), observe_into=np.empty((2, 10), dtype=np.float32))
+    shell.close()

@@ -334,14 +334,15 @@ class DebrisFieldEnv(ShellView, gym.Env):
             clock reaches the limit, k steps before the wrapper would.
         """
         shell = self._shell
-        result = shell.step(self._action(action))
+        result = shell.step(self._action(action), observe_into=self._obs_buffer)
         missions = shell.batch_in_use.missions
         self._trail.append(missions.state[0, : self.dim].copy())
         if self.render_mode == "human":
             self.render()
         info = shell.row_info(0, result.terms[0].tolist())
-        truncated = bool(shell.started_late[0]) and int(missions.steps[0]) >= shell.horizon
-        return self._observe(), float(result.reward[0]), bool(result.terminated[0]), truncated, info
+        truncated = shell.started_late.item(0) and missions.steps.item(0) >= shell.horizon
+        observation = self._obs_buffer[0].copy()
+        return observation, result.reward.item(0), result.terminated.item(0), truncated, info
 
     # --- step hooks ---------------------------------------------------------------------------
 

@@ -21,7 +21,7 @@ from debris_gym.mission_batch import MissionBatch
 from debris_gym.shield_kernel import shield_rows
 from debris_gym.shield_model import ShieldModel, make_shield_model
 
-__all__ = ["LoopShield", "check_shield_support", "shield_info", "shield_term"]
+__all__ = ["LoopShield", "check_shield_support", "row_shield_info", "shield_info", "shield_term"]
 
 
 def check_shield_support(config: EnvConfig, chasers: int) -> None:
@@ -122,6 +122,17 @@ def shield_info(shield: LoopShield | None, num: int) -> dict[str, np.ndarray]:
     return {
         "shield_intervened": shield.intervened.copy(),
         "shield_interventions": shield.interventions.copy(),
+    }
+
+
+def row_shield_info(shield: LoopShield | None, row: int) -> dict[str, Any]:
+    """The shield's ``info`` keys of mission ``row`` as Python scalars (:func:`shield_info`'s
+    values in that row)."""
+    if shield is None:
+        return {"shield_intervened": False, "shield_interventions": 0}
+    return {
+        "shield_intervened": shield.intervened.item(row),
+        "shield_interventions": shield.interventions.item(row),
     }
 
 

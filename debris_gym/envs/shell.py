@@ -42,7 +42,13 @@ from debris_gym.envs.common import (
     warn_if_physics_differ,
 )
 from debris_gym.envs.field_supply import FieldSupply
-from debris_gym.envs.loop_shield import LoopShield, check_shield_support, shield_info, shield_term
+from debris_gym.envs.loop_shield import (
+    LoopShield,
+    check_shield_support,
+    row_shield_info,
+    shield_info,
+    shield_term,
+)
 from debris_gym.envs.starts import (
     EpisodeEnds,
     StartPlan,
@@ -337,23 +343,25 @@ class MissionShell:
         batch = self.batch_in_use
         m = batch.missions
         captured = m.captured[i].copy()
+        # item(i) gives the Python scalar without a numpy scalar in between: this runs every
+        # step of the single env
         return {
             "chaser_state": m.state[i].copy(),
-            "time": float(m.time[i]),
-            "delta_v": float(m.delta_v[i]),
-            "targets_captured": int(np.count_nonzero(captured)),
+            "time": m.time.item(i),
+            "delta_v": m.delta_v.item(i),
+            "targets_captured": captured.tolist().count(True),
             "n_targets": batch.n_targets,
             "captured": captured,
             "hold": m.hold[i].copy(),
-            "min_clearance": float(m.min_clearance[i]) - self.config.chaser_radius,
-            "collision": bool(m.collision[i]),
-            "out_of_bounds": bool(m.out_of_bounds[i]),
-            "budget_spent": bool(m.budget_spent[i]),
-            "is_success": bool(m.success[i]),
+            "min_clearance": m.min_clearance.item(i) - self.config.chaser_radius,
+            "collision": m.collision.item(i),
+            "out_of_bounds": m.out_of_bounds.item(i),
+            "budget_spent": m.budget_spent.item(i),
+            "is_success": m.success.item(i),
             "applied_accel": m.accel[i].copy(),
-            "task_score": float(m.score[i]),
+            "task_score": m.score.item(i),
             "reward_terms": shield_term(self._shield, dict(zip(REWARD_TERMS, terms)), i),
-            **{key: value[i].item() for key, value in shield_info(self._shield, self.num).items()},
+            **row_shield_info(self._shield, i),
         }
 
     # --- reset --------------------------------------------------------------------------------
@@ -626,21 +634,35 @@ class MissionShell:
 
     # --- step ---------------------------------------------------------------------------------
 
-    def step(self, actions: np.ndarray, live: np.ndarray | None = None) -> StepResult:
+    def step(
+        self,
+        actions: np.ndarray,
+        live: np.ndarray | None = None,
+        observe_into: np.ndarray | None = None,
+    ) -> StepResult:
         """One step of every mission (validated normalised thrust commands (N, dim)); ended
         missions restart as :attr:`autoreset` says. ``live`` (N,) bool: with autoreset NEVER,
         the missions that step (default all; a swarm leaves out its ended chasers).
+        ``observe_into``: with autoreset NEVER, a buffer for :meth:`observe` after the step,
+        written in the same compiled call (:meth:`MissionBatch.step_observe`).
 
         Raises:
             RuntimeError: before the first reset.
+            ValueError: ``observe_into`` with an autoreset.
         """
         if self.batch is None:
             raise RuntimeError("call reset() before step()")
         batch = self.batch
         if self.autoreset is Autoreset.NEVER:
             live = self._live if live is None else live
-            out = batch.step(self._shielded(batch, actions, live), live)
+            commands = self._shielded(batch, actions, live)
+            if observe_into is None:
+                out = batch.step(commands, live)
+            else:
+                out = batch.step_observe(commands, live, observe_into, self.horizon)
             return StepResult(self._penalised(out.reward), out.terminated, out.truncated, out.terms)
+        if observe_into is not None:
+            raise ValueError("observe_into is for a shell without autoreset (it restarts rows)")
         restart = self._restart
         out = batch.step(self._shielded(batch, actions, ~restart), ~restart)
         reward, terminated = self._penalised(out.reward).copy(), out.terminated.copy()
