@@ -2,7 +2,7 @@
 
 The single env steps one mission and observes it at once; as two compiled calls, each unboxes
 the same records (the rules, the missions, the field: dozens of arrays) on its way in, which
-costs as much as the step itself for one row (docs/benchmarks.md, "The single env's step").
+costs a third of the two calls for one row (docs/benchmarks.md, "Measured design choices").
 :func:`step_observe` runs :func:`~debris_gym.mission_step.step_all` and
 :func:`~debris_gym.observation.observe_all` in one call with the same arguments, so the
 records are unboxed once, and without numba's reference counting (it only borrows the arrays
