@@ -127,12 +127,17 @@ class BaseLaw(NamedTuple):
     """``target_order == "queued"`` (the goal rule)."""
     return_to_dock: bool
     """``return_to_dock`` (the goal rule)."""
+    chasers: int = 1
+    """Chasers per field K: row i flies in field i // K (a swarm's rows; each row's goal is
+    its own, by its capture flags, which mark the targets assigned to others as taken)."""
 
 
-def make_base_law(cfg: EnvConfig, mean_motion: float, dt: float, max_accel: float) -> BaseLaw:
+def make_base_law(
+    cfg: EnvConfig, mean_motion: float, dt: float, max_accel: float, chasers: int = 1
+) -> BaseLaw:
     """The law for ``cfg``'s rules and a field's physics: mean motion n (rad/s), step ``dt``
     (s) and thrust limit ``max_accel`` (m/s²) — a scenario's, which may differ from the
-    config's for a pinned field."""
+    config's for a pinned field — with ``chasers`` per field."""
     d = cfg.dim
     model = discretize(float(mean_motion), float(dt), d)
     return BaseLaw(
@@ -151,6 +156,7 @@ def make_base_law(cfg: EnvConfig, mean_motion: float, dt: float, max_accel: floa
         chaser_radius=float(cfg.chaser_radius),
         queued=cfg.target_order == "queued",
         return_to_dock=bool(cfg.return_to_dock),
+        chasers=int(chasers),
     )
 
 
@@ -293,8 +299,8 @@ def goal_command(i, f, law, state, gaps, captured, centers, velocities, dock, go
 @kernel
 def residual_rows(live, actions, law, missions, field, out):
     """The residual mode's commands of the rows in ``live``: ``out[i]`` = ``actions[i]`` plus
-    the law's command of row ``i``, clipped to [−1, 1] per axis (one chaser per field: row i
-    flies in field i). Rows not live are left as they are."""
+    the law's command of row ``i``, clipped to [−1, 1] per axis (row i flies in field
+    i // ``law.chasers``). Rows not live are left as they are."""
     state, gaps, captured = missions.state, missions.gaps, missions.captured
     centers, velocities, dock = field.centers, field.velocities, field.dock
     dim = out.shape[1]
@@ -304,7 +310,8 @@ def residual_rows(live, actions, law, missions, field, out):
     for i in range(live.shape[0]):
         if not live[i]:
             continue
-        goal_command(i, i, law, state, gaps, captured, centers, velocities, dock, goal, w, base)
+        f = i // law.chasers
+        goal_command(i, f, law, state, gaps, captured, centers, velocities, dock, goal, w, base)
         for a in range(dim):
             out[i, a] = min(max(actions[i, a] + base[a], -1.0), 1.0)
 
@@ -318,7 +325,8 @@ def _base_rows(rows, law, missions, field, out):
     w = np.empty(dim)
     for r in range(rows.shape[0]):
         i = rows[r]
-        goal_command(i, i, law, state, gaps, captured, centers, velocities, dock, goal, w, out[r])
+        f = i // law.chasers
+        goal_command(i, f, law, state, gaps, captured, centers, velocities, dock, goal, w, out[r])
 
 
 def base_commands(law: BaseLaw, missions: Missions, field: Field, rows: Any = None) -> np.ndarray:
@@ -329,8 +337,8 @@ def base_commands(law: BaseLaw, missions: Missions, field: Field, rows: Any = No
         law: :func:`make_base_law`.
         missions: the batch's :class:`~debris_gym.mission_data.Missions` (the chasers' states,
             gaps and capture flags).
-        field: the batch's :class:`~debris_gym.mission_data.Field` (bodies and docks; one chaser
-            per field: row i flies in field i).
+        field: the batch's :class:`~debris_gym.mission_data.Field` (bodies and docks; row i
+            flies in field i // ``law.chasers``).
         rows: mission indices (default: every row).
 
     Returns:

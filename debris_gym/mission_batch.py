@@ -226,12 +226,10 @@ class MissionBatch:
         self._observe_code: Callable[..., Any] | None = None
         self._begin_code: dict[bool, Callable[..., Any]] = {}
         self._observed: tuple[np.ndarray, ...] | None = None
-        self.base_law: BaseLaw = make_base_law(cfg, mean_motion, dt, max_accel)
+        self.base_law: BaseLaw = make_base_law(cfg, mean_motion, dt, max_accel, chasers)
         """The base law of these missions' rules and physics (:mod:`debris_gym.base_law`):
         with ``action="residual"`` each step adds its command to the actions."""
         self.residual = cfg.action == "residual"
-        if self.residual and chasers != 1:
-            raise ValueError("action='residual' is for one chaser per field")
         self._commands = np.zeros((n, d))  # the residual mode's summed commands
         self._residual_code: Callable[..., Any] | None = None
         self._step_observe_code: Callable[..., Any] | None = None
@@ -486,13 +484,11 @@ class MissionBatch:
     def base_commands(self, rows: np.ndarray | None = None) -> np.ndarray:
         """(R, dim) the base law's normalised commands for missions ``rows`` (default: all) in
         their current state (:func:`~debris_gym.base_law.base_commands`: the code the residual
-        mode adds inside the step). One chaser per field.
+        mode adds inside the step; with several chasers per field, each toward its own goal).
 
         Raises:
-            ValueError: several chasers per field; a row out of range.
+            ValueError: a row out of range.
         """
-        if self.chasers != 1:
-            raise ValueError("the base law flies one chaser per field")
         return base_commands(self.base_law, self.missions, self.field_arrays, rows)
 
     def captured_counts(self) -> np.ndarray:

@@ -288,11 +288,30 @@ def test_the_residual_mode_refuses_navigation_errors():
     EnvConfig(action="residual", thrust_sigma_magnitude=0.05)  # thrust errors are fine
 
 
-def test_swarms_refuse_the_residual_mode():
+def test_in_a_swarm_the_base_law_flies_each_chaser_to_its_own_targets():
+    """With several chasers per field each row's base command steers toward that chaser's own
+    current goal (the targets assigned to the others read as taken): at the first step every
+    chaser's command points at its assigned target, and zero corrections complete the Easy
+    swarm's missions (each chaser its own target, no collision, no teammate contact)."""
+    pytest.importorskip("pettingzoo")
     from debris_gym import swarm
 
-    with pytest.raises(ValueError, match=r"action='residual' is not allowed with several chasers"):
-        swarm.make("DebrisGym/Swarm2D-v0", action="residual")
+    env = swarm.make("DebrisGym/Swarm2D-Easy-v0", action="residual")
+    for seed in range(8):
+        env.reset(seed=seed)
+        batch = env.core.shell.batch
+        commands = batch.base_commands()
+        m, f = batch.missions, batch.field_arrays
+        for i in range(batch.num):
+            own = np.flatnonzero(m.assigned[i])
+            assert own.size == 1  # Easy: two chasers, two targets, one each
+            toward = f.centers[i // 2, own[0]] - m.state[i, :2]
+            assert commands[i] @ toward > 0.5 * np.linalg.norm(commands[i]) * np.linalg.norm(toward)
+        while env.agents:
+            _, _, _, _, info = env.step({a: np.zeros(2, dtype=np.float32) for a in env.agents})
+        last = next(iter(info.values()))
+        assert last["team_success"] and last["team_captures"] == 2
+        assert not any(i["collision"] or i["teammate_collision"] for i in info.values())
 
 
 def test_the_base_law_agent_flies_the_continuous_env_only():

@@ -82,7 +82,7 @@ class ShieldFilter:
         self._clock: tuple[Any, float] | None = None  # (scenario, elapsed) of the last call
         try:
             inner: Any = unwrap(env)
-        except TypeError:  # a field view (one chaser of a swarm): no residual mode
+        except TypeError:  # a field view (one chaser of a swarm): a team flies direct thrust
             inner = None
         residual = isinstance(inner, DebrisFieldEnv) and inner.config.action == "residual"
         self._residual_env = inner if residual else None

@@ -89,8 +89,8 @@ def single_agent_id(dim: int) -> str:
 SWARM_PRETRAINED: dict[int, str] = {2: "rendezvous2d_v2.zip", 3: "rendezvous3d_v2.zip"}
 """Dimension → the shipped file (in :data:`~agents.policies.learned.PRETRAINED_DIR`) a team's
 ``"pretrained"`` member flies: the v2 policy that commands the thrust itself. The single-agent
-v2 IDs' ``pretrained`` is a residual policy, whose base law flies one chaser per field, so a
-swarm cannot fly it."""
+v2 IDs' ``pretrained`` is a residual policy; the teams fly the swarm in its default action mode,
+commanding the thrust as the classical members do."""
 
 
 def member_spec(agent: str, dim: int) -> str:

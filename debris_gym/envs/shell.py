@@ -191,11 +191,6 @@ class MissionShell:
                 "single-agent envs have none: use 0, or debris_gym.swarm.make"
             )
         check_shield_support(config, chasers)
-        if chasers > 1 and config.action == "residual":
-            raise ValueError(
-                "action='residual' is not allowed with several chasers per field (its base law "
-                "flies one chaser to its goal); allowed: 'continuous', 'discrete'"
-            )
         self.chasers, self.n_fields = chasers, num // chasers
         self.chaser_separation = chaser_separation
         self.field_loop = field_loop  # make_rules adds "or chasers > 1"
