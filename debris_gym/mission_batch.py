@@ -414,7 +414,7 @@ class MissionBatch:
             self.rules, self.shaping, self.missions, self.field_arrays,
         )  # fmt: skip
 
-    def step(self, actions: np.ndarray, live: np.ndarray) -> StepOutputs:
+    def step(self, actions: np.ndarray, live: np.ndarray, whole: bool = False) -> StepOutputs:
         """One decision step of the missions in ``live`` (the others are left as they are).
 
         Args:
@@ -424,6 +424,9 @@ class MissionBatch:
                 corrections: each live row flies its base law's command plus its action,
                 clipped to [−1, 1] per axis (:func:`~debris_gym.base_law.residual_rows`).
             live: (N,) bool, the missions that step.
+            whole: with ``action="residual"``, ``actions`` are already the whole commands
+                (:meth:`residual_commands`, then filtered by a shield): the base law is not
+                added again.
 
         Returns:
             :class:`~debris_gym.mission_data.StepOutputs`: ``reward`` (N,), ``terminated``
@@ -431,7 +434,7 @@ class MissionBatch:
             rows not in ``live`` are zero / False. ``terms`` columns follow
             :data:`debris_gym.rewards.REWARD_TERMS`.
         """
-        live, actions = self._step_arguments(actions, live)
+        live, actions = self._step_arguments(actions, live, whole)
         head = self._head()
         code = self._step_code
         if code is None:
@@ -441,16 +444,21 @@ class MissionBatch:
         return self._outputs
 
     def step_observe(
-        self, actions: np.ndarray, live: np.ndarray, out: np.ndarray, horizon: int
+        self,
+        actions: np.ndarray,
+        live: np.ndarray,
+        out: np.ndarray,
+        horizon: int,
+        whole: bool = False,
     ) -> StepOutputs:
         """:meth:`step`, then :meth:`observe` into ``out``: the same results, in one compiled
         call where the two share their records (one thread, no navigation errors; see
         :mod:`debris_gym.step_observe`)."""
         if self.threads > 1 or self._observed is not None:
-            outputs = self.step(actions, live)
+            outputs = self.step(actions, live, whole)
             self.observe(out, horizon)
             return outputs
-        live, actions = self._step_arguments(actions, live)
+        live, actions = self._step_arguments(actions, live, whole)
         head = self._head()
         args = (live, actions, *head["tail"], head["observe"][1], float(horizon), out)
         code = self._step_observe_code
@@ -459,15 +467,31 @@ class MissionBatch:
         code(*args)
         return self._outputs
 
-    def _step_arguments(self, actions: np.ndarray, live: np.ndarray) -> tuple[np.ndarray, ...]:
+    def residual_commands(self, actions: np.ndarray, live: np.ndarray) -> np.ndarray:
+        """With ``action="residual"``: the whole commands the step would fly for the
+        corrections ``actions`` in the rows ``live`` (the base law's command plus the
+        correction, clipped per axis), in a buffer the next call overwrites; pass them (or
+        commands that replace them) to :meth:`step` with ``whole=True``.
+
+        Raises:
+            ValueError: another action mode.
+        """
+        if not self.residual:
+            raise ValueError("residual_commands is for action='residual'")
+        live, actions = self._step_arguments(actions, live)
+        return actions
+
+    def _step_arguments(
+        self, actions: np.ndarray, live: np.ndarray, whole: bool = False
+    ) -> tuple[np.ndarray, ...]:
         """``live`` and the commands the step kernel flies, in the types its machine code was
         resolved for (see :func:`~debris_gym.jit.specialise`): with ``action="residual"`` the
-        base law's commands plus ``actions``."""
+        base law's commands plus ``actions`` (unless they are ``whole`` already)."""
         if live.dtype != np.bool_ or not live.flags.c_contiguous:
             live = np.ascontiguousarray(live, dtype=np.bool_)
         if actions.dtype != np.float64 or not actions.flags.c_contiguous:
             actions = np.ascontiguousarray(actions, dtype=np.float64)
-        if self.residual:
+        if self.residual and not whole:
             actions = self._with_base(actions, live)
         return live, actions
 

@@ -29,9 +29,10 @@ FORMAT = "debris-gym start bank 1"
 """The ``format`` stored in every bank file (a file of another format is refused)."""
 
 
-LEARNER_OPTIONS = ("observation", "action", "fine_thrust")
+LEARNER_OPTIONS = ("observation", "action", "fine_thrust", "shield", "shield_penalty")
 """Options that change only what a learner sees, does or is paid (with every option named
-``reward_*``, ``shaping_*``, ``obs_*`` and ``lidar_*``): a bank fits envs that differ in them."""
+``reward_*``, ``shaping_*``, ``obs_*`` and ``lidar_*``): a bank fits envs that differ in them.
+The shield filters the learner's commands in the same world (a recorded state stays valid)."""
 
 
 def world_options(config: EnvConfig) -> dict[str, Any]:

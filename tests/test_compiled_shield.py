@@ -351,6 +351,30 @@ def test_a_part_way_start_counts_its_interventions_from_zero():
     assert info["shield_interventions"] == int(info["shield_intervened"])
 
 
-def test_the_residual_action_mode_refuses_the_shield():
-    with pytest.raises(ValueError, match="action='residual'"):
-        gym.make(ID_2D, shield=True, action="residual").reset(seed=0)
+def test_in_the_residual_mode_the_shield_filters_the_whole_command():
+    """With ``action="residual"`` the compiled shield judges the command flown (the base law's
+    plus the correction, clipped): step for step, a residual env flies exactly what a
+    continuous env with the shield flies when given that whole command, interventions and
+    penalties included."""
+    rng = np.random.default_rng(7)
+    residual = gym.make(ID_2D, shield=True, shield_penalty=0.5, action="residual")
+    direct = gym.make(ID_2D, shield=True, shield_penalty=0.5)
+    first = np.zeros(1, dtype=np.int64)
+    interventions = 0
+    for seed in range(4):
+        _start_beside_a_body(residual, np.random.default_rng(seed), seed)
+        _start_beside_a_body(direct, np.random.default_rng(seed), seed)
+        for _ in range(15):
+            wanted = _command(residual.unwrapped, rng).astype(float)
+            base = residual.unwrapped.batch.base_commands(first)[0]
+            correction = wanted - base
+            whole = np.clip(base + correction, -1.0, 1.0)
+            one = residual.step(correction)
+            two = direct.step(whole)
+            np.testing.assert_array_equal(one[0], two[0])
+            assert one[1] == two[1] and one[2:4] == two[2:4]
+            assert one[4]["shield_intervened"] == two[4]["shield_intervened"]
+            interventions += one[4]["shield_intervened"]
+            if one[2] or one[3]:
+                break
+    assert interventions > 0

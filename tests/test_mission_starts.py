@@ -469,3 +469,20 @@ def test_the_field_word_of_an_autoreset_row_names_its_field():
         np.testing.assert_array_equal(
             single.unwrapped.scenario.body_states(0.0), shell.scenario(i).body_states(0.0)
         )
+
+
+@pytest.mark.parametrize(
+    "kwargs", [{"shield": True, "shield_penalty": 0.1}, {"action": "residual"}]
+)
+def test_the_shipped_bank_fits_an_env_that_differs_only_in_the_learners_options(kwargs):
+    """The shield filters the learner's commands and the residual mode adds a base law to them:
+    the world is the recording env's, so the shipped bank (recorded before the shield options
+    existed) fits; a change of the world is still refused."""
+    from pathlib import Path
+
+    import agents
+
+    bank = StartBank.load(Path(agents.__file__).parent / "data" / "rendezvous2d-v2_apf-mpc.npz")
+    bank.check_config(gym.make(ENV_2D, **kwargs).unwrapped.config)
+    with pytest.raises(ValueError, match="n_obstacles=5"):
+        bank.check_config(gym.make(ENV_2D, n_obstacles=5, **kwargs).unwrapped.config)

@@ -29,15 +29,8 @@ def check_shield_support(config: EnvConfig, chasers: int) -> None:
 
     Raises:
         ValueError: ``shield=True`` with several chasers per field (the compiled shield does
-            not predict teammates), or with ``action="residual"`` (the shield judges the
-            commands it is given, and a residual is not the command flown).
+            not predict teammates).
     """
-    if config.shield and config.action == "residual":
-        raise ValueError(
-            "shield=True filters the thrust commands the env is given; with action='residual' "
-            "they are corrections to the base law, not the commands flown: use "
-            "action='continuous' or 'discrete' with the shield"
-        )
     if config.shield and chasers != 1:
         raise ValueError(
             "shield=True is for one chaser per field: the compiled shield does not predict "

@@ -650,16 +650,17 @@ class MissionShell:
         batch = self.batch
         if self.autoreset is Autoreset.NEVER:
             live = self._live if live is None else live
-            commands = self._shielded(batch, actions, live)
+            commands, whole = self._shielded(batch, actions, live)
             if observe_into is None:
-                out = batch.step(commands, live)
+                out = batch.step(commands, live, whole)
             else:
-                out = batch.step_observe(commands, live, observe_into, self.horizon)
+                out = batch.step_observe(commands, live, observe_into, self.horizon, whole)
             return StepResult(self._penalised(out.reward), out.terminated, out.truncated, out.terms)
         if observe_into is not None:
             raise ValueError("observe_into is for a shell without autoreset (it restarts rows)")
         restart = self._restart
-        out = batch.step(self._shielded(batch, actions, ~restart), ~restart)
+        commands, whole = self._shielded(batch, actions, ~restart)
+        out = batch.step(commands, ~restart, whole)
         reward, terminated = self._penalised(out.reward).copy(), out.terminated.copy()
         truncated, terms = out.truncated.copy(), out.terms
         ended = terminated | truncated
@@ -675,9 +676,18 @@ class MissionShell:
         self._restart = ended
         return StepResult(reward, terminated, truncated, terms)
 
-    def _shielded(self, batch: MissionBatch, actions: np.ndarray, live: np.ndarray) -> np.ndarray:
-        """``actions`` through the shield in the rows ``live`` (as they are without it)."""
-        return actions if self._shield is None else self._shield.filter(batch, actions, live)
+    def _shielded(
+        self, batch: MissionBatch, actions: np.ndarray, live: np.ndarray
+    ) -> tuple[np.ndarray, bool]:
+        """``actions`` through the shield in the rows ``live`` (as they are without it), and
+        whether they are whole commands: in the residual mode the shield judges the command
+        flown, the base law's plus the correction, and the step flies what it lets through."""
+        if self._shield is None:
+            return actions, False
+        if batch.residual:
+            actions = batch.residual_commands(actions, live)
+            return self._shield.filter(batch, actions, live), True
+        return self._shield.filter(batch, actions, live), False
 
     def _penalised(self, reward: np.ndarray) -> np.ndarray:
         """The step's rewards less the shield's penalties (as they are without any)."""
