@@ -41,6 +41,7 @@ import numba
 import numpy as np
 
 from debris_gym.batch_geometry import field_gaps
+from debris_gym.gap_order import sort_by_gap
 from debris_gym.jit import borrowing, inlined, kernel, threaded
 from debris_gym.mission_data import StepScratch
 from debris_gym.orbit_truth import TRACK_WIDTH, truth_step
@@ -362,30 +363,6 @@ def reward(
     for k in range(terms.shape[1]):
         total += terms[i, k]
     return total
-
-
-@inlined
-def sort_by_gap(gaps, order):
-    """Sort the body indices ``order`` by ``gaps`` (B,), nearest first, equal gaps by index.
-
-    An insertion sort, started from the order of the step before: the chaser moves little in a
-    step, so the order is nearly sorted already and the sort costs about one comparison per
-    body, with branches that predict well (selecting the nearest few afresh every step, by
-    insertion into a short sorted list, costs more: its branches mispredict). The result is the
-    same (gap, index) order whatever the starting permutation.
-    """
-    for j in range(1, order.shape[0]):
-        x = order[j]
-        g = gaps[x]
-        k = j - 1
-        while k >= 0:
-            y = order[k]
-            h = gaps[y]
-            if h < g or (h == g and y < x):
-                break
-            order[k + 1] = y
-            k -= 1
-        order[k + 1] = x
 
 
 # --- kernels ----------------------------------------------------------------------------------

@@ -33,6 +33,7 @@ import numpy as np
 from debris_gym.batch_geometry import field_gaps
 from debris_gym.body import Body
 from debris_gym.config import EnvConfig
+from debris_gym.gap_order import sort_by_gap
 from debris_gym.jit import inlined, kernel
 from debris_gym.scenario import Scenario
 
@@ -132,24 +133,6 @@ def err_thrust(key, step, rules, accel):
     accel[2] = gain * norm * (c * uz + s * tz)
 
 
-@inlined
-def _sort_by_gap(gaps, order):
-    """Insertion sort of the body indices ``order`` by ``gaps``, ties by index (the step's
-    :func:`~debris_gym.mission_step.sort_by_gap` order)."""
-    for j in range(1, order.shape[0]):
-        x = order[j]
-        g = gaps[x]
-        k = j - 1
-        while k >= 0:
-            y = order[k]
-            h = gaps[y]
-            if h < g or (h == g and y < x):
-                break
-            order[k + 1] = y
-            k -= 1
-        order[k + 1] = x
-
-
 @kernel
 def navigate_rows(
     sigma_position, sigma_velocity, bias, missions, field, state, centers, velocities, gaps,
@@ -189,7 +172,7 @@ def navigate_rows(
         )  # fmt: skip
         for k in range(nearest.shape[1]):
             nearest[i, k] = missions.nearest[i, k]
-        _sort_by_gap(gaps[i], nearest[i])
+        sort_by_gap(gaps[i], nearest[i])
 
 
 @kernel

@@ -17,10 +17,10 @@ from hypothesis import strategies as st
 
 from debris_gym.config import EnvConfig
 from debris_gym.envs import DebrisFieldEnv
+from debris_gym.gap_order import sort_by_gap
 from debris_gym.generators import FieldSpec, random_field
 from debris_gym.goal import DOCK_GOAL, NO_GOAL, current_goal
 from debris_gym.mission_batch import MissionBatch, Physics
-from debris_gym.mission_step import sort_by_gap
 from debris_gym.observation import observation_names
 from debris_gym.scenario import Body
 from tests.helpers import flies_old_ids, simple_scenario
