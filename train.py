@@ -100,12 +100,12 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     from debris_gym.swarm import SWARM_SPECS
 
-    evaluate = (
-        "the held-out evaluations are in train_log.json (evaluate.py does not fly a "
-        "swarm-trained policy yet)"
+    evaluate = "evaluate with: " + (
+        cli.evaluate_command(
+            result.env_id, f"team-apf-mpc,team-{result.algo}:{result.model_path}"
+        )  # every chaser flies the shared policy, behind the default assignment rule
         if result.env_id in SWARM_SPECS
-        else "evaluate with: "
-        + cli.evaluate_command(result.env_id, f"apf,{result.algo}={result.model_path}")
+        else cli.evaluate_command(result.env_id, f"apf,{result.algo}={result.model_path}")
     )
     print(
         f"done: {result.num_timesteps:,} steps in {result.wall_time_s:.1f} s "

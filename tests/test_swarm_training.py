@@ -110,3 +110,20 @@ def test_the_residual_ippo_recipe_completes_the_easy_swarm_from_its_first_evalua
     data = np.load(out / "evaluations.npz")
     assert data["successes"].shape[1] == 8
     assert data["successes"][-1].mean() >= 0.9
+    # evaluate.py flies the swarm-trained policy on every chaser (its whole observation, in the
+    # residual mode it was trained in, with the swarm ID's own observation options)
+    from agents.policies.team import team_options
+
+    spec = f"ppo:{out / 'model.zip'}"
+    assert team_options(spec, 2) == {"assignment": "given", "obs_hold": True, "action": "residual"}
+    evaluate = load_script("evaluate.py", "evaluate_swarm_training")
+    code = evaluate.main([
+        "--env", EASY, "--agents", f"team-{spec}", "--episodes", "2", "--no-progress",
+        "--plots", "0", "--out", str(tmp_path / "eval"),
+    ])  # fmt: skip
+    assert code == 0
+    import csv
+
+    with open(tmp_path / "eval" / "episodes.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 2 and all(r["team_success"] == "True" for r in rows)

@@ -495,13 +495,18 @@ def observation_options(spec: str, env_id: str) -> dict[str, Any]:
 
 
 def _registered_observation_options(env_id: Any) -> dict[str, Any]:
-    """The :data:`OBSERVATION_KEYS` the registration of ``env_id`` sets (none: unregistered)."""
+    """The :data:`OBSERVATION_KEYS` the registration of ``env_id`` (gymnasium's, or a swarm ID's)
+    sets (none: unregistered)."""
     import gymnasium as gym
 
     import debris_gym  # noqa: F401  (registers the IDs)
+    from debris_gym.swarm import SWARM_SPECS
 
     env_id = str(env_id).rpartition(":")[2]
-    kwargs = gym.registry[env_id].kwargs if env_id in gym.registry else {}
+    if env_id in gym.registry:
+        kwargs = gym.registry[env_id].kwargs
+    else:  # a swarm ID (PettingZoo's registry, not gymnasium's), or unregistered
+        kwargs = SWARM_SPECS.get(env_id, {}).get("kwargs", {})
     return {k: kwargs[k] for k in OBSERVATION_KEYS if k in kwargs}
 
 

@@ -54,6 +54,7 @@ from agents.policies.shielded import ShieldStats, TeamShield
 
 __all__ = [
     "SWARM_PRETRAINED",
+    "ChaserSpaces",
     "TeamOfSingles",
     "TeamPolicy",
     "check_team_env",
@@ -160,6 +161,18 @@ def team_field(views: list[ChaserView]) -> TeamField:
     return TeamField(docks, centers, radii, bool(views[0].config.return_to_dock))
 
 
+class ChaserSpaces:
+    """One chaser's spaces and the swarm's config, as :func:`~agents.policies.learned.
+    load_agent` reads an env: what a policy trained on the swarm itself is checked against."""
+
+    def __init__(self, env: Any) -> None:
+        agent = env.possible_agents[0]
+        self.observation_space = env.observation_space(agent)
+        self.action_space = env.action_space(agent)
+        self.config = env.core.config
+        self.spec = None
+
+
 class TeamOfSingles:
     """One single-agent policy per chaser, behind an assignment rule.
 
@@ -214,11 +227,15 @@ class TeamOfSingles:
 
     @staticmethod
     def _load(agent: str, env: Any) -> tuple[Any, int]:
-        """The learned policy, loaded for the single-agent ID of the swarm's world with the
-        swarm's observation options, and the size of its observation."""
+        """The learned policy and the size of the observation it reads: a single-agent policy,
+        loaded for the single-agent ID of the swarm's world with the swarm's observation
+        options and action mode, reads the first elements of each chaser's observation; a
+        policy trained on the swarm itself (IPPO, ``train.py`` on a swarm ID) reads all of
+        them."""
         config = env.core.config
         options = {k: getattr(config, k) for k in OBSERVATION_KEYS if k != "obs_teammates"}
-        single = gym.make(single_agent_id(config.dim), **options)
+        single = gym.make(single_agent_id(config.dim), **options, action=config.action)
+        spec = member_spec(agent, config.dim)
         try:
             names = unwrap(single).observation_names()
             if env.observation_names()[: len(names)] != names:
@@ -227,10 +244,15 @@ class TeamOfSingles:
                     f"{agent!r} reads; make the swarm with team_options({agent!r}, "
                     f"{config.dim})"
                 )
-            policy = load_agent(member_spec(agent, config.dim), single)
+            try:
+                return load_agent(spec, single), len(names)
+            except ValueError:
+                # not a single-agent policy of this layout: one trained on the swarm's own
+                # chaser observation, or the error of neither
+                chaser = ChaserSpaces(env)
+                return load_agent(spec, chaser), int(chaser.observation_space.shape[0])
         finally:
             single.close()
-        return policy, len(names)
 
     @property
     def shield_stats(self) -> list[ShieldStats]:

@@ -2,7 +2,8 @@
 
 A team is named ``team-AGENT@RULE``: AGENT a single-agent baseline (:data:`agents.BASELINES`),
 ``pretrained`` (the single-agent policy shipped for the swarm's world) or ``ALGO:PATH`` (a
-policy trained by train.py), flown on every chaser; RULE the assignment rule
+policy trained by train.py: a single-agent one, or one trained on a swarm ID, which reads the
+chaser's whole observation), flown on every chaser; RULE the assignment rule
 (:data:`~agents.planners.team_assignment.ASSIGNMENT_RULES`), ``balanced`` (the env's own rule)
 when left out. A multi-agent method (:data:`TEAM_POLICIES`) is named by its own name,
 ``ma-se-scp[@RULE]`` (``balanced`` when left out).
