@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from debris_gym.jit import kernel
-from debris_gym.mission_step import move_bodies, settle_row
+from debris_gym.mission_step import move_bodies, settle_row, tour_scratch
 
 __all__ = [
     "START_KEYS",
@@ -189,10 +189,7 @@ def resume_rows(rows, states, captured, counts, spent, rules, shaping, missions,
     with the targets ``captured[r]`` (R, T) bool taken, ``counts[r]`` steps on its clock and
     ``spent[r]`` m/s of Δv spent; its gaps, clearance and potential measured again."""
     n_targets = rules.n_targets
-    order = np.empty(n_targets, dtype=np.int64)  # scratch of the tour potential
-    tour_counters = np.empty(n_targets, dtype=np.int64)
-    legs = np.empty((n_targets, n_targets))
-    homes = np.empty(n_targets)
+    order, tour_counters, legs, homes = tour_scratch(n_targets)
     for r in range(rows.shape[0]):
         i = rows[r]
         f = i // rules.n_chasers

@@ -368,6 +368,18 @@ def reward(
 # --- kernels ----------------------------------------------------------------------------------
 
 
+@inlined
+def tour_scratch(n_targets):
+    """The tour potential's scratch for ``n_targets`` targets: order, counters (int64, (T,)),
+    legs (T, T) and homes (T,)."""
+    return (
+        np.empty(n_targets, dtype=np.int64),
+        np.empty(n_targets, dtype=np.int64),
+        np.empty((n_targets, n_targets)),
+        np.empty(n_targets),
+    )
+
+
 @kernel
 def begin_rows(rows, states, rules, shaping, missions, field):
     """Start new episodes in ``rows``: the chaser at ``states`` (R, 2·dim) or, if None, at rest
@@ -379,10 +391,7 @@ def begin_rows(rows, states, rules, shaping, missions, field):
     dock = field.dock
     dim = dock.shape[1]
     n_targets = rules.n_targets
-    order = np.empty(n_targets, dtype=np.int64)  # scratch of the tour potential
-    counters = np.empty(n_targets, dtype=np.int64)
-    legs = np.empty((n_targets, n_targets))
-    homes = np.empty(n_targets)
+    order, counters, legs, homes = tour_scratch(n_targets)
     for r in range(rows.shape[0]):
         i = rows[r]
         f = i // rules.n_chasers

@@ -55,6 +55,7 @@ __all__ = [
     "pretrained_path",
     "read_vecnormalize",
     "run_config_path",
+    "trained_env_id",
 ]
 
 OBSERVATION_KEYS = (
@@ -492,6 +493,22 @@ def observation_options(spec: str, env_id: str) -> dict[str, Any]:
     if path.is_dir():
         path, _ = find_model_file(path)
     return _run_observation_options(path, env_id)
+
+
+def trained_env_id(spec: str) -> str | None:
+    """The env ID the run behind ``spec`` (``"ALGO:PATH"``) trained on, from its run config
+    (None: no config found).
+
+    Raises:
+        ValueError: a bad spec or a damaged run config.
+    """
+    _, path = _parse(spec)
+    if path is None:
+        return None
+    if path.is_dir():
+        path, _ = find_model_file(path)
+    data = _checked_run_config(path)
+    return None if data is None else data.get("env_id")
 
 
 def _registered_observation_options(env_id: Any) -> dict[str, Any]:

@@ -47,10 +47,12 @@ from agents.policies.learned import (
     PRETRAINED,
     PRETRAINED_DIR,
     observation_options,
+    trained_env_id,
 )
 from agents.policies.registry import BASELINES, load_agent, make_agent
 from agents.policies.shield import ShieldParams
 from agents.policies.shielded import ShieldStats, TeamShield
+from debris_gym.swarm import SWARM_SPECS
 
 __all__ = [
     "SWARM_PRETRAINED",
@@ -244,13 +246,10 @@ class TeamOfSingles:
                     f"{agent!r} reads; make the swarm with team_options({agent!r}, "
                     f"{config.dim})"
                 )
-            try:
-                return load_agent(spec, single), len(names)
-            except ValueError:
-                # not a single-agent policy of this layout: one trained on the swarm's own
-                # chaser observation, or the error of neither
-                chaser = ChaserSpaces(env)
+            if trained_env_id(spec) in SWARM_SPECS:
+                chaser = ChaserSpaces(env)  # trained on a swarm: the whole chaser observation
                 return load_agent(spec, chaser), int(chaser.observation_space.shape[0])
+            return load_agent(spec, single), len(names)
         finally:
             single.close()
 
