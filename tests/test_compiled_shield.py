@@ -32,7 +32,7 @@ from debris_gym import shield_model
 from debris_gym.config import MAX_WEIGHT, EnvConfig
 from debris_gym.envs.common import discrete_action_table
 from debris_gym.envs.loop_shield import LoopShield
-from debris_gym.envs.shell import INFO_KEYS
+from debris_gym.envs.shell_info import INFO_KEYS
 from tests.helpers import flies_old_ids
 
 ROOT = Path(__file__).resolve().parents[1]

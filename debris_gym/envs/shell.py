@@ -16,7 +16,8 @@ Every env of the package is a view of a :class:`MissionShell`: the single env
   single env leaves the limit to gymnasium's ``TimeLimit``, as every gymnasium env does: made
   by ``gym.make`` it has no limit of its own);
 * **autoreset** — the next-step and same-step modes of gymnasium's vector envs;
-* **the info dict** — one table of keys (:data:`INFO_KEYS`), read per row or for all rows.
+* **the info dict** — one table of keys (:mod:`debris_gym.envs.shell_info`), read per row or
+  for all rows.
 
 No view repeats any of it; docs/architecture.md shows where a view with several chasers per
 field plugs in.
@@ -30,25 +31,27 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from debris_gym.batch_geometry import FieldBatch
 from debris_gym.config import EnvConfig
 from debris_gym.envs.common import (
     DEFAULT_HORIZON_STEPS,
     check_motion_matches,
-    checked_chaser_states,
     checked_mission,
     checked_reset_options,
     observation_names,
     warn_if_physics_differ,
 )
+from debris_gym.envs.episode_errors import EpisodeErrors
 from debris_gym.envs.field_supply import FieldSupply
-from debris_gym.envs.loop_shield import (
-    LoopShield,
-    check_shield_support,
-    row_shield_info,
-    shield_info,
-    shield_term,
+from debris_gym.envs.loop_shield import LoopShield, check_shield_support
+from debris_gym.envs.shell_fields import (
+    FieldShape,
+    batch_holds,
+    checked_initial_states,
+    drawn_scenario,
+    drawn_shape,
+    scenario_shape,
 )
+from debris_gym.envs.shell_info import all_rows_info, one_row_info
 from debris_gym.envs.starts import (
     EpisodeEnds,
     StartPlan,
@@ -57,22 +60,12 @@ from debris_gym.envs.starts import (
     starts_for_reset,
     with_words,
 )
-from debris_gym.field_spec import MAX_POLYGON_VERTICES, FieldArrays, scenario_from_arrays
-from debris_gym.geometry import FieldGeometry
-from debris_gym.mission_batch import MissionBatch, Physics, check_threads
-from debris_gym.rewards import REWARD_TERMS
+from debris_gym.field_spec import FieldArrays
+from debris_gym.mission_batch import MissionBatch, check_threads
 from debris_gym.scenario import Scenario, as_scenario
 from debris_gym.scenario_checks import check_dock_clear
-from debris_gym.uncertainty import estimated_field
 
-__all__ = [
-    "INFO_KEYS",
-    "Autoreset",
-    "FieldShape",
-    "MissionShell",
-    "ShellView",
-    "StepResult",
-]
+__all__ = ["Autoreset", "MissionShell", "ShellView", "StepResult"]
 
 
 class Autoreset(enum.Enum):
@@ -84,38 +77,6 @@ class Autoreset(enum.Enum):
     """The step after a mission ends restarts it (its action ignored, reward 0)."""
     SAME_STEP = "same_step"
     """The step that ends a mission restarts it; the last observation and info are kept."""
-
-
-INFO_KEYS = (
-    "chaser_state",
-    "time",
-    "delta_v",
-    "targets_captured",
-    "n_targets",
-    "captured",
-    "hold",
-    "min_clearance",
-    "collision",
-    "out_of_bounds",
-    "budget_spent",
-    "is_success",
-    "applied_accel",
-    "task_score",
-    "reward_terms",
-    "shield_intervened",
-    "shield_interventions",
-)
-"""The keys of every step's and reset's ``info`` (docs/environments.md, "Info")."""
-
-
-class FieldShape(NamedTuple):
-    """What a batch must be made for to hold a field: its physics and sizes."""
-
-    physics: Physics
-    n_targets: int
-    n_bodies: int
-    polygon_targets: bool
-    """Some target is a polygon (the batch must let every body be one)."""
 
 
 class StepResult(NamedTuple):
@@ -226,8 +187,7 @@ class MissionShell:
         self._live = np.ones(num, dtype=bool)
         self._shield = LoopShield(config, num) if config.shield else None
         """The compiled safety shield (the ``shield`` option), or None."""
-        self._estimates: dict[int, tuple[int, Scenario, Scenario]] = {}
-        self._noise: list[np.random.Generator | None] = [None] * fields
+        self._errors = EpisodeErrors(fields, chasers)
         self.start_sampler: StartSampler | None = None
         """Gives the starts of the missions a reset or an autoreset begins (part-way; see
         :mod:`debris_gym.envs.starts`), unless the reset names its own; None: every mission
@@ -235,9 +195,6 @@ class MissionShell:
         self.started_late = np.zeros(num, dtype=bool)
         """(N,) bool: the mission's clock did not start at 0 (its time limit is the mission
         clock's, which a step counter outside the shell cannot know)."""
-        """Per field, the generator of its episodes' error keys (the uncertain world): a child
-        of the field's generator, spawned when first needed, so that it never moves the field
-        draws on."""
 
     # --- reading ------------------------------------------------------------------------------
 
@@ -263,7 +220,7 @@ class MissionShell:
         known = self.pinned[i] or self._built[i]
         if known is not None:
             return known
-        self._built[i] = built = self._build_scenario(i, batch)
+        self._built[i] = built = drawn_scenario(batch, i, self.config, self.supply.spec.field_size)
         return built
 
     def estimated_scenario(self, i: int) -> Scenario | None:
@@ -273,34 +230,8 @@ class MissionShell:
         truth = self.scenario(i)
         if truth is None or not self.config.navigation_errors:
             return truth
-        cached = self._estimates.get(i)
-        batch = self.batch_in_use
-        key = int(batch.missions.noise_key[i * self.chasers])
-        if cached is not None and cached[0] == key and cached[1] is truth:
-            return cached[2]
-        estimate = estimated_field(truth, key, self.config)
-        self._estimates[i] = (key, truth, estimate)
-        return estimate
-
-    def _build_scenario(self, i: int, batch: MissionBatch) -> Scenario:
-        cfg, field, d = self.config, batch.field, self.dim
-        t = batch.n_targets
-        vertices, counts = field.vertex_arrays(i)
-        counts = counts[t - field.polygon_start :]
-        vertices = vertices[t - field.polygon_start :]
-        n_obstacles = field.n_bodies - t
-        if counts.shape[0] != n_obstacles:  # 3D: spheres only, the batch keeps no polygon slots
-            vertices, counts = np.zeros((n_obstacles, 0, 2)), np.zeros(n_obstacles, dtype=int)
-        half = self.supply.spec.field_size / 2.0
-        moving = cfg.debris_motion != "frozen"
-        start = field.start_states[i]  # the field as drawn: the bodies have moved since
-        spins = np.zeros(field.n_bodies)
-        spins[field.polygon_start :] = field.spins[i]
-        return scenario_from_arrays(
-            start[:, :d], field.radii[i], vertices, counts, t, ((-half, half),) * d,
-            mean_motion=cfg.n, dt=cfg.dt, max_accel=cfg.max_accel,
-            velocities=start[:, d:] if moving else None, spins=spins if moving else None,
-        )  # fmt: skip
+        key = int(self.batch_in_use.missions.noise_key[i * self.chasers])
+        return self._errors.estimated(i, truth, key, self.config)
 
     def observe(self, out: np.ndarray | None = None) -> np.ndarray:
         """Every mission's observation, into ``out`` (N, size) float32 or a new array."""
@@ -309,55 +240,14 @@ class MissionShell:
         return self.batch_in_use.observe(out, self.horizon)
 
     def info(self, terms: np.ndarray) -> dict[str, Any]:
-        """The :data:`INFO_KEYS` of every mission as new arrays (row i = mission i);
-        ``terms`` (N, 8) the step's reward terms (by term name under ``"reward_terms"``)."""
-        batch = self.batch_in_use
-        m = batch.missions
-        return {
-            "chaser_state": m.state.copy(),
-            "time": m.time.copy(),
-            "delta_v": m.delta_v.copy(),
-            "targets_captured": batch.captured_counts(),
-            "n_targets": np.full(self.num, batch.n_targets),
-            "captured": m.captured.copy(),
-            "hold": m.hold.copy(),
-            "min_clearance": m.min_clearance - self.config.chaser_radius,
-            "collision": m.collision.copy(),
-            "out_of_bounds": m.out_of_bounds.copy(),
-            "budget_spent": m.budget_spent.copy(),
-            "is_success": m.success.copy(),
-            "applied_accel": m.accel.copy(),
-            "task_score": m.score.copy(),
-            "reward_terms": shield_term(self._shield, dict(zip(REWARD_TERMS, terms.T.copy()))),
-            **shield_info(self._shield, self.num),
-        }
+        """The :data:`~debris_gym.envs.shell_info.INFO_KEYS` of every mission as new arrays
+        (row i = mission i); ``terms`` (N, 8) the step's reward terms."""
+        return all_rows_info(self.batch_in_use, self.config.chaser_radius, self._shield, terms)
 
     def row_info(self, i: int, terms: Sequence[float]) -> dict[str, Any]:
-        """The :data:`INFO_KEYS` of mission ``i`` as Python scalars and arrays of its own;
-        ``terms`` its 8 reward terms."""
-        batch = self.batch_in_use
-        m = batch.missions
-        captured = m.captured[i].copy()
-        # item(i) gives the Python scalar without a numpy scalar in between: this runs every
-        # step of the single env
-        return {
-            "chaser_state": m.state[i].copy(),
-            "time": m.time.item(i),
-            "delta_v": m.delta_v.item(i),
-            "targets_captured": captured.tolist().count(True),
-            "n_targets": batch.n_targets,
-            "captured": captured,
-            "hold": m.hold[i].copy(),
-            "min_clearance": m.min_clearance.item(i) - self.config.chaser_radius,
-            "collision": m.collision.item(i),
-            "out_of_bounds": m.out_of_bounds.item(i),
-            "budget_spent": m.budget_spent.item(i),
-            "is_success": m.success.item(i),
-            "applied_accel": m.accel[i].copy(),
-            "task_score": m.score.item(i),
-            "reward_terms": shield_term(self._shield, dict(zip(REWARD_TERMS, terms)), i),
-            **row_shield_info(self._shield, i),
-        }
+        """The :data:`~debris_gym.envs.shell_info.INFO_KEYS` of mission ``i`` as Python scalars
+        and arrays of its own; ``terms`` its 8 reward terms."""
+        return one_row_info(self.batch_in_use, i, self.config.chaser_radius, self._shield, terms)
 
     # --- reset --------------------------------------------------------------------------------
 
@@ -407,9 +297,9 @@ class MissionShell:
             else:
                 fields = self._take(fields_rows)
                 if fields is None:
-                    self._fit(self._shape_of(self.supply.paper_field()))
+                    self._fit(scenario_shape(self.supply.paper_field()))
                 else:
-                    self._fit(self._drawn_shape(fields))
+                    self._fit(drawn_shape(self.config, fields))
             states = options.get("chaser_state")
             starts = starts_for_reset(self, options.get("start"), states is not None)
             if starts is not None:
@@ -430,7 +320,7 @@ class MissionShell:
         if generators is not None:
             for f, g in enumerate(generators):
                 if g is not None:
-                    self._noise[f] = None  # a seeded reset: its errors follow the new seed
+                    self._errors.forget(f)
         self._pin = pinned
         if pinned is not None:
             self._install_scenario(fields_rows, pinned)
@@ -473,7 +363,7 @@ class MissionShell:
         batch = self.batch_in_use
         if plan is not None:
             batch.advance(fields[plan.positions], plan.counts)
-        batch.begin(rows, states, self._error_keys(fields))
+        batch.begin(rows, states, self._errors.keys(fields, self.supply.generators, self.config))
         if self._shield is not None:
             self._shield.begin(rows)
         self.started_late[rows] = False
@@ -520,57 +410,27 @@ class MissionShell:
             raise ValueError(f"scenario has dim={scenario.dim} but the env has dim={self.dim}")
         warn_if_physics_differ(self.config, scenario)
         check_motion_matches(self.config, scenario)
-        self._fit(self._shape_of(scenario))
+        self._fit(scenario_shape(scenario))
         return scenario
 
     def _checked_states(
         self, value: Any, pinned: Scenario | None, fields: FieldArrays | None
     ) -> np.ndarray:
         """Initial chaser states checked against the fields this reset installs."""
-        n, cfg = self.num, self.config
-        if fields is None:
-            scenario = pinned if pinned is not None else self.supply.paper_field()
-            geometry = FieldGeometry(scenario)
-            return checked_chaser_states(
-                value, n, scenario.low, scenario.high, scenario.size / scenario.dt,
-                geometry.signed_distance, cfg.chaser_radius,
-            )  # fmt: skip
-        # the drawn fields in a batch of their own (one row per chaser): the gaps the shell's
-        # batch would give
-        bodies = fields.radii.shape[1]
-        check = FieldBatch(n, bodies, self.dim, MAX_POLYGON_VERTICES, fields.n_targets)
-        k = self.chasers
-        check.load_arrays(
-            self._all_rows, *(np.repeat(a, k, axis=0) if k > 1 else a for a in (
-                fields.centers, fields.radii, fields.vertices, fields.n_vertices))
-        )  # fmt: skip
-        low, high = np.array(fields.bounds).T
-        return checked_chaser_states(
-            value, n, low, high, self.supply.spec.field_size / cfg.dt, check.gaps,
-            cfg.chaser_radius,
+        scenario = pinned if pinned is not None or fields is not None else self._paper()
+        return checked_initial_states(
+            value, self.num, self.chasers, self.config, self.supply.spec.field_size, scenario,
+            fields,
         )  # fmt: skip
 
     # --- the batch and its fields -------------------------------------------------------------
-
-    def _shape_of(self, scenario: Scenario) -> FieldShape:
-        return FieldShape(
-            Physics(scenario.mean_motion, scenario.dt, scenario.max_accel),
-            len(scenario.targets),
-            len(scenario.bodies),
-            any(t.vertices is not None for t in scenario.targets),
-        )
-
-    def _drawn_shape(self, fields: FieldArrays) -> FieldShape:
-        cfg = self.config
-        physics = Physics(cfg.n, cfg.dt, cfg.max_accel)
-        return FieldShape(physics, fields.n_targets, fields.radii.shape[1], False)
 
     def _fit(self, shape: FieldShape) -> MissionBatch:
         """The batch, made (again) for fields of ``shape`` when it cannot hold them (only a
         reset of every row calls this: the rows that restart by themselves later get fields of
         the same shape, drawn by the same config or pinned)."""
         batch = self.batch
-        if batch is not None and _holds(batch, shape):
+        if batch is not None and batch_holds(batch, shape):
             return batch
         self.batch = MissionBatch(
             self.config, self.num, shape.n_targets, shape.n_bodies, physics=shape.physics,
@@ -727,49 +587,9 @@ class MissionShell:
         if self._pin is None:
             self.supply.draw_ahead(fields)
 
-    def _error_keys(self, fields: np.ndarray) -> np.ndarray | None:
-        """The error keys of new episodes in ``fields``, one per row (None in a world without
-        errors: nothing is drawn)."""
-        if not self.config.uncertain:
-            return None
-        keys = np.empty(len(fields), dtype=np.uint64)
-        for r, f in enumerate(np.asarray(fields).tolist()):
-            noise = self._noise[f]
-            if noise is None:
-                noise = self._noise[f] = _child(self.supply.generators[f])
-            keys[r] = noise.integers(0, np.iinfo(np.uint64).max, dtype=np.uint64, endpoint=True)
-        return np.repeat(keys, self.chasers)
-
     def close(self) -> None:
         """Stop the field supply's worker thread."""
         self.supply.close()
-
-
-def _child(generator: np.random.Generator) -> np.random.Generator:
-    """A generator independent of ``generator`` that leaves its stream where it is: spawned
-    from its seed sequence, or (a generator built without one) seeded from its state."""
-    try:
-        return generator.spawn(1)[0]
-    except (TypeError, ValueError):
-        words = np.frombuffer(repr(generator.bit_generator.state).encode(), dtype=np.uint8)
-        return np.random.default_rng(np.random.SeedSequence(words.tolist()))
-
-
-def _holds(batch: MissionBatch, shape: FieldShape) -> bool:
-    return (
-        batch.physics == shape.physics
-        and batch.n_targets == shape.n_targets
-        and batch.field.n_bodies == shape.n_bodies
-        and (not shape.polygon_targets or batch.field.polygon_start == 0)
-    )
-
-
-def _describe(shape: FieldShape) -> str:
-    n, dt, accel = shape.physics
-    return (
-        f"mean_motion={n!r}, dt={dt!r}, max_accel={accel!r}, {shape.n_targets} targets of "
-        f"{shape.n_bodies} bodies"
-    )
 
 
 class ShellView:

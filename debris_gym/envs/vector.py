@@ -37,7 +37,8 @@ from debris_gym.envs.common import (
     registered_horizon,
     single_spaces,
 )
-from debris_gym.envs.shell import INFO_KEYS, Autoreset, MissionShell, ShellView
+from debris_gym.envs.shell import Autoreset, MissionShell, ShellView
+from debris_gym.envs.shell_info import INFO_KEYS
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.scenario import Scenario
 
