@@ -38,6 +38,7 @@ import numpy as np
 
 from debris_gym.dynamics import discretize
 from debris_gym.scenario_values import RELATIVE_TOLERANCE
+from debris_gym.sweep_prune import overlapping_intervals
 
 __all__ = [
     "BLOCK_STEPS",
@@ -368,24 +369,11 @@ def _apart_fault(block: _Block, radii, states, velocity, apart: _Apart) -> Motio
 def _box_pairs(lo: np.ndarray, hi: np.ndarray):
     """Yield ``(i, j)`` index arrays (i < j; chunks of at most :data:`_PAIR_CHUNK`) of the pairs
     whose boxes ``[lo, hi]`` (B, dim) meet on every axis: sweep and prune on the widest axis."""
-    count = len(lo)
     axis = int(np.argmax(hi.max(axis=0) - lo.min(axis=0)))
-    order = np.argsort(lo[:, axis], kind="stable")
-    starts, ends = lo[order, axis], hi[order, axis]
-    last = np.searchsorted(starts, ends, side="right")  # sorted k+1 .. last-1 start before k ends
-    pending = np.maximum(last - np.arange(count) - 1, 0)
-    k = 0
-    while k < count:
-        stop = k + max(1, int(np.searchsorted(np.cumsum(pending[k:]), _PAIR_CHUNK, side="right")))
-        rows = np.arange(k, min(stop, count))
-        n_pairs = pending[rows]
-        first = np.repeat(rows, n_pairs)
-        offset = np.arange(n_pairs.sum()) - np.repeat(np.cumsum(n_pairs) - n_pairs, n_pairs)
-        a, b = order[first], order[first + 1 + offset]
+    for a, b in overlapping_intervals(lo[:, axis], hi[:, axis], _PAIR_CHUNK, touching=True):
         meet = np.all((lo[a] <= hi[b]) & (lo[b] <= hi[a]), axis=1)
         if meet.any():
             yield np.minimum(a[meet], b[meet]), np.maximum(a[meet], b[meet])
-        k = rows[-1] + 1
 
 
 def _pairs_fault(block: _Block, radii, states, i, j) -> MotionFault | None:

@@ -11,7 +11,7 @@ begun (:func:`~debris_gym.mission_step.begin_rows`). No gymnasium import.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -19,6 +19,7 @@ import numpy as np
 
 from debris_gym.jit import kernel
 from debris_gym.mission_step import move_bodies, settle_row, tour_scratch
+from debris_gym.scenario_values import known_keys
 
 __all__ = [
     "START_KEYS",
@@ -97,14 +98,7 @@ def checked_start(
             "chaser_state": value.chaser_state, "beside": value.beside,
             "field_word": value.field_word,
         }  # fmt: skip
-    if not isinstance(value, Mapping):
-        raise ValueError(
-            f"{name} must be a dict with keys among {', '.join(START_KEYS)} or a MissionStart, "
-            f"got {type(value).__name__}"
-        )
-    unknown = sorted(set(value) - set(START_KEYS), key=str)
-    if unknown:
-        raise ValueError(f"{name} has unknown key(s) {unknown}; allowed: {', '.join(START_KEYS)}")
+    value = known_keys(value, name, START_KEYS, also=" or a MissionStart")
     raw = value.get("captured", ())
     if isinstance(raw, (str, bytes)) or not isinstance(raw, (Sequence, np.ndarray)):
         raise ValueError(f"{name}['captured'] must be a list of target indices, got {raw!r}")

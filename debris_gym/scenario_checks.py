@@ -44,6 +44,7 @@ from debris_gym.scenario_values import (
     radius_matches,
     vector,
 )
+from debris_gym.sweep_prune import overlapping_intervals
 
 __all__ = [
     "BODY_COUNTS",
@@ -407,27 +408,14 @@ def close_pairs(centres: np.ndarray, radii: np.ndarray):
     if count < 2:
         return
     axis = int(np.argmax(np.ptp(centres, axis=0)))
-    order = np.argsort(centres[:, axis] - radii, kind="stable")
-    starts = (centres[:, axis] - radii)[order]
-    ends = (centres[:, axis] + radii)[order]
-    last = np.searchsorted(starts, ends, side="left")  # sorted bodies k+1 .. last-1 may meet k
-    pending = np.maximum(last - np.arange(count) - 1, 0)
-    budget = _PAIR_BLOCK * count
-    k = 0
-    while k < count:
-        stop = k + max(1, int(np.searchsorted(np.cumsum(pending[k:]), budget, side="right")))
-        rows = np.arange(k, min(stop, count))
-        n_pairs = pending[rows]
-        first = np.repeat(rows, n_pairs)
-        offset = np.arange(n_pairs.sum()) - np.repeat(np.cumsum(n_pairs) - n_pairs, n_pairs)
-        a, b = order[first], order[first + 1 + offset]
+    starts, ends = centres[:, axis] - radii, centres[:, axis] + radii
+    for a, b in overlapping_intervals(starts, ends, _PAIR_BLOCK * count, touching=False):
         delta = centres[a] - centres[b]
         dist = np.sqrt(np.einsum("ij,ij->i", delta, delta))
         close = np.flatnonzero(dist < (radii[a] + radii[b]) * (1.0 - RELATIVE_TOLERANCE))
         for m in close[np.lexsort((b[close], a[close]))].tolist():  # report in index order
             i, j = sorted((int(a[m]), int(b[m])))
             yield i, j, float(dist[m])
-        k = rows[-1] + 1
 
 
 def _shapes_overlap(scenario, a: int, b: int, centres, radii) -> bool:

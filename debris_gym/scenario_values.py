@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -26,6 +26,7 @@ __all__ = [
     "RELATIVE_TOLERANCE",
     "check_polygon",
     "interval",
+    "known_keys",
     "mapping",
     "number",
     "pair",
@@ -131,6 +132,30 @@ def mapping(value: Any, key: str) -> Mapping[str, Any]:
                 f"{key} has a key {show(name)} of type {type(name).__name__}; keys must be "
                 "strings (as in a JSON object)"
             )
+    return value
+
+
+def known_keys(
+    value: Any,
+    key: str,
+    allowed: Sequence[str],
+    *,
+    also: str = "",
+    unknown: str = "{key} has unknown key(s) {names}; allowed: {allowed}",
+) -> Mapping[str, Any]:
+    """``value`` if it is a dict whose keys are all in ``allowed``, else ``ValueError`` naming
+    ``key`` and the allowed keys. ``also``: what else is accepted, appended to the message for
+    a value that is not a dict (such as ``" or a MissionStart"``); ``unknown``: the message
+    for keys outside ``allowed``, a template of ``{key}``, ``{names}`` (the unknown keys,
+    sorted) and ``{allowed}``."""
+    among = ", ".join(allowed)
+    if not isinstance(value, Mapping):
+        raise ValueError(
+            f"{key} must be a dict with keys among {among}{also}, got {type(value).__name__}"
+        )
+    names = sorted(set(value) - set(allowed), key=str)
+    if names:
+        raise ValueError(unknown.format(key=key, names=names, allowed=among))
     return value
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from typing import Any
 
 import gymnasium as gym
@@ -17,6 +17,7 @@ from debris_gym.config import EnvConfig
 from debris_gym.generators import FieldSpec, placement_problem
 from debris_gym.observation import OBS_LIMIT, observation_names
 from debris_gym.scenario import Scenario
+from debris_gym.scenario_values import known_keys
 
 __all__ = [
     "DEFAULT_HORIZON_STEPS",
@@ -212,17 +213,11 @@ def checked_mission(made: EnvConfig, mission: Any) -> EnvConfig:
         ValueError: naming the key: a key outside :data:`MISSION_KEYS`, a value out of its
             range, or a field that cannot be placed.
     """
-    if not isinstance(mission, Mapping):
-        raise ValueError(
-            f"options['mission'] must be a dict with keys among {', '.join(MISSION_KEYS)}, "
-            f"got {type(mission).__name__}"
-        )
-    unknown = sorted(set(mission) - set(MISSION_KEYS), key=str)
-    if unknown:
-        raise ValueError(
-            f"options['mission'] may change only {', '.join(MISSION_KEYS)}; got {unknown} (the "
-            "other options are the env's own: make another env to change them)"
-        )
+    known_keys(
+        mission, "options['mission']", MISSION_KEYS,
+        unknown="{key} may change only {allowed}; got {names} (the other options are the "
+        "env's own: make another env to change them)",
+    )  # fmt: skip
     if not mission:
         return made
     config = EnvConfig.from_kwargs(**{**made.to_dict(), **mission})
@@ -246,14 +241,8 @@ def checked_reset_options(options: Any) -> dict[str, Any]:
     """``reset``'s ``options`` as a dict, checked for unknown keys (None gives ``{}``)."""
     if options is None:
         return {}
-    if not isinstance(options, Mapping):
-        raise ValueError(
-            f"options must be a dict with keys {', '.join(RESET_OPTIONS)}, got "
-            f"{type(options).__name__}"
-        )
-    unknown = sorted(set(options) - set(RESET_OPTIONS), key=str)
-    if unknown:
-        raise ValueError(f"unknown reset option(s) {unknown}; allowed: {', '.join(RESET_OPTIONS)}")
+    unknown = "unknown reset option(s) {names}; allowed: {allowed}"
+    known_keys(options, "options", RESET_OPTIONS, unknown=unknown)
     return dict(options)
 
 
