@@ -88,6 +88,15 @@ def distance2(dxc, da, db, dyc, daz, dbz, rate, slope, s):
 
 
 @inlined
+def _push(stack, top, lo, hi, f_lo, f_hi):
+    """Put the interval [lo, hi] with its end values into row ``top`` of ``stack``."""
+    stack[top, 0] = lo
+    stack[top, 1] = hi
+    stack[top, 2] = f_lo
+    stack[top, 3] = f_hi
+
+
+@inlined
 def search(dxc, da, db, dyc, daz, dbz, need, rate, slope, span, bend):
     """True if the pair's distance (:func:`_distance2`) is >= ``need`` for every s in
     ``[0, span]``, proven by branch and bound on the squared distance f: on an interval of
@@ -110,10 +119,7 @@ def search(dxc, da, db, dyc, daz, dbz, need, rate, slope, span, bend):
         f_hi = distance2(dxc, da, db, dyc, daz, dbz, rate, slope, hi)
         if f_hi < need2:
             return False
-        stack[top, 0] = lo
-        stack[top, 1] = hi
-        stack[top, 2] = f_lo
-        stack[top, 3] = f_hi
+        _push(stack, top, lo, hi, f_lo, f_hi)
         top += 1
         f_lo = f_hi
     while top > 0:
@@ -131,13 +137,7 @@ def search(dxc, da, db, dyc, daz, dbz, need, rate, slope, span, bend):
         f_mid = distance2(dxc, da, db, dyc, daz, dbz, rate, slope, mid)
         if f_mid < need2:
             return False
-        stack[top, 0] = lo
-        stack[top, 1] = mid
-        stack[top, 2] = f_lo
-        stack[top, 3] = f_mid
-        stack[top + 1, 0] = mid
-        stack[top + 1, 1] = hi
-        stack[top + 1, 2] = f_mid
-        stack[top + 1, 3] = f_hi
+        _push(stack, top, lo, mid, f_lo, f_mid)
+        _push(stack, top + 1, mid, hi, f_mid, f_hi)
         top += 2
     return True

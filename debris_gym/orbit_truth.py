@@ -415,23 +415,23 @@ def _reference_rk4(work, dt, substeps, inv_ballistic, j2, atmosphere):
             sw += weight * kaz
             nxt = base + k + 1
             if k < 3:
-                a = stage_scale[k]
-                work[nxt, 0] = work[base, 0] + a * kvx
-                work[nxt, 1] = work[base, 1] + a * kvy
-                work[nxt, 2] = work[base, 2] + a * kvz
-                work[nxt, 3] = work[base, 3] + a * kax
-                work[nxt, 4] = work[base, 4] + a * kay
-                work[nxt, 5] = work[base, 5] + a * kaz
+                _advance_row(work, nxt, base, stage_scale[k], kvx, kvy, kvz, kax, kay, kaz)
                 _fill_track_row(work, nxt, inv_ballistic, j2, atmosphere)
         end = base + 4
-        sixth = h / 6.0
-        work[end, 0] = work[base, 0] + sixth * sx
-        work[end, 1] = work[base, 1] + sixth * sy
-        work[end, 2] = work[base, 2] + sixth * sz
-        work[end, 3] = work[base, 3] + sixth * su
-        work[end, 4] = work[base, 4] + sixth * sv
-        work[end, 5] = work[base, 5] + sixth * sw
+        _advance_row(work, end, base, h / 6.0, sx, sy, sz, su, sv, sw)
         _fill_track_row(work, end, inv_ballistic, j2, atmosphere)
+
+
+@inlined
+def _advance_row(work, row, base, scale, vx, vy, vz, ax, ay, az):
+    """``work[row, :6]`` ← ``work[base, :6]`` + ``scale`` · (v, a): one RK4 stage or the
+    step's end from the step's start state."""
+    work[row, 0] = work[base, 0] + scale * vx
+    work[row, 1] = work[base, 1] + scale * vy
+    work[row, 2] = work[base, 2] + scale * vz
+    work[row, 3] = work[base, 3] + scale * ax
+    work[row, 4] = work[base, 4] + scale * ay
+    work[row, 5] = work[base, 5] + scale * az
 
 
 @inlined
