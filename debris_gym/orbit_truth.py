@@ -257,31 +257,13 @@ def _frame(rx, ry, rz, vx, vy, vz, px, py, pz):
 def _fill_track_row(work, row, inv_ballistic, j2, atmosphere):
     """Complete row ``row`` of a track whose first 6 columns hold the reference's state:
     its perturbing acceleration and its frame record."""
-    px, py, pz = _perturbation(
-        work[row, 0],
-        work[row, 1],
-        work[row, 2],
-        work[row, 3],
-        work[row, 4],
-        work[row, 5],
-        inv_ballistic,
-        j2,
-        atmosphere,
-    )
+    x, y, z = work[row, 0], work[row, 1], work[row, 2]
+    vx, vy, vz = work[row, 3], work[row, 4], work[row, 5]
+    px, py, pz = _perturbation(x, y, z, vx, vy, vz, inv_ballistic, j2, atmosphere)
     work[row, 6] = px
     work[row, 7] = py
     work[row, 8] = pz
-    f = _frame(
-        work[row, 0],
-        work[row, 1],
-        work[row, 2],
-        work[row, 3],
-        work[row, 4],
-        work[row, 5],
-        px,
-        py,
-        pz,
-    )
+    f = _frame(x, y, z, vx, vy, vz, px, py, pz)
     for k in range(FRAME_WIDTH):
         work[row, _FRAME + k] = f[k]
 
