@@ -5,22 +5,22 @@ extra); the argument checks and the work plan run everywhere."""
 
 from __future__ import annotations
 
-import csv
 import importlib.util
-from pathlib import Path
 
 import pytest
 
 from agents.experiments.distributed.evaluation import RayBackend, Unit, plan_units
 from agents.experiments.evaluation.journal import EvaluationJournal
-from agents.experiments.evaluation.records import RECORD_FIELDS, TIMING_COLUMNS
-from agents.experiments.evaluation.runner import EvaluationJob, evaluate_agents
+from agents.experiments.evaluation.runner import EvaluationJob
 from agents.experiments.evaluation.specs import parse_agent_specs
 from tests.helpers import flies_old_ids, load_script
+from tests.helpers_evaluate import (
+    assert_backend_flies_the_local_records,
+    episode_rows,
+    usage_error,
+)
 
 EASY = "DebrisGym/Rendezvous2D-Easy-v2"
-LEARNED_EASY = "DebrisGym/Rendezvous2D-Easy-v1"
-"""The Easy rung with a shipped pretrained policy (a learned agent to fly on Ray)."""
 QUICK = ["--env", EASY, "--max-steps", "60", "--plots", "0", "--no-progress"]
 HAS_RAY = importlib.util.find_spec("ray") is not None
 
@@ -39,30 +39,16 @@ def local_ray():
     ray.shutdown()
 
 
-def _usage_error(cli, capsys, argv: list[str]) -> str:
-    with pytest.raises(SystemExit) as exc:
-        cli.main(argv)
-    assert exc.value.code == 2
-    err = capsys.readouterr().err
-    assert "Traceback" not in err
-    return err
-
-
-def _rows(out: Path) -> list[dict[str, str]]:
-    with open(out / "episodes.csv", newline="") as fh:
-        return [{k: v for k, v in r.items() if k not in TIMING_COLUMNS} for r in csv.DictReader(fh)]
-
-
 def test_backend_options_are_checked_before_anything_runs(cli, capsys, tmp_path):
     out = tmp_path / "eval"
-    err = _usage_error(cli, capsys, [*QUICK, "--address", "auto", "--out", str(out)])
+    err = usage_error(cli, capsys, [*QUICK, "--address", "auto", "--out", str(out)])
     assert "argument --address: needs --backend ray" in err
-    err = _usage_error(cli, capsys, [*QUICK, "--backend", "ray", "--workers", "0"])
+    err = usage_error(cli, capsys, [*QUICK, "--backend", "ray", "--workers", "0"])
     assert "argument --workers: must be an integer >= 1" in err
-    err = _usage_error(cli, capsys, [*QUICK, "--backend", "dask"])
+    err = usage_error(cli, capsys, [*QUICK, "--backend", "dask"])
     assert "argument --backend: invalid choice: 'dask'" in err
     if HAS_RAY:
-        err = _usage_error(cli, capsys, [*QUICK, "--backend", "ray", "--video", "1"])
+        err = usage_error(cli, capsys, [*QUICK, "--backend", "ray", "--video", "1"])
         assert "argument --video: records on the local backend only" in err
     assert not out.exists()
     with pytest.raises(ValueError, match="workers must be an integer >= 1, got 0"):
@@ -74,7 +60,7 @@ def test_the_ray_backend_without_ray_names_the_extra(cli, capsys, monkeypatch, t
     monkeypatch.setattr(
         importlib.util, "find_spec", lambda name, *a: None if name == "ray" else real(name)
     )
-    err = _usage_error(cli, capsys, [*QUICK, "--backend", "ray", "--out", str(tmp_path / "e")])
+    err = usage_error(cli, capsys, [*QUICK, "--backend", "ray", "--out", str(tmp_path / "e")])
     assert "argument --backend: ray needs Ray, which is not installed" in err
     assert "pip install 'debris-gym[distributed]'" in err
 
@@ -95,24 +81,7 @@ def test_stateful_agents_fly_in_order_with_their_finished_episodes_replayed():
 @pytest.mark.skipif(not HAS_RAY, reason="needs ray (pip install 'debris-gym[distributed]')")
 @flies_old_ids
 def test_ray_records_equal_the_local_records(local_ray):
-    agents = "apf,random,zero,pretrained"  # random: a stateful agent; pretrained: a learned one
-    kwargs = {"env_kwargs": {}, "max_episode_steps": 60, "progress": False}
-    local = evaluate_agents(LEARNED_EASY, agents, episodes=5, seed=7, **kwargs)
-    arrived = []
-    remote = evaluate_agents(
-        LEARNED_EASY, agents, episodes=5, seed=7, on_episode=arrived.append,
-        backend=RayBackend(workers=2), **kwargs,
-    )  # fmt: skip
-    assert len(arrived) == 20
-    assert [(r.agent, r.episode) for r in remote.records] == [
-        (r.agent, r.episode) for r in local.records
-    ]
-    fields = [f for f in RECORD_FIELDS if f not in TIMING_COLUMNS]
-    for a, b in zip(local.records, remote.records):
-        assert [getattr(a, f) for f in fields] == [getattr(b, f) for f in fields]
-        assert (a.trajectory.positions == b.trajectory.positions).all()
-        assert (a.trajectory.accelerations == b.trajectory.accelerations).all()
-    assert local.max_episode_steps == remote.max_episode_steps == 60
+    assert_backend_flies_the_local_records(RayBackend(workers=2), episodes=5, max_steps=60)
 
 
 @pytest.mark.skipif(not HAS_RAY, reason="needs ray (pip install 'debris-gym[distributed]')")
@@ -146,5 +115,5 @@ def test_an_interrupted_ray_run_resumes_without_flying_its_finished_episodes(
     monkeypatch.setattr(EvaluationJournal, "append", lambda s, r: counted(s, r))
     assert cli.main(["--resume", str(out), "--no-progress", *ray_args]) == 0
     assert appended[0] == 12 - 5  # the finished episodes were not journaled (flown) again
-    assert _rows(out) == _rows(whole)
+    assert episode_rows(out) == episode_rows(whole)
     assert not EvaluationJournal(out).exists()

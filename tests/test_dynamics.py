@@ -1,10 +1,10 @@
 """Tests for :mod:`debris_gym.dynamics` against independent truth.
 
 Every reference here is built without :func:`debris_gym.dynamics.cwh_matrices`: the CWH equations
-are re-typed from the textbook (ẍ = 3n²x + 2nẏ + u_x, ÿ = −2nẋ + u_y, z̈ = −n²z + u_z), the closed
-form is re-typed in the arrangement of [Vallado13] (keys: docs/references.md), the matrix
-exponential is recomputed with mpmath at 50 digits, and the full nonlinear two-body problem is
-integrated in inertial coordinates.
+are re-typed from the textbook (``tests.helpers.cwh_rhs``: ẍ = 3n²x + 2nẏ + u_x, ÿ = −2nẋ + u_y,
+z̈ = −n²z + u_z), the closed form is re-typed in the arrangement of [Vallado13] (keys:
+docs/references.md), the matrix exponential is recomputed with mpmath at 50 digits, and the full
+nonlinear two-body problem is integrated in inertial coordinates.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from debris_gym.dynamics import (
     propagate,
     substep_position_matrix,
 )
-from tests.helpers import cw_closed_form
+from tests.helpers import cw_closed_form, integrate_cwh
 
 MU = 3.986004418e14  # typed independently of MU_EARTH
 R_ORBIT = 6_778_137.0
@@ -41,43 +41,6 @@ DTS = [1.0, 5.0, 30.0, 100.0, 300.0, 600.0]
 
 
 # ----------------------------------------------------------------------------- helpers
-
-
-def cwh_rhs(n: float, dim: int, accel: np.ndarray):
-    """Right-hand side of the CWH ODE with constant commanded acceleration, typed from the
-    equations (not from ``cwh_matrices``)."""
-    accel = np.asarray(accel, dtype=float)
-
-    def rhs(_t: float, s: np.ndarray) -> np.ndarray:
-        if dim == 2:
-            x, _y, vx, vy = s
-            return np.array([vx, vy, 3 * n * n * x + 2 * n * vy + accel[0], -2 * n * vx + accel[1]])
-        x, _y, z, vx, vy, vz = s
-        return np.array(
-            [
-                vx,
-                vy,
-                vz,
-                3 * n * n * x + 2 * n * vy + accel[0],
-                -2 * n * vx + accel[1],
-                -n * n * z + accel[2],
-            ]
-        )
-
-    return rhs
-
-
-def integrate_cwh(n: float, dim: int, state0, accel, t: float) -> np.ndarray:
-    sol = solve_ivp(
-        cwh_rhs(n, dim, accel),
-        (0.0, t),
-        np.asarray(state0, dtype=float),
-        method="DOP853",
-        rtol=1e-12,
-        atol=1e-14,
-    )
-    assert sol.success
-    return sol.y[:, -1]
 
 
 def vallado_coast(state0: np.ndarray, n: float, t: float) -> np.ndarray:

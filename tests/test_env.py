@@ -17,7 +17,7 @@ from debris_gym.envs import DebrisFieldEnv
 from debris_gym.envs.vector import DebrisFieldVectorEnv
 from debris_gym.rewards import REWARD_TERMS
 from debris_gym.scenario import Body
-from tests.helpers import flies_old_ids, simple_scenario
+from tests.helpers import flies_old_ids, integrate_cwh, simple_scenario
 
 # many tests fly the free-space simple_scenario in envs with the default LEO orbit on purpose;
 # every registered ID is checked, the old versions (v0, v1) included
@@ -180,9 +180,8 @@ def test_info_keys_on_reset_and_step(env_id):
 
 
 def test_coasting_and_thrusting_follow_exact_dynamics():
-    """Env states equal the independent ODE solution of the CWH equations."""
-    from scipy.integrate import solve_ivp
-
+    """Env states equal the independent ODE solution of the CWH equations
+    (``tests.helpers.integrate_cwh``)."""
     env = DebrisFieldEnv(dim=3, thrust_model="box", delta_v_budget=None, n_obstacles=0)
     env.reset(seed=0)
     scen = env.scenario
@@ -190,24 +189,10 @@ def test_coasting_and_thrusting_follow_exact_dynamics():
     state = np.array([1.0, -2.0, 3.0, 0.01, 0.02, -0.01])
     env.reset(seed=0, options={"scenario": scen, "chaser_state": state})
     actions = [np.zeros(3), np.array([1.0, -0.5, 0.25]), np.array([-0.3, 0.9, -1.0])] * 3
-
-    def rhs(_t, s, u):
-        x, y, z, vx, vy, vz = s
-        return [
-            vx,
-            vy,
-            vz,
-            3 * n * n * x + 2 * n * vy + u[0],
-            -2 * n * vx + u[1],
-            -n * n * z + u[2],
-        ]
-
     truth = state.copy()
     for a in actions:
         _, _, terminated, _, info = env.step(a.astype(np.float32))
-        u = amax * a.astype(np.float32).astype(float)
-        sol = solve_ivp(rhs, (0, dt), truth, args=(u,), method="DOP853", rtol=1e-12, atol=1e-12)
-        truth = sol.y[:, -1]
+        truth = integrate_cwh(n, 3, truth, amax * a.astype(np.float32).astype(float), dt)
         got = info["chaser_state"]
         assert np.linalg.norm(got - truth) <= 1e-6 * np.linalg.norm(truth)
         assert not terminated
@@ -342,20 +327,29 @@ def test_leaving_bounds_terminates():
     assert info["reward_terms"]["out_of_bounds"] == -env.config.reward_out_of_bounds
 
 
-def test_progress_shaping_telescopes_to_potential_difference():
-    """Σ γ^t F_t = γ^T Φ(s_T) − Φ(s_0): the shaping is potential-based."""
-    gamma = 0.9
-    env = DebrisFieldEnv(shaping_gamma=gamma, reward_progress=1.0, delta_v_budget=None)
+def discounted_progress(
+    env: DebrisFieldEnv, gamma: float, steps: int
+) -> tuple[float, float, float, bool]:
+    """Fly seeded random thrust from ``env.reset(seed=4)`` for ``steps`` steps or until it
+    terminates: Φ(s_0), Σ γ^t F_t of the progress terms, γ^T, and whether it terminated."""
     env.reset(seed=4)
     phi0 = env.potential
-    total, discount = 0.0, 1.0
+    total, discount, terminated = 0.0, 1.0, False
     rng = np.random.default_rng(0)
-    for _ in range(60):
+    for _ in range(steps):
         _, _, terminated, _, info = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
         total += discount * info["reward_terms"]["progress"]
         discount *= gamma
         if terminated:
             break
+    return phi0, total, discount, terminated
+
+
+def test_progress_shaping_telescopes_to_potential_difference():
+    """Σ γ^t F_t = γ^T Φ(s_T) − Φ(s_0): the shaping is potential-based."""
+    gamma = 0.9
+    env = DebrisFieldEnv(shaping_gamma=gamma, reward_progress=1.0, delta_v_budget=None)
+    phi0, total, discount, terminated = discounted_progress(env, gamma, 60)
     phi_end = 0.0 if terminated else env.potential
     assert total == pytest.approx(discount * phi_end - phi0, rel=1e-9, abs=1e-9)
 
@@ -366,17 +360,7 @@ def test_held_terminal_potential_telescopes_to_progress_made(gamma):
     env = DebrisFieldEnv(
         shaping_gamma=gamma, shaping_terminal="hold", reward_progress=1.0, delta_v_budget=None
     )
-    env.reset(seed=4)
-    phi0 = env.potential
-    total, discount = 0.0, 1.0
-    rng = np.random.default_rng(0)
-    terminated = False
-    for _ in range(200):
-        _, _, terminated, _, info = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
-        total += discount * info["reward_terms"]["progress"]
-        discount *= gamma
-        if terminated:
-            break
+    phi0, total, discount, terminated = discounted_progress(env, gamma, 200)
     assert terminated  # random thrust ends the episode (a crash or leaving the bounds)
     assert env.potential < -0.5  # far from done: the refund would have been large
     assert total == pytest.approx(discount * env.potential - phi0, rel=1e-9, abs=1e-9)

@@ -4,16 +4,15 @@ episodes, and --resume DIR finishing the run as if it had never stopped."""
 
 from __future__ import annotations
 
-import csv
 import errno
 import json
 import os
 import signal
 import subprocess
 import sys
-import textwrap
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -25,12 +24,11 @@ from agents.experiments.evaluation.journal import (
     record_from_json,
     record_to_json,
 )
-from agents.experiments.evaluation.records import TIMING_COLUMNS, scenario_fingerprint
+from agents.experiments.evaluation.records import scenario_fingerprint
 from agents.experiments.run_directory import MANIFEST, RunDirectoryBusy, RunDirectoryLock
 from tests.helpers import flies_old_ids, load_script
+from tests.helpers_evaluate import SCRIPT, episode_rows, run_evaluate, script_env, usage_error
 
-ROOT = Path(__file__).resolve().parents[1]
-SCRIPT = ROOT / "evaluate.py"
 QUICK = [
     "--env-kwargs", '{"n_obstacles": 5}', "--max-steps", "30", "--no-progress", "--workers", "1",
 ]  # fmt: skip
@@ -40,21 +38,6 @@ QUICK = [
 @pytest.fixture(scope="module")
 def cli():
     return load_script("evaluate.py")
-
-
-def _usage_error(cli, capsys, argv: list[str]) -> str:
-    with pytest.raises(SystemExit) as exc:
-        cli.main(argv)
-    assert exc.value.code == 2
-    err = capsys.readouterr().err
-    assert "Traceback" not in err
-    return err
-
-
-def _rows(out: Path) -> list[dict[str, str]]:
-    """episodes.csv without its wall-clock columns (the rest is a function of the seeds)."""
-    with open(out / "episodes.csv", newline="") as fh:
-        return [{k: v for k, v in r.items() if k not in TIMING_COLUMNS} for r in csv.DictReader(fh)]
 
 
 def _count_episodes(monkeypatch, interrupt_at: int | None = None) -> list[int]:
@@ -87,9 +70,9 @@ def test_out_naming_a_file_or_a_path_under_one_is_a_usage_error(cli, capsys, mon
     _never_evaluate(monkeypatch)
     afile = tmp_path / "afile"
     afile.write_text("mine")
-    err = _usage_error(cli, capsys, ["--agents", "zero", "--out", str(afile)])
+    err = usage_error(cli, capsys, ["--agents", "zero", "--out", str(afile)])
     assert "argument --out" in err and str(afile) in err and "is a file" in err
-    err = _usage_error(cli, capsys, ["--agents", "zero", "--out", str(afile / "x")])
+    err = usage_error(cli, capsys, ["--agents", "zero", "--out", str(afile / "x")])
     assert "argument --out" in err and "lies under" in err
     assert afile.read_text() == "mine"
 
@@ -99,7 +82,7 @@ def test_an_empty_out_is_refused_instead_of_writing_into_the_current_directory(
 ):
     _never_evaluate(monkeypatch)
     monkeypatch.chdir(tmp_path)
-    err = _usage_error(cli, capsys, ["--agents", "zero", "--out", ""])
+    err = usage_error(cli, capsys, ["--agents", "zero", "--out", ""])
     assert "argument --out" in err and "empty" in err
     assert not list(tmp_path.iterdir())
 
@@ -109,7 +92,7 @@ def test_an_unwritable_out_is_a_usage_error(cli, capsys, monkeypatch, tmp_path):
     _never_evaluate(monkeypatch)
     locked = tmp_path / "ro"
     locked.mkdir(mode=0o500)
-    err = _usage_error(cli, capsys, ["--agents", "zero", "--out", str(locked / "out")])
+    err = usage_error(cli, capsys, ["--agents", "zero", "--out", str(locked / "out")])
     assert "argument --out" in err and "permission denied" in err
 
 
@@ -119,7 +102,7 @@ def test_a_second_run_on_a_directory_is_refused_naming_the_first(
     _never_evaluate(monkeypatch)
     out = tmp_path / "eval"
     with RunDirectoryLock(out):  # the first run, still going
-        err = _usage_error(cli, capsys, ["--agents", "zero", *QUICK, "--out", str(out)])
+        err = usage_error(cli, capsys, ["--agents", "zero", *QUICK, "--out", str(out)])
         assert sorted(p.name for p in out.iterdir()) == [".lock"]  # the first run's only
     assert "argument --out" in err and f"process {os.getpid()}" in err
     assert list(out.iterdir()) == []  # the first run's lock file goes when it ends
@@ -177,7 +160,7 @@ def test_ctrl_c_while_the_outputs_are_written_leaves_the_previous_set_whole(
     calls = _count_episodes(monkeypatch)
     assert cli.main(["--resume", str(out), "--no-progress", "--workers", "1"]) == 0
     assert calls[0] == 0  # every episode had finished: only the outputs are written
-    assert {r["seed"] for r in _rows(out)} == {"3", "4"}
+    assert {r["seed"] for r in episode_rows(out)} == {"3", "4"}
     assert len(list(out.glob("trajectories_ep*.png"))) == 2
 
 
@@ -220,7 +203,7 @@ def test_an_interrupted_run_resumes_to_the_uninterrupted_result(cli, capsys, mon
     assert cli.main(["--resume", str(out), "--no-progress", "--workers", "1"]) == 0
     # zero is skipped; random re-flies episode 0 (its generator carries over), then 1 and 2
     assert calls[0] == 3 + 3
-    assert _rows(out) == _rows(whole)
+    assert episode_rows(out) == episode_rows(whole)
     assert not journal.exists()
     whole_summary = json.loads((whole / "summary.json").read_text())
     summary = json.loads((out / "summary.json").read_text())
@@ -229,44 +212,70 @@ def test_an_interrupted_run_resumes_to_the_uninterrupted_result(cli, capsys, mon
             assert summary["agents"][label][key] == entry[key]
 
 
-def test_ctrl_c_for_real_in_a_run_started_with_sigint_ignored(tmp_path):
-    (tmp_path / "slowpolicy.py").write_text(
-        textwrap.dedent(
-            """
-            import time
-            import numpy as np
+SLOW_POLICY = """
+import time
+import numpy as np
 
-            class Slow:
-                def __init__(self, env):
-                    self.dim = env.unwrapped.dim
+class Slow:
+    episode_independent = {independent}
 
-                def predict(self, obs, state=None, episode_start=None, deterministic=True):
-                    time.sleep(0.02)
-                    return np.zeros(self.dim, dtype=np.float32), state
-            """
-        )
-    )
-    out = tmp_path / "eval"
-    argv = [
-        sys.executable, str(SCRIPT), "--agents", "zero,slow=slowpolicy:Slow", "--episodes", "6",
-        "--env-kwargs", '{"n_obstacles": 3}', "--max-steps", "25", "--plots", "0",
-        "--no-progress", "--out", str(out),
+    def __init__(self, env):
+        self.dim = env.unwrapped.dim
+
+    def predict(self, obs, state=None, episode_start=None, deterministic=True):
+        time.sleep(0.02)
+        return np.zeros(self.dim, dtype=np.float32), state
+"""
+"""An agent that coasts 20 ms a step, slow enough to be stopped mid-run; ``episode_independent``
+(its episodes may fly on any worker) or not (one worker flies them in order)."""
+
+
+def _start_slow_run(
+    out: Path, episodes: int, independent: bool, *argv: str, **popen: Any
+) -> tuple[subprocess.Popen[str], EvaluationJournal]:
+    """Start evaluate.py on zero and :data:`SLOW_POLICY` (``argv`` added) into ``out`` as a
+    command in its parent directory, its output piped; the process and the journal of its run."""
+    (out.parent / "slowpolicy.py").write_text(SLOW_POLICY.format(independent=independent))
+    command = [
+        sys.executable, str(SCRIPT), "--agents", "zero,slow=slowpolicy:Slow",
+        "--episodes", str(episodes), "--env-kwargs", '{"n_obstacles": 3}', "--max-steps", "25",
+        "--plots", "0", "--no-progress", *argv, "--out", str(out),
     ]  # fmt: skip
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    proc = subprocess.Popen(
+        command, cwd=out.parent, env=script_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True, **popen,
+    )  # fmt: skip
+    return proc, EvaluationJournal(out)
 
+
+def _wait_until_journaled(
+    proc: subprocess.Popen[str], journal: EvaluationJournal, lines: int, timeout: float
+) -> None:
+    """Wait until the journal holds more than ``lines`` lines, the run ends or ``timeout`` s
+    pass."""
+    path, deadline = journal.episodes_path, time.monotonic() + timeout
+    while time.monotonic() < deadline and proc.poll() is None:
+        if path.is_file() and path.read_text().count("\n") > lines:
+            return
+        time.sleep(0.05)
+
+
+def _assert_resumes_every_episode(out: Path, episodes: int, timeout: float) -> None:
+    """``evaluate.py --resume out`` as a command finishes the run of :func:`_start_slow_run`:
+    both agents' episodes, in order."""
+    resumed = run_evaluate(out.parent, "--resume", str(out), "--no-progress", timeout=timeout)
+    assert resumed.returncode == 0, resumed.stderr
+    pairs = [(r["agent"], int(r["episode"])) for r in episode_rows(out)]
+    assert pairs == [(a, i) for a in ("zero", "slow") for i in range(episodes)]
+
+
+def test_ctrl_c_for_real_in_a_run_started_with_sigint_ignored(tmp_path):
     def ignore_sigint() -> None:  # what a shell does for a job started with '&'
         signal.signal(signal.SIGINT, signal.SIG_IGN)
 
-    proc = subprocess.Popen(
-        argv, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True, preexec_fn=ignore_sigint,
-    )  # fmt: skip
-    journal = EvaluationJournal(out)
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline and proc.poll() is None:
-        if journal.episodes_path.is_file() and journal.episodes_path.read_text().count("\n") > 6:
-            break  # zero is done and slow is on its way
-        time.sleep(0.05)
+    out = tmp_path / "eval"
+    proc, journal = _start_slow_run(out, 6, False, preexec_fn=ignore_sigint)
+    _wait_until_journaled(proc, journal, 6, timeout=120)  # zero is done and slow is on its way
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
@@ -275,22 +284,15 @@ def test_ctrl_c_for_real_in_a_run_started_with_sigint_ignored(tmp_path):
     assert 7 <= finished < 12
     assert f"{finished} of 12 episodes finished" in err
     assert f"resume with: python evaluate.py --resume {out}" in err
-
-    resumed = subprocess.run(
-        [sys.executable, str(SCRIPT), "--resume", str(out), "--no-progress"],
-        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120,
-    )  # fmt: skip
-    assert resumed.returncode == 0, resumed.stderr
-    pairs = [(r["agent"], int(r["episode"])) for r in _rows(out)]
-    assert pairs == [(a, i) for a in ("zero", "slow") for i in range(6)]
+    _assert_resumes_every_episode(out, 6, timeout=120)
 
 
 def test_resume_takes_no_other_options_and_needs_an_unfinished_run(cli, capsys, tmp_path):
-    err = _usage_error(cli, capsys, ["--resume", str(tmp_path), "--seed", "3"])
+    err = usage_error(cli, capsys, ["--resume", str(tmp_path), "--seed", "3"])
     assert "argument --seed" in err and "--resume" in err
-    err = _usage_error(cli, capsys, ["--resume", str(tmp_path)])
+    err = usage_error(cli, capsys, ["--resume", str(tmp_path)])
     assert "argument --resume" in err and "nothing to resume" in err
-    err = _usage_error(cli, capsys, ["--resume", str(tmp_path / "nowhere")])
+    err = usage_error(cli, capsys, ["--resume", str(tmp_path / "nowhere")])
     assert "argument --resume" in err and "not a directory" in err
 
 
@@ -352,10 +354,10 @@ def test_resume_refuses_a_journal_of_another_evaluation(cli, capsys, monkeypatch
     journal = EvaluationJournal(out)
     options = json.loads(journal.options_path.read_text())
     journal.options_path.write_text(json.dumps({**options, "seed": 7}))  # not what was flown
-    err = _usage_error(cli, capsys, ["--resume", str(out)])
+    err = usage_error(cli, capsys, ["--resume", str(out)])
     assert "argument --resume" in err and "episodes.jsonl" in err and "reset seed 0" in err
     journal.options_path.write_text("{not json")
-    err = _usage_error(cli, capsys, ["--resume", str(out)])
+    err = usage_error(cli, capsys, ["--resume", str(out)])
     assert "argument --resume" in err and "options.json" in err
 
 
@@ -371,7 +373,7 @@ def test_video_records_each_agents_first_episodes(cli, tmp_path):
     for agent in ("zero", "apf"):
         videos = sorted((out / "videos" / agent).glob("*.mp4"))
         assert [v.name for v in videos] == [f"{agent}-episode-0.mp4"]
-        rows = [r for r in _rows(out) if r["agent"] == agent and r["episode"] == "0"]
+        rows = [r for r in episode_rows(out) if r["agent"] == agent and r["episode"] == "0"]
         steps = int(rows[0]["steps"])
         with VideoFileClip(str(videos[0])) as clip:
             frames = sum(1 for _ in clip.iter_frames())
@@ -379,7 +381,7 @@ def test_video_records_each_agents_first_episodes(cli, tmp_path):
 
 
 def test_a_bad_video_count_is_a_usage_error(cli, capsys):
-    err = _usage_error(cli, capsys, ["--agents", "zero", "--video", "-1"])
+    err = usage_error(cli, capsys, ["--agents", "zero", "--video", "-1"])
     assert "argument --video" in err and "must be an integer >= 0" in err
 
 
@@ -415,7 +417,7 @@ def test_a_full_disk_while_journaling_stops_the_run_with_the_resume_line(
         f"--resume {out}" in err  # fmt: skip
     monkeypatch.setattr(EvaluationJournal, "append", append)
     assert cli.main(["--resume", str(out), "--no-progress", "--workers", "1"]) == 0
-    assert _rows(out) == _rows(whole)
+    assert episode_rows(out) == episode_rows(whole)
 
 
 def test_a_full_disk_while_the_outputs_are_written_keeps_every_episode(
@@ -452,7 +454,7 @@ def test_runs_without_out_never_replace_each_other(cli, capsys, monkeypatch, tmp
         captured.err
     )
     assert {p.name: p.read_bytes() for p in (tmp_path / "runs/eval").iterdir()} == first
-    assert [r["seed"] for r in _rows(tmp_path / "runs/eval-2")] == ["2"]
+    assert [r["seed"] for r in episode_rows(tmp_path / "runs/eval-2")] == ["2"]
     assert [p.name for p in sorted((tmp_path / "runs").iterdir())] == ["eval", "eval-2"]
 
 
@@ -489,41 +491,12 @@ def test_a_finished_run_leaves_no_lock_file(cli, tmp_path):
 def test_ctrl_c_at_the_terminal_stops_the_workers_and_the_run_resumes(tmp_path):
     """A Ctrl-C at a terminal reaches the whole process group: the workers ignore it, the main
     process journals what finished, stops them and prints the resume command."""
-    (tmp_path / "slowpolicy.py").write_text(
-        textwrap.dedent(
-            """
-            import time
-            import numpy as np
-
-            class Slow:
-                episode_independent = True
-
-                def __init__(self, env):
-                    self.dim = env.unwrapped.dim
-
-                def predict(self, obs, state=None, episode_start=None, deterministic=True):
-                    time.sleep(0.02)
-                    return np.zeros(self.dim, dtype=np.float32), state
-            """
-        )
-    )
     out = tmp_path / "eval"
-    argv = [
-        sys.executable, str(SCRIPT), "--agents", "zero,slow=slowpolicy:Slow", "--episodes", "8",
-        "--env-kwargs", '{"n_obstacles": 3}', "--max-steps", "25", "--plots", "0",
-        "--no-progress", "--workers", "2", "--out", str(out),
-    ]  # fmt: skip
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    proc = subprocess.Popen(
-        argv, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True, start_new_session=True,  # its own process group, as a terminal job has
+    proc, journal = _start_slow_run(
+        out, 8, True, "--workers", "2",
+        start_new_session=True,  # its own process group, as a terminal job has
     )  # fmt: skip
-    journal = EvaluationJournal(out)
-    deadline = time.monotonic() + 180
-    while time.monotonic() < deadline and proc.poll() is None:
-        if journal.episodes_path.is_file() and journal.episodes_path.read_text().count("\n") > 9:
-            break  # zero is done and slow is on its way
-        time.sleep(0.05)
+    _wait_until_journaled(proc, journal, 9, timeout=180)  # zero is done and slow is on its way
     os.killpg(proc.pid, signal.SIGINT)  # what the terminal does on Ctrl-C
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
@@ -536,14 +509,7 @@ def test_ctrl_c_at_the_terminal_stops_the_workers_and_the_run_resumes(tmp_path):
         while time.monotonic() < deadline:
             os.killpg(proc.pid, 0)
             time.sleep(0.1)
-
-    resumed = subprocess.run(
-        [sys.executable, str(SCRIPT), "--resume", str(out), "--no-progress"],
-        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300,
-    )  # fmt: skip
-    assert resumed.returncode == 0, resumed.stderr
-    pairs = [(r["agent"], int(r["episode"])) for r in _rows(out)]
-    assert pairs == [(a, i) for a in ("zero", "slow") for i in range(8)]
+    _assert_resumes_every_episode(out, 8, timeout=300)
 
 
 # --- videos ---------------------------------------------------------------------------------
@@ -590,7 +556,7 @@ def test_shielded_frames_show_the_shield_and_its_interventions():
 
 
 def test_video_records_in_this_process_only(cli, capsys, tmp_path):
-    err = _usage_error(
+    err = usage_error(
         cli, capsys, ["--agents", "zero", "--video", "1", "--workers", "2", "--out", str(tmp_path)]
     )
     assert "argument --workers: --video records in this process: use --workers 1" in err

@@ -4,10 +4,8 @@ agent once per worker for the whole run, and reports a worker that dies."""
 
 from __future__ import annotations
 
-import csv
 import os
 import subprocess
-import sys
 import textwrap
 from pathlib import Path
 
@@ -16,15 +14,15 @@ import pytest
 from agents.experiments.evaluation.failures import AgentFailure
 from agents.experiments.evaluation.journal import EvaluationJournal
 from agents.experiments.evaluation.pool import ProcessBackend, available_cores
-from agents.experiments.evaluation.records import RECORD_FIELDS, TIMING_COLUMNS
 from agents.experiments.evaluation.runner import evaluate_agents
 from tests.helpers import flies_old_ids, load_script
+from tests.helpers_evaluate import (
+    assert_backend_flies_the_local_records,
+    episode_rows,
+    run_evaluate,
+)
 
-ROOT = Path(__file__).resolve().parents[1]
-SCRIPT = ROOT / "evaluate.py"
 EASY = "DebrisGym/Rendezvous2D-Easy-v2"
-LEARNED_EASY = "DebrisGym/Rendezvous2D-Easy-v1"
-"""The Easy rung with a shipped pretrained policy (a learned agent to pool)."""
 QUICK = ["--env", EASY, "--max-steps", "40", "--plots", "0", "--no-progress"]
 
 
@@ -33,32 +31,11 @@ def cli():
     return load_script("evaluate.py")
 
 
-def _rows(out: Path) -> list[dict[str, str]]:
-    with open(out / "episodes.csv", newline="") as fh:
-        return [{k: v for k, v in r.items() if k not in TIMING_COLUMNS} for r in csv.DictReader(fh)]
-
-
 @flies_old_ids
 def test_pooled_records_equal_one_process_records():
-    """Regression: evaluate.py flew every episode in one process; two workers must give the same
-    records (random: a stateful agent, flown in order by one worker; pretrained: a learned one)."""
-    agents = "apf,random,zero,pretrained"
-    kwargs = {"env_kwargs": {}, "max_episode_steps": 40, "progress": False}
-    local = evaluate_agents(LEARNED_EASY, agents, episodes=4, seed=7, **kwargs)
-    arrived = []
-    pooled = evaluate_agents(
-        LEARNED_EASY, agents, episodes=4, seed=7, on_episode=arrived.append,
-        backend=ProcessBackend(workers=2), **kwargs,
-    )  # fmt: skip
-    assert len(arrived) == 16  # each record handed on as it arrived
-    assert [(r.agent, r.episode) for r in pooled.records] == [
-        (r.agent, r.episode) for r in local.records
-    ]
-    fields = [f for f in RECORD_FIELDS if f not in TIMING_COLUMNS]
-    for a, b in zip(local.records, pooled.records, strict=True):
-        assert [getattr(a, f) for f in fields] == [getattr(b, f) for f in fields]
-        assert (a.trajectory.positions == b.trajectory.positions).all()
-    assert pooled.max_episode_steps == 40
+    """Two workers give the records of one process (random, a stateful agent, flown in order by
+    one worker; pretrained, a learned one)."""
+    assert_backend_flies_the_local_records(ProcessBackend(workers=2), episodes=4, max_steps=40)
 
 
 def test_the_default_run_uses_every_core_and_writes_the_one_process_csv(cli, monkeypatch, tmp_path):
@@ -76,7 +53,7 @@ def test_the_default_run_uses_every_core_and_writes_the_one_process_csv(cli, mon
     assert cli.main([*base, "--out", str(tmp_path / "every")]) == 0
     if available_cores() > 1:
         assert used == [available_cores()]
-    assert _rows(tmp_path / "every") == _rows(tmp_path / "one")
+    assert episode_rows(tmp_path / "every") == episode_rows(tmp_path / "one")
 
 
 def test_an_interrupted_pooled_run_resumes_to_the_one_process_result(
@@ -106,12 +83,22 @@ def test_an_interrupted_pooled_run_resumes_to_the_one_process_result(
 
     monkeypatch.setattr(EvaluationJournal, "append", append)
     assert cli.main(["--resume", str(out), "--no-progress", "--workers", "2"]) == 0
-    assert _rows(out) == _rows(whole)  # random's finished episodes were re-flown in order
+    # random's finished episodes were re-flown in order
+    assert episode_rows(out) == episode_rows(whole)
     assert not EvaluationJournal(out).exists()
 
 
 def _write(path: Path, text: str) -> None:
     path.write_text(textwrap.dedent(text))
+
+
+def _run_pooled(
+    cwd: Path, agents: str, episodes: int, out: Path
+) -> subprocess.CompletedProcess[str]:
+    """evaluate.py as a command in ``cwd`` (where the test wrote its agents' modules): the quick
+    run of ``agents`` on two workers into ``out``."""
+    argv = ["--agents", agents, "--episodes", str(episodes), *QUICK, "--workers", "2"]
+    return run_evaluate(cwd, *argv, "--out", str(out))
 
 
 def test_workers_build_each_agent_once_for_the_whole_run(tmp_path):
@@ -137,16 +124,11 @@ def test_workers_build_each_agent_once_for_the_whole_run(tmp_path):
         """,
     )
     out = tmp_path / "eval"
-    proc = subprocess.run(
-        [sys.executable, str(SCRIPT), "--agents", "coast=counted:Coast", "--episodes", "8",
-         *QUICK, "--workers", "2", "--out", str(out)],
-        cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(ROOT)}, capture_output=True,
-        text=True, timeout=300,
-    )  # fmt: skip
+    proc = _run_pooled(tmp_path, "coast=counted:Coast", 8, out)
     assert proc.returncode == 0, proc.stderr
     pids = log.read_text().split()
     assert len(pids) == len(set(pids)) == 3  # the main process's check and two workers
-    assert len(_rows(out)) == 8
+    assert len(episode_rows(out)) == 8
 
 
 def test_a_worker_that_dies_stops_the_run_naming_the_agent_and_episode(tmp_path):
@@ -170,12 +152,7 @@ def test_a_worker_that_dies_stops_the_run_naming_the_agent_and_episode(tmp_path)
         """,
     )
     out = tmp_path / "eval"
-    proc = subprocess.run(
-        [sys.executable, str(SCRIPT), "--agents", "zero,f=fragile:Fragile", "--episodes", "5",
-         *QUICK, "--workers", "2", "--out", str(out)],
-        cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(ROOT)}, capture_output=True,
-        text=True, timeout=300,
-    )  # fmt: skip
+    proc = _run_pooled(tmp_path, "zero,f=fragile:Fragile", 5, out)
     assert proc.returncode == 1, proc.stderr
     assert "Traceback" not in proc.stderr
     assert "agent 'f' failed in episode 3 (reset seed 3): the worker process" in proc.stderr
@@ -231,12 +208,7 @@ def test_a_policy_failing_mid_run_in_the_pool_stops_the_run_cleanly(tmp_path):
         """,
     )
     out = tmp_path / "eval"
-    proc = subprocess.run(
-        [sys.executable, str(SCRIPT), "--agents", "zero,m=flaky:Flaky", "--episodes", "4",
-         *QUICK, "--workers", "2", "--out", str(out)],
-        cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(ROOT)}, capture_output=True,
-        text=True, timeout=300,
-    )  # fmt: skip
+    proc = _run_pooled(tmp_path, "zero,m=flaky:Flaky", 4, out)
     assert proc.returncode == 1, proc.stderr
     assert "Traceback" not in proc.stderr
     assert "agent 'm' failed in episode 1 (reset seed 1) at step 4" in proc.stderr

@@ -3,9 +3,7 @@ content hash, refuses options that would change the suite, and resumes."""
 
 from __future__ import annotations
 
-import csv
 import json
-from pathlib import Path
 
 import pytest
 
@@ -14,6 +12,7 @@ from agents.experiments.evaluation.journal import EvaluationJournal
 from agents.experiments.evaluation.records import scenario_fingerprint
 from debris_gym.suites import load_suite
 from tests.helpers import load_script
+from tests.helpers_evaluate import episode_rows, usage_error
 
 SUITE = "standard-2d-v2"
 QUICK = ["--max-steps", "4", "--plots", "0", "--no-progress", "--workers", "1"]
@@ -24,26 +23,12 @@ def cli():
     return load_script("evaluate.py")
 
 
-def _rows(out: Path) -> list[dict[str, str]]:
-    with open(out / "episodes.csv", newline="") as f:
-        return list(csv.DictReader(f))
-
-
-def _usage_error(cli, capsys, argv: list[str]) -> str:
-    with pytest.raises(SystemExit) as exc:
-        cli.main(argv)
-    assert exc.value.code == 2
-    err = capsys.readouterr().err
-    assert "Traceback" not in err
-    return err
-
-
 def test_suite_flies_its_first_n_missions_and_records_name_and_hash(cli, tmp_path, capsys):
     out = tmp_path / "suite"
     argv = ["--suite", SUITE, "--agents", "zero,random", "--episodes", "3", *QUICK]
     assert cli.main([*argv, "--out", str(out)]) == 0
     suite = load_suite(SUITE)
-    rows = _rows(out)
+    rows = episode_rows(out)
     assert len(rows) == 2 * 3
     for row in rows:
         mission = suite.missions[int(row["episode"])]
@@ -77,7 +62,7 @@ def test_suite_flies_its_first_n_missions_and_records_name_and_hash(cli, tmp_pat
     ],
 )
 def test_suite_refuses_options_that_change_it(cli, capsys, tmp_path, extra, flag, text):
-    err = _usage_error(
+    err = usage_error(
         cli, capsys, ["--suite", SUITE, "--agents", "zero", *extra, "--out", str(tmp_path / "o")]
     )
     assert f"argument {flag}:" in err and text in err
@@ -85,7 +70,7 @@ def test_suite_refuses_options_that_change_it(cli, capsys, tmp_path, extra, flag
 
 
 def test_an_unknown_suite_lists_the_shipped_ones(cli, capsys, tmp_path):
-    err = _usage_error(cli, capsys, ["--suite", "nope", "--out", str(tmp_path / "o")])
+    err = usage_error(cli, capsys, ["--suite", "nope", "--out", str(tmp_path / "o")])
     assert "argument --suite: suite must be one of" in err and SUITE in err
 
 
@@ -122,16 +107,11 @@ def test_an_interrupted_suite_run_resumes_and_refuses_a_changed_suite(
     options = json.loads(journal.options_path.read_text())
     changed = {**options, "suite_hash": "0" * 16}
     journal.options_path.write_text(json.dumps(changed))
-    err = _usage_error(cli, capsys, ["--resume", str(out), "--no-progress"])
+    err = usage_error(cli, capsys, ["--resume", str(out), "--no-progress"])
     assert "argument --resume:" in err and "has changed since the run started" in err
     journal.options_path.write_text(json.dumps(options))
 
     assert cli.main(["--resume", str(out), "--no-progress", "--workers", "1"]) == 0
-    timing = {"decision_ms_p50", "decision_ms_p95", "decision_ms_max"}
-
-    def untimed(rows):
-        return [{k: v for k, v in row.items() if k not in timing} for row in rows]
-
-    assert untimed(_rows(out)) == untimed(_rows(whole))
+    assert episode_rows(out) == episode_rows(whole)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["suite"]["hash"] == load_suite(SUITE).content_hash

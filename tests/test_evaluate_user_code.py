@@ -5,9 +5,7 @@ module or factory that fails (``SystemExit`` included) is refused by name, a pla
 
 from __future__ import annotations
 
-import csv
 import os
-import subprocess
 import sys
 import textwrap
 from pathlib import Path
@@ -22,9 +20,8 @@ from agents.experiments import evaluation as ev
 from agents.experiments.evaluation.journal import EvaluationJournal
 from agents.experiments.evaluation.specs import check_label, file_label
 from tests.helpers import load_script
+from tests.helpers_evaluate import episode_rows, run_evaluate
 
-ROOT = Path(__file__).resolve().parents[1]
-SCRIPT = ROOT / "evaluate.py"
 EASY = "DebrisGym/Rendezvous2D-Easy-v2"
 QUICK = ["--env", EASY, "--max-steps", "20", "--plots", "0", "--no-progress", "--workers", "1"]
 
@@ -38,19 +35,6 @@ def _module(where: Path, name: str, text: str) -> None:
     (where / f"{name}.py").write_text(textwrap.dedent(text))
 
 
-def _script(cwd: Path, *argv: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, str(SCRIPT), *argv],
-        cwd=cwd, env={**os.environ, "PYTHONPATH": str(ROOT)}, capture_output=True, text=True,
-        timeout=300,
-    )  # fmt: skip
-
-
-def _rows(out: Path) -> list[dict[str, str]]:
-    with open(out / "episodes.csv", newline="") as fh:
-        return list(csv.DictReader(fh))
-
-
 # --- only the named module runs -------------------------------------------------------------
 
 
@@ -60,10 +44,10 @@ def test_a_stray_module_in_the_working_directory_never_runs(tmp_path):
     marker = tmp_path / "tqdm_ran"
     _module(tmp_path, "tqdm", f"open({str(marker)!r}, 'w').close()\nraise SystemExit(3)\n")
     out = tmp_path / "eval"
-    proc = _script(tmp_path, "--agents", "zero", "--episodes", "1", *QUICK, "--out", str(out))
+    proc = run_evaluate(tmp_path, "--agents", "zero", "--episodes", "1", *QUICK, "--out", str(out))
     assert proc.returncode == 0, proc.stderr
     assert not marker.exists()
-    assert len(_rows(out)) == 1
+    assert len(episode_rows(out)) == 1
 
 
 def test_the_named_module_is_found_in_the_working_directory_and_nothing_else(tmp_path):
@@ -80,9 +64,11 @@ def test_the_named_module_is_found_in_the_working_directory_and_nothing_else(tmp
     )
     _module(tmp_path, "needs_helper", "import helper_of_mine\nPolicy = None\n")
     out = tmp_path / "eval"
-    proc = _script(tmp_path, "--agents", "mine:act", "--episodes", "1", *QUICK, "--out", str(out))
+    proc = run_evaluate(
+        tmp_path, "--agents", "mine:act", "--episodes", "1", *QUICK, "--out", str(out)
+    )
     assert proc.returncode == 0, proc.stderr
-    proc = _script(tmp_path, "--agents", "needs_helper:Policy", *QUICK, "--out", str(out))
+    proc = run_evaluate(tmp_path, "--agents", "needs_helper:Policy", *QUICK, "--out", str(out))
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert "argument --agents" in proc.stderr and "No module named 'helper_of_mine'" in proc.stderr
     assert "not put on sys.path" in proc.stderr
@@ -110,7 +96,7 @@ def test_a_module_or_factory_that_fails_is_refused_by_name(tmp_path, source, att
     sys.exit(0) ended evaluate.py with status 0 and no output."""
     (tmp_path / "userpol.py").write_text(source)
     out = tmp_path / "eval"
-    proc = _script(tmp_path, "--agents", f"mine=userpol:{attr}", *QUICK, "--out", str(out))
+    proc = run_evaluate(tmp_path, "--agents", f"mine=userpol:{attr}", *QUICK, "--out", str(out))
     assert proc.returncode == 2, proc.stderr
     assert "Traceback" not in proc.stderr
     assert "argument --agents: agent 'userpol:" in proc.stderr or "agent 'mine'" in proc.stderr
@@ -195,7 +181,7 @@ def test_a_policy_that_fails_mid_run_is_named_and_the_run_resumes(cli, capsys, t
         assert cli.main(["--resume", str(out), "--no-progress", "--workers", "1"]) == 0
     finally:
         os.chdir(cwd)
-    assert [(r["agent"], r["episode"]) for r in _rows(out)] == [
+    assert [(r["agent"], r["episode"]) for r in episode_rows(out)] == [
         (a, str(i)) for a in ("zero", "mine") for i in range(3)
     ]
 
@@ -236,9 +222,9 @@ def test_a_plain_function_flies_like_the_baseline_it_copies(tmp_path):
     )
     out = tmp_path / "eval"
     agents = "zero,a=funcs:coast,b=funcs:unnamed"
-    proc = _script(tmp_path, "--agents", agents, "--episodes", "2", *QUICK, "--out", str(out))
+    proc = run_evaluate(tmp_path, "--agents", agents, "--episodes", "2", *QUICK, "--out", str(out))
     assert proc.returncode == 0, proc.stderr
-    rows = _rows(out)
+    rows = episode_rows(out)
     for label in ("a", "b"):
         mine = [r["path_length"] for r in rows if r["agent"] == label]
         assert mine == [r["path_length"] for r in rows if r["agent"] == "zero"]

@@ -13,6 +13,7 @@ import sys
 import textwrap
 import warnings
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -285,6 +286,17 @@ def test_a_damaged_config_entry_is_refused_although_the_statistics_exist(saved_r
     env.close()
 
 
+def _evaluate_once(model: Path, out: Path) -> dict[str, Any]:
+    """evaluate.py in this process: one 3-step episode of ``ppo=model`` on ENV_ID into ``out``;
+    its summary.json."""
+    argv = [
+        "--agents", f"ppo={model}", "--episodes", "1", "--max-steps", "3", "--plots", "0",
+        "--no-progress", "--workers", "1", "--out", str(out), "--env", ENV_ID,
+    ]  # fmt: skip
+    assert load_script("evaluate.py").main(argv) == 0
+    return json.loads((out / "summary.json").read_text())
+
+
 def test_a_model_flown_on_another_env_is_named_in_a_warning_the_summary_keeps(
     saved_run, tmp_path, capsys
 ):
@@ -297,15 +309,9 @@ def test_a_model_flown_on_another_env_is_named_in_a_warning_the_summary_keeps(
     with pytest.warns(UserWarning, match="trained on DebrisGym/Rendezvous2D-Easy-v1 but is flown"):
         agents.load_agent(f"ppo:{model}", env)
     env.close()
-    out = tmp_path / "eval"
-    argv = [
-        "--agents", f"ppo={model}", "--episodes", "1", "--max-steps", "3", "--plots", "0",
-        "--no-progress", "--workers", "1", "--out", str(out), "--env", ENV_ID,
-    ]  # fmt: skip
-    assert load_script("evaluate.py").main(argv) == 0
-    summary = json.loads((out / "summary.json").read_text())
+    summary = _evaluate_once(model, tmp_path / "eval")
     assert f"is flown on {ENV_ID}" in summary["warnings"]["ppo"]
-    assert "--env DebrisGym/Rendezvous2D-Easy-v1" in (out / "summary.md").read_text()
+    assert "--env DebrisGym/Rendezvous2D-Easy-v1" in (tmp_path / "eval" / "summary.md").read_text()
 
 
 def _checkpoint(saved_run: Path, path: Path, timesteps: int) -> None:
@@ -362,11 +368,5 @@ def test_evaluate_py_takes_a_run_directory(saved_run, tmp_path):
     run = tmp_path / "run"
     _checkpoint(saved_run, run / "checkpoints" / "interrupted.zip", 6000)
     (run / "config.yaml").write_text("normalize: {enabled: true}\n")
-    out = tmp_path / "eval"
-    argv = [
-        "--agents", f"ppo={run}", "--episodes", "1", "--max-steps", "3", "--plots", "0",
-        "--no-progress", "--workers", "1", "--out", str(out), "--env", ENV_ID,
-    ]  # fmt: skip
-    assert load_script("evaluate.py").main(argv) == 0
-    summary = json.loads((out / "summary.json").read_text())
+    summary = _evaluate_once(run, tmp_path / "eval")
     assert "checkpoints/interrupted.zip" in summary["warnings"]["ppo"]

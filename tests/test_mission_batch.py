@@ -23,7 +23,7 @@ from debris_gym.goal import DOCK_GOAL, NO_GOAL, current_goal
 from debris_gym.mission_batch import MissionBatch, Physics
 from debris_gym.observation import observation_names
 from debris_gym.scenario import Body
-from tests.helpers import flies_old_ids, simple_scenario
+from tests.helpers import assert_same, assert_same_step, flies_old_ids, simple_scenario
 from tests.reference_env import ReferenceDebrisFieldEnv, reference_observation_names
 
 # some tests fly the free-space simple_scenario in envs with the default LEO orbit on purpose;
@@ -37,14 +37,6 @@ INFO_KEYS = ["chaser_state", "time", "delta_v", "targets_captured", "min_clearan
 INFO_KEYS += ["out_of_bounds", "is_success", "captured", "n_targets", "budget_spent", "hold"]
 
 HORIZON = {"DebrisGym/PaperField2D-v0": 2000}
-
-
-def same(a, b, what: str) -> None:
-    a, b = np.asarray(a), np.asarray(b)
-    if a.dtype == bool or np.issubdtype(a.dtype, np.integer):
-        np.testing.assert_array_equal(a, b, err_msg=what)
-    else:
-        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9, err_msg=what)
 
 
 def pd_action(env, obs: np.ndarray, rng: np.random.Generator, noise: float) -> np.ndarray:
@@ -82,7 +74,7 @@ def fly_both(
     for episode in range(episodes):
         obs, info = env.reset(seed=seed + episode)
         obs_r, info_r = ref.reset(seed=seed + episode, options={"scenario": env.unwrapped.scenario})
-        same(obs, obs_r, "reset obs")
+        assert_same(obs, obs_r, "reset obs")
         done = False
         step = 0
         while not done:
@@ -93,14 +85,7 @@ def fly_both(
             else:
                 action = (rng.uniform(-1, 1, env.unwrapped.dim) * scale).astype(np.float32)
             out = env.step(action)
-            out_r = ref.step(action)
-            where = f"episode {episode} step {step}"
-            for name, a, b in zip(("obs", "reward", "terminated", "truncated"), out, out_r):
-                same(a, b, f"{name} at {where}")
-            for key in INFO_KEYS:
-                same(out[4][key], out_r[4][key], f"info[{key!r}] at {where}")
-            for term, value in out[4]["reward_terms"].items():
-                same(value, out_r[4]["reward_terms"][term], f"term {term} at {where}")
+            assert_same_step(out, ref.step(action), INFO_KEYS, f"episode {episode} step {step}")
             done = out[2] or out[3]
             obs = out[0]
             step += 1
@@ -165,15 +150,12 @@ def test_env_equals_the_reference_on_missions_that_capture(env_id, kwargs):
 def fly_by_hand(env, ref, options: dict, burns: list) -> dict:
     """Fly ``burns`` from the pinned ``options`` in both, comparing every step; returns the
     env's last info (the flight stops at termination)."""
-    same(env.reset(options=options)[0], ref.reset(options=options)[0], "reset")
+    assert_same(env.reset(options=options)[0], ref.reset(options=options)[0], "reset")
     start = options["chaser_state"]
     for k, burn in enumerate(burns):
         action = np.array(burn, dtype=np.float32)
-        out, out_r = env.step(action), ref.step(action)
-        for name, a, b in zip(("obs", "reward", "terminated"), out, out_r):
-            same(a, b, f"{name} {start} step {k}")
-        for key in INFO_KEYS:
-            same(out[4][key], out_r[4][key], f"{key} {start} step {k}")
+        out = env.step(action)
+        assert_same_step(out, ref.step(action), INFO_KEYS, f"{start} step {k}")
         if out[2]:
             break
     return out[4]

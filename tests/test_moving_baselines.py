@@ -1,10 +1,11 @@
 """The classical baselines against moving bodies (the v1 world): prediction, time-indexed keep-out,
 moving-target tours, goals that move with their target, and whole missions.
 
-Independent truth: the textbook closed-form CW solution typed in below ([Curtis14] eq. 7.53;
-[Vallado13] §6.8), the chaser's flight integrated numerically (``scipy.integrate.solve_ivp`` on
-the CW equations with the thrust held over each step), a brute-force tour search with its own
-intercept times (bisection on the typed-in motion), and the env's own judgement of capture.
+Independent truth: the textbook closed-form CW solution typed into
+``tests.helpers.cw_closed_form`` ([Curtis14] eq. 7.53; [Vallado13] §6.8), the chaser's flight
+integrated numerically (``scipy.integrate.solve_ivp`` on the CW equations of
+``tests.helpers.cwh_rhs``, the thrust held over each step), a brute-force tour search with its
+own intercept times (bisection on the typed-in motion), and the env's own judgement of capture.
 """
 
 from __future__ import annotations
@@ -30,7 +31,14 @@ from agents.planners.ordering import intercept_time, moving_order, moving_tour_t
 from debris_gym.config import EnvConfig
 from debris_gym.envs import DebrisFieldEnv
 from debris_gym.scenario import Body, Scenario
-from tests.helpers import LEO_MEAN_MOTION, MOVING_DT, MOVING_WORLD, cw_closed_form
+from tests.helpers import (
+    LEO_MEAN_MOTION,
+    MOVING_DT,
+    MOVING_WORLD,
+    cw_closed_form,
+    cwh_rhs,
+    moving_scenario,
+)
 
 N = LEO_MEAN_MOTION
 DT = MOVING_DT
@@ -38,11 +46,6 @@ V1 = MOVING_WORLD
 cw = cw_closed_form
 
 pytestmark = pytest.mark.filterwarnings("ignore:.*flown anyway:UserWarning")
-
-
-def cw_rhs(_t: float, x: np.ndarray, u: np.ndarray, n: float = N) -> np.ndarray:
-    """The CW equations with thrust u (2D): ẍ = 3n²x + 2nẏ + u_x, ÿ = −2nẋ + u_y."""
-    return np.array([x[2], x[3], 3 * n * n * x[0] + 2 * n * x[3] + u[0], -2 * n * x[2] + u[1]])
 
 
 def orbit_state(rho: float, alpha: float, y_c: float, dim: int = 2, rho_z: float = 0.0):
@@ -68,17 +71,6 @@ def body_at(state0, radius: float, vertices=None, spin: float = 0.0) -> Body:
     )
 
 
-def scenario(targets, obstacles, dim: int = 2, size: float = 1000.0) -> Scenario:
-    """A hand-built moving world; some of its orbits reach past the bounds within an episode,
-    so it opts in to be flown anyway (``motion_faults="warn"``)."""
-    half = size / 2
-    return Scenario(
-        dim=dim, bounds=((-half, half),) * dim, dock=(0.0,) * dim, targets=tuple(targets),
-        obstacles=tuple(obstacles), mean_motion=N, dt=DT, max_accel=0.05, motion="cwh",
-        motion_faults="warn",
-    )  # fmt: skip
-
-
 # --- prediction -------------------------------------------------------------------------------
 
 
@@ -91,7 +83,7 @@ def test_field_motion_matches_the_closed_form(dim):
                                dim, rho_z=rng.uniform(0, 100))  # fmt: skip
         vel = tuple(v + (0.01 * (k - 2) if i == 1 else 0.0) for i, v in enumerate(vel))  # drift
         bodies.append(Body(pos, 5.0, vel))
-    scen = scenario(bodies[:2], bodies[2:], dim)
+    scen = moving_scenario(bodies[:2], bodies[2:], dim)
     motion = FieldMotion(scen)
     starts = [np.array([*b.position, *b.velocity]) for b in scen.bodies]
     for t in (0.0, 10.0, 370.0, 5000.0, 12345.6):
@@ -109,7 +101,7 @@ def test_snapshot_polygons_turn_at_spin_minus_n():
     square = ((4.0, 0.0), (0.0, 4.0), (-4.0, 0.0), (0.0, -4.0))
     pos, vel = orbit_state(100.0, 0.3, 150.0)
     target = orbit_body(5.0, 80.0, 2.0, -200.0)
-    scen = scenario([target], [Body(pos, 4.0, vel, square, spin=0.01)])
+    scen = moving_scenario([target], [Body(pos, 4.0, vel, square, spin=0.01)])
     t = 730.0
     snap = FieldMotion(scen).snapshot(t)
     angle = (0.01 - N) * t  # inertially fixed turns at −n in LVLH, plus the tumble
@@ -131,7 +123,7 @@ def _fly_across(scen: Scenario, motion: FieldMotion | None, steps: int = 40):
     for k in range(steps):
         ref_pos, ref_vel = ref.horizon(state, tracker.N)
         u = tracker.command(state, ref_pos, ref_vel, now=k * DT)
-        sol = solve_ivp(cw_rhs, (0.0, DT), state, args=(u,), rtol=1e-10, atol=1e-9,
+        sol = solve_ivp(cwh_rhs(N, 2, u), (0.0, DT), state, rtol=1e-10, atol=1e-9,
                         dense_output=True)  # fmt: skip
         for s in np.arange(0.0, DT, 1.0):
             times.append(k * DT + s)
@@ -142,14 +134,14 @@ def _fly_across(scen: Scenario, motion: FieldMotion | None, steps: int = 40):
 
 def test_mpc_keeps_out_of_a_body_crossing_its_path():
     far_target = Body((400.0, 400.0), 5.0, (0.0, 0.0))
-    empty = scenario([far_target], [])
+    empty = moving_scenario([far_target], [])
     times, free = _fly_across(empty, FieldMotion(empty))
     t_cross = float(times[np.argmin(np.abs(free[:, 1]))])  # the free flight crosses y = 0 here
     # a body of radius 10 crossing the chaser's line there, radially at 0.5 m/s (on a closed
     # orbit: x = 0 gives ẏ = 0), set back to t = 0 with the closed form
     radius = 10.0
     start = cw(np.array([0.0, 0.0, 0.5, 0.0]), -t_cross)
-    scen = scenario([far_target], [body_at(start, radius)])
+    scen = moving_scenario([far_target], [body_at(start, radius)])
     body = np.array([cw(start, t)[:2] for t in times])
     # without prediction (keep-out from the field as it is at t = 0) the chaser flies into it
     _, blind = _fly_across(scen, None)
@@ -224,7 +216,7 @@ def test_moving_order_bad_speed_is_refused():
 
 def test_goals_move_with_their_target():
     pos, vel = orbit_state(120.0, 1.0, 200.0)
-    scen = scenario([Body(pos, 6.0, vel)], [])
+    scen = moving_scenario([Body(pos, 6.0, vel)], [])
     cfg = EnvConfig(**V1)
     plan = MissionPlan(scen, cfg, motion=FieldMotion(scen))
     chaser = np.array([-50.0, 30.0])
@@ -260,7 +252,7 @@ def moving_field(dim: int) -> Scenario:
         obstacles.append(Body(pos, 8.0, vel, square, spin=0.005))
     else:
         obstacles.append(orbit_body(8.0, 120.0, 0.0, -350.0, 3, rho_z=50.0))
-    return scenario([t1, t2], obstacles, dim).check_layout()
+    return moving_scenario([t1, t2], obstacles, dim).check_layout()
 
 
 @pytest.mark.parametrize(

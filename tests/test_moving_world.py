@@ -1,9 +1,9 @@
 """The moving world (v1 rules) from outside: bodies on CW motion, solid bodies, honest capture.
 
-Truth here is independent of the library: the textbook closed-form CW solution typed in below
-([Curtis14] eq. 7.53; [Vallado13] §6.8), dense sampling of it for first contacts, and plain
-trigonometry for turning polygons. The envs fly pinned ``motion="cwh"`` scenarios with the
-moving-world options (what the v1 IDs register).
+Truth here is independent of the library: the textbook closed-form CW solution typed into
+``tests.helpers.cw_closed_form`` ([Curtis14] eq. 7.53; [Vallado13] §6.8), dense sampling of it
+for first contacts, and plain trigonometry for turning polygons. The envs fly pinned
+``motion="cwh"`` scenarios with the moving-world options (what the v1 IDs register).
 """
 
 from __future__ import annotations
@@ -16,7 +16,14 @@ import pytest
 from debris_gym.envs import DebrisFieldEnv
 from debris_gym.envs.vector import DebrisFieldVectorEnv
 from debris_gym.scenario import Body, Scenario
-from tests.helpers import LEO_MEAN_MOTION, MOVING_DT, MOVING_WORLD, cw_closed_form, flies_old_ids
+from tests.helpers import (
+    LEO_MEAN_MOTION,
+    MOVING_DT,
+    MOVING_WORLD,
+    cw_closed_form,
+    flies_old_ids,
+    moving_scenario,
+)
 
 pytestmark = pytest.mark.filterwarnings("ignore:.*flown anyway:UserWarning")
 
@@ -33,17 +40,6 @@ def drift_free(x0: float, y0: float, vx0: float, dim: int = 2, z0: float = 0.0) 
     return (x0, y0, z0), (vx0, -2 * N * x0, 0.1)
 
 
-def scenario(dim: int, targets, obstacles, size: float = 1000.0) -> Scenario:
-    """A hand-built moving world. Its bodies cross the dock, drift, and some leave the world
-    within an episode, on purpose: it opts in to be flown anyway (``motion_faults="warn"``)."""
-    half = size / 2
-    return Scenario(
-        dim=dim, bounds=((-half, half),) * dim, dock=(0.0,) * dim, targets=tuple(targets),
-        obstacles=tuple(obstacles), mean_motion=N, dt=DT, max_accel=0.05, motion="cwh",
-        motion_faults="warn",
-    )  # fmt: skip
-
-
 def field(dim: int) -> Scenario:
     """Bodies on assorted closed and drifting orbits, away from the dock for 20 minutes."""
     bodies = []
@@ -56,7 +52,7 @@ def field(dim: int) -> Scenario:
         square = ((4.0, 0.0), (0.0, 4.0), (-4.0, 0.0), (0.0, -4.0))
         pos, vel = drift_free(-250.0, 60.0, 0.02)
         bodies.append(Body(pos, 4.0, vel, square, spin=0.01))
-    return scenario(dim, bodies[:2], bodies[2:])
+    return moving_scenario(bodies[:2], bodies[2:], dim)
 
 
 @pytest.mark.parametrize("dim", [2, 3])
@@ -137,7 +133,7 @@ def far_target() -> Body:
 def test_a_body_crossing_a_chaser_at_rest_collides_at_the_right_step(t_meet):
     body = crossing_body(t_meet, speed=0.6, miss=0.0)
     env = DebrisFieldEnv(dim=2, **MOVING)
-    env.reset(options={"scenario": scenario(2, [far_target()], [body])})
+    env.reset(options={"scenario": moving_scenario([far_target()], [body])})
     contact = first_contact(body, 5.0 + env.config.chaser_radius, 400.0)
     expected_step = math.ceil(contact / DT)
     steps = 0
@@ -152,7 +148,7 @@ def test_a_body_that_misses_by_a_margin_does_not_collide():
     reach = 5.0 + 1.0
     body = crossing_body(150.0, speed=0.6, miss=reach + 0.5)
     env = DebrisFieldEnv(dim=2, **MOVING)
-    env.reset(options={"scenario": scenario(2, [far_target()], [body])})
+    env.reset(options={"scenario": moving_scenario([far_target()], [body])})
     for _ in range(40):
         *_, terminated, _, info = env.step(np.zeros(2))
         assert not terminated
@@ -167,7 +163,7 @@ def target_beside(gap: float, rel_v=(0.0, 0.0)) -> tuple[Scenario, np.ndarray]:
     target = Body(position=pos, radius=5.0, velocity=vel)
     offset = 5.0 + 1.0 + gap  # centre to centre
     chaser = np.array([pos[0], pos[1] + offset, vel[0] + rel_v[0], vel[1] + rel_v[1]])
-    return scenario(2, [target], []), chaser
+    return moving_scenario([target], []), chaser
 
 
 def test_coasting_beside_a_moving_target_captures_it_after_the_hold():

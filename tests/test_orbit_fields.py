@@ -1,10 +1,10 @@
 """Moving (v1) random fields: bodies on relative orbits, checked from outside.
 
-Independent truth used here: the textbook CW closed form typed in below ([Curtis14] eq. 7.53,
-not the library's state-transition matrix or the generator's element form) propagates every body
-on a fine time grid; the drift condition x_c = 4x₀ + 2ẏ₀/n is typed in too; solvability is
-checked by an independent time-expanded grid search (:func:`space_time_route`), not by the
-generator's argument.
+Independent truth used here: the textbook CW closed form typed into
+``tests.helpers.cw_positions`` ([Curtis14] eq. 7.53, not the library's state-transition matrix or
+the generator's element form) propagates every body on a fine time grid; the drift condition
+x_c = 4x₀ + 2ẏ₀/n is typed in below; solvability is checked by an independent time-expanded grid
+search (:func:`space_time_route`), not by the generator's argument.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from hypothesis import strategies as st
 from debris_gym.generators import FieldSpec, draw_size, random_field, random_fields, unplaceable
 from debris_gym.orbit_fields import orbit_drawer, stream_uniform
 from debris_gym.orbit_separation import SEARCH_TOLERANCE, apart
+from tests.helpers import cw_positions
 
 N = 1.1314e-3  # rad/s, the default LEO mean motion (~92.6 min orbit)
 PERIOD = 2.0 * math.pi / N
@@ -37,22 +38,6 @@ def spec_of(dim: int = 2, motion: str = "bounded", **kw) -> FieldSpec:
 
 def draw(spec: FieldSpec, seeds) -> object:
     return random_fields([np.random.default_rng(s) for s in seeds], spec, capture_radius=CAPTURE)
-
-
-def cw_positions(states: np.ndarray, n: float, t: np.ndarray) -> np.ndarray:
-    """Textbook CW closed form ([Curtis14] eq. 7.53): positions (S, B, dim) at times ``t`` (S,)
-    from states (B, 2·dim) at t = 0."""
-    dim = states.shape[1] // 2
-    x0, y0, vx0, vy0 = (states[:, i][None] for i in (0, 1, dim, dim + 1))
-    nt = (n * t)[:, None]
-    s, c = np.sin(nt), np.cos(nt)
-    x = (4.0 - 3.0 * c) * x0 + s / n * vx0 + 2.0 / n * (1.0 - c) * vy0
-    y = 6.0 * (s - nt) * x0 + y0 - 2.0 / n * (1.0 - c) * vx0 + (4.0 * s - 3.0 * nt) / n * vy0
-    out = [x, y]
-    if dim == 3:
-        z0, vz0 = states[:, 2][None], states[:, 5][None]
-        out.append(c * z0 + s / n * vz0)
-    return np.stack(out, axis=-1)
 
 
 def states_of(fields, k: int) -> np.ndarray:
@@ -443,6 +428,23 @@ def _box(p, reach_r, shape, h, half, lo, hi):
 
 
 @numba.njit(cache=True)
+def _box_cell(m, lo, hi, strides, p, h, half):
+    """The ``m``-th cell of the index box (``lo``, ``hi`` inclusive), the last axis fastest: its
+    flat index and the squared distance from its centre to point ``p``."""
+    rem = m
+    cell = 0
+    d2 = 0.0
+    for a in range(len(lo) - 1, -1, -1):
+        span = hi[a] - lo[a] + 1
+        ia = lo[a] + rem % span
+        rem //= span
+        cell += ia * strides[a]
+        x = -half + (ia + 0.5) * h - p[a]
+        d2 += x * x
+    return cell, d2
+
+
+@numba.njit(cache=True)
 def _reach(mid, inflate, inside, targets, goal, dock_cell, shape, h, half):
     """Round trips dock → target → dock found, (T,) bool.
 
@@ -470,16 +472,7 @@ def _reach(mid, inflate, inside, targets, goal, dock_cell, shape, h, half):
         for b in range(n_bodies):  # stamp the cells a body may touch during step k
             count = _box(mid[k, b], inflate[b], shape, h, half, lo, hi)
             for m in range(count):
-                rem = m
-                cell = 0
-                d2 = 0.0
-                for a in range(dim - 1, -1, -1):
-                    span = hi[a] - lo[a] + 1
-                    ia = lo[a] + rem % span
-                    rem //= span
-                    cell += ia * strides[a]
-                    x = -half + (ia + 0.5) * h - mid[k, b, a]
-                    d2 += x * x
+                cell, d2 = _box_cell(m, lo, hi, strides, mid[k, b], h, half)
                 if d2 < inflate[b] * inflate[b]:
                     free[cell] = False
         for row in range(n_t + 1):
@@ -511,16 +504,7 @@ def _reach(mid, inflate, inside, targets, goal, dock_cell, shape, h, half):
             reach_r = goal[j]
             count = _box(targets[k + 1, j], reach_r, shape, h, half, lo, hi)
             for m in range(count):
-                rem = m
-                cell = 0
-                d2 = 0.0
-                for a in range(dim - 1, -1, -1):
-                    span = hi[a] - lo[a] + 1
-                    ia = lo[a] + rem % span
-                    rem //= span
-                    cell += ia * strides[a]
-                    x = -half + (ia + 0.5) * h - targets[k + 1, j, a]
-                    d2 += x * x
+                cell, d2 = _box_cell(m, lo, hi, strides, targets[k + 1, j], h, half)
                 if d2 <= reach_r * reach_r and reach[0, cell]:
                     reach[1 + j, cell] = True
                     active[1 + j] = True
@@ -602,53 +586,35 @@ def test_the_search_follows_the_bodies_in_time():
         assert not ok.any()
 
 
-def assert_solvable_by_the_independent_search(dim: int, seed: int, cell: float) -> None:
-    """The search finds a route dock → every target → dock over two orbits in the field the
-    generator accepts for ``seed`` (cells of ``cell`` m)."""
-    spec = spec_of(dim)
+SEARCHES: dict[str, tuple[FieldSpec, float, float]] = {
+    "2d": (spec_of(2), 5.0, 2.0 * PERIOD),
+    "3d": (spec_of(3), 12.5, 2.0 * PERIOD),
+    "2d-drifting": (spec_of(2, "drifting", drift_offset=(5.0, 20.0)), 5.0, PERIOD),
+}
+"""Kinds of field searched: the spec, the search's cell edge (m) and its horizon (s): two orbits,
+or one for a drifting field (the horizon it is checked over)."""
+
+
+def search_cases(kind: str, fast: int, slow: int) -> list:
+    """Cases of the ``kind`` of :data:`SEARCHES`: seeds 0 … ``fast`` − 1 in the default run, and
+    ``slow`` more from seed 100 marked ``slow``."""
+    return [pytest.param(kind, seed, id=f"{kind}-seed{seed}") for seed in range(fast)] + [
+        pytest.param(kind, 100 + seed, id=f"{kind}-seed{100 + seed}", marks=pytest.mark.slow)
+        for seed in range(slow)
+    ]
+
+
+@pytest.mark.parametrize(
+    ("kind", "seed"),
+    [*search_cases("2d", 6, 30), *search_cases("3d", 2, 8), *search_cases("2d-drifting", 2, 10)],
+)
+def test_every_accepted_field_is_solvable_by_the_independent_search(kind, seed):
+    """The search finds a route dock → every target → dock within the horizon in the field the
+    generator accepts for ``seed``."""
+    spec, cell, horizon = SEARCHES[kind]
     fields = draw(spec, [seed])
     ok, goal = space_time_route(
-        states_of(fields, 0), fields.radii[0], spec.n_targets, spec.field_size, N, cell,
-        2.0 * PERIOD,
-    )  # fmt: skip
-    assert goal + 2.0 * CHASER < spec.min_gap + spec.target_clearance
-    assert ok.all(), f"seed {seed}: targets {np.flatnonzero(~ok)} not reachable and back"
-
-
-@pytest.mark.parametrize("seed", range(6))
-def test_every_accepted_2d_field_is_solvable_by_the_independent_search(seed):
-    assert_solvable_by_the_independent_search(2, seed, 5.0)
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("seed", range(30))
-def test_many_accepted_2d_fields_are_solvable_by_the_independent_search(seed):
-    assert_solvable_by_the_independent_search(2, 100 + seed, 5.0)
-
-
-@pytest.mark.parametrize("seed", range(2))
-def test_every_accepted_3d_field_is_solvable_by_the_independent_search(seed):
-    assert_solvable_by_the_independent_search(3, seed, 12.5)
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("seed", range(8))
-def test_more_accepted_3d_fields_are_solvable_by_the_independent_search(seed):
-    assert_solvable_by_the_independent_search(3, 100 + seed, 12.5)
-
-
-@pytest.mark.parametrize("seed", range(2))
-def test_accepted_drifting_fields_are_solvable_within_their_horizon(seed):
-    spec = spec_of(2, "drifting", drift_offset=(5.0, 20.0))
-    fields = draw(spec, [seed])
-    ok, goal = space_time_route(
-        states_of(fields, 0), fields.radii[0], spec.n_targets, spec.field_size, N, 5.0, PERIOD
+        states_of(fields, 0), fields.radii[0], spec.n_targets, spec.field_size, N, cell, horizon
     )
     assert goal + 2.0 * CHASER < spec.min_gap + spec.target_clearance
     assert ok.all(), f"seed {seed}: targets {np.flatnonzero(~ok)} not reachable and back"
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("seed", range(10))
-def test_more_accepted_drifting_fields_are_solvable_within_their_horizon(seed):
-    test_accepted_drifting_fields_are_solvable_within_their_horizon(100 + seed)

@@ -2,9 +2,9 @@
 t = 0 — bodies inside the bounds and apart at every instant, refused by name (or flown with a
 warning the scenario asked for), and never an inf or NaN reward.
 
-Independent truth: the textbook CW closed form typed in below ([Curtis14] eq. 7.53, not the
-library's state-transition matrix nor the check's element bounds) propagates the bodies on a fine
-time grid.
+Independent truth: the textbook CW closed form typed into ``tests.helpers.cw_positions``
+([Curtis14] eq. 7.53, not the library's state-transition matrix nor the check's element bounds)
+propagates the bodies on a fine time grid.
 """
 
 from __future__ import annotations
@@ -24,30 +24,11 @@ from debris_gym.config import EnvConfig
 from debris_gym.horizon_checks import first_motion_fault
 from debris_gym.scenario import Scenario
 from debris_gym.scenario_checks import max_body_speed
+from tests.helpers import cw_positions
 
 N = EnvConfig().n  # rad/s, the default IDs' mean motion
 IDS = {2: "DebrisGym/Rendezvous2D-v2", 3: "DebrisGym/Rendezvous3D-v2"}
 EPISODE = 1000  # steps: the default IDs' registered time limit
-
-
-def cw_positions(states: np.ndarray, n: float, t: np.ndarray) -> np.ndarray:
-    """Textbook CW closed form: positions (S, B, dim) at times ``t`` (S,) from states (B, 2·dim)
-    at t = 0; straight lines for n = 0."""
-    dim = states.shape[1] // 2
-    pos, vel = states[:, :dim][None], states[:, dim:][None]
-    tt = t[:, None, None]
-    if n == 0.0:
-        return pos + vel * tt
-    x0, y0, vx0, vy0 = (states[:, i][None] for i in (0, 1, dim, dim + 1))
-    nt = (n * t)[:, None]
-    s, c = np.sin(nt), np.cos(nt)
-    x = (4.0 - 3.0 * c) * x0 + s / n * vx0 + 2.0 / n * (1.0 - c) * vy0
-    y = 6.0 * (s - nt) * x0 + y0 - 2.0 / n * (1.0 - c) * vx0 + (4.0 * s - 3.0 * nt) / n * vy0
-    out = [x, y]
-    if dim == 3:
-        z0, vz0 = states[:, 2][None], states[:, 5][None]
-        out.append(c * z0 + s / n * vz0)
-    return np.stack(out, axis=-1)
 
 
 def worst_violation(states, radii, low, high, n, t) -> tuple[float, float]:

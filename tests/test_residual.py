@@ -2,8 +2,8 @@
 
 The law's command is held to the CW formula computed here independently: the natural flight
 of the step from the textbook closed form (``tests.helpers.cw_closed_form``) and the thrust's
-effect on the end velocity by integrating the CWH equations numerically (scipy's ODE solver),
-never the library's matrix exponential.
+effect on the end velocity by integrating the CWH equations (``tests.helpers.cwh_rhs``)
+numerically (scipy's ODE solver), never the library's matrix exponential.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from debris_gym import base_law
 from debris_gym.config import EnvConfig
 from debris_gym.envs import DebrisFieldEnv
 from debris_gym.scenario import Body, Scenario
-from tests.helpers import LEO_MEAN_MOTION, cw_closed_form
+from tests.helpers import LEO_MEAN_MOTION, cw_closed_form, cwh_rhs
 
 pytestmark = pytest.mark.filterwarnings("ignore:.*flown anyway:UserWarning")
 
@@ -71,12 +71,7 @@ def command_at(
 
 def end_velocity(state: np.ndarray, accel: np.ndarray) -> np.ndarray:
     """The velocity after one step of ``accel`` (m/s²) held constant, integrated numerically."""
-
-    def cwh(_t, s):
-        x, _y, vx, vy = s
-        return [vx, vy, 3 * N * N * x + 2 * N * vy + accel[0], -2 * N * vx + accel[1]]
-
-    sol = solve_ivp(cwh, (0.0, DT), state, method="DOP853", rtol=1e-12, atol=1e-12)
+    sol = solve_ivp(cwh_rhs(N, 2, accel), (0.0, DT), state, method="DOP853", rtol=1e-12, atol=1e-12)
     return sol.y[2:, -1]
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 
 import pytest
 
@@ -16,11 +17,27 @@ def _pick(*names: str):
     return tuple(by_name[n] for n in names)
 
 
+def _suite_options(agents: str, episodes: int = 1) -> EvaluateOptions:
+    """A one-worker evaluation of ``agents`` on the standard 2D suite's first ``episodes``
+    missions."""
+    return EvaluateOptions(
+        suite="standard-2d-v2", agents=agents, episodes=episodes, workers=1, progress=False
+    )
+
+
+def _noted_run(flown: list[dict[str, object]]) -> Callable[[EvaluateOptions], object]:
+    """``run_evaluation`` that first notes each evaluation's env options in ``flown``."""
+
+    def run(options: EvaluateOptions) -> object:
+        flown.append(dict(options.env_kwargs or {}))
+        return run_evaluation(options)
+
+    return run
+
+
 def test_every_condition_is_flown_with_its_options_and_gathered(tmp_path):
     conditions = _pick("exact", "navigation-high", "actuation-high", "sensing-high")
-    options = EvaluateOptions(
-        suite="standard-2d-v2", agents="apf-mpc,zero", episodes=2, workers=1, progress=False
-    )
+    options = _suite_options("apf-mpc,zero", episodes=2)
     table = run_robustness(options, tmp_path, run_evaluation, conditions, echo=lambda _: None)
     for condition in conditions:
         summary = json.loads((tmp_path / condition.name / "summary.json").read_text())
@@ -58,24 +75,16 @@ def test_a_suite_takes_only_the_uncertain_worlds_options(tmp_path):
 
 def test_a_condition_already_flown_is_kept_and_a_changed_one_flown_again(tmp_path):
     flown = []
-
-    def run(options):
-        flown.append(dict(options.env_kwargs or {}))
-        return run_evaluation(options)
-
+    run = _noted_run(flown)
     conditions = _pick("exact", "sensing-high")
-    options = EvaluateOptions(
-        suite="standard-2d-v2", agents="zero", episodes=1, workers=1, progress=False
-    )
+    options = _suite_options("zero")
     run_robustness(options, tmp_path, run, conditions, echo=lambda _: None)
     assert len(flown) == 2
     first = (tmp_path / "robustness.md").read_text()
     run_robustness(options, tmp_path, run, conditions, echo=lambda _: None)
     assert len(flown) == 2  # both kept
     assert (tmp_path / "robustness.md").read_text() == first
-    more = EvaluateOptions(
-        suite="standard-2d-v2", agents="zero", episodes=2, workers=1, progress=False
-    )
+    more = _suite_options("zero", episodes=2)
     run_robustness(more, tmp_path, run, conditions, echo=lambda _: None)
     assert len(flown) == 4  # other episodes: flown again
 
@@ -85,16 +94,9 @@ def test_an_agent_that_cannot_fly_an_error_is_left_out_of_it_with_the_reason(tmp
     navigation errors: they are left out of those conditions (the cells say so and the reason
     is listed), flown in the others, and a table stopped there is kept when run again."""
     flown = []
-
-    def run(options):
-        flown.append(options.env_kwargs)
-        return run_evaluation(options)
-
+    run = _noted_run(flown)
     conditions = _pick("exact", "navigation-low")
-    options = EvaluateOptions(
-        suite="standard-2d-v2", agents="zero,base-law,pretrained", episodes=1, workers=1,
-        progress=False,
-    )  # fmt: skip
+    options = _suite_options("zero,base-law,pretrained")
     table = run_robustness(options, tmp_path, run, conditions, echo=lambda _: None)
     rows = {line.split(" | ")[0][2:]: line for line in table.splitlines() if line[:2] == "| "}
     for agent in ("base-law", "pretrained"):
@@ -137,15 +139,9 @@ def test_a_condition_no_agent_can_fly_is_noted_and_kept(tmp_path):
     """Only agents that read the true state: the navigation condition flies no one; its cells
     say so, its reasons are listed, and a second run keeps it."""
     flown = []
-
-    def run(options):
-        flown.append(options.env_kwargs)
-        return run_evaluation(options)
-
+    run = _noted_run(flown)
     conditions = _pick("exact", "navigation-high")
-    options = EvaluateOptions(
-        suite="standard-2d-v2", agents="base-law", episodes=1, workers=1, progress=False
-    )
+    options = _suite_options("base-law")
     table = run_robustness(options, tmp_path, run, conditions, echo=lambda _: None)
     row = next(line for line in table.splitlines() if line.startswith("| base-law"))
     assert row.strip(" |").split(" | ")[2] == "not flown"

@@ -18,6 +18,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -40,11 +41,11 @@ from agents.experiments.training.config import (
     default_config_path,
 )
 from agents.experiments.training.run import TrainOptions, train
-from agents.policies.learned import LearnedAgent
+from agents.policies.learned_agent import LearnedAgent
 from agents.policies.model_files import sidecar_path
 from debris_gym.files import save_atomic
 from debris_gym.swarm import SWARM_SPECS
-from tests.helpers import flies_old_ids, load_script
+from tests.helpers import flies_old_ids, fly_policy, load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 TRAIN = ROOT / "train.py"
@@ -517,6 +518,16 @@ def test_the_shipped_pretrained_policy_flies_its_env():
 
 
 @flies_old_ids
+def _fly_pretrained(env_id: str, seed: int, **options: Any) -> dict[str, Any]:
+    """One episode of the ``pretrained`` agent on ``env_id`` made with ``options``, from reset
+    seed ``seed`` to its end (the ID's time limit at the latest): the last info."""
+    env = gym.make(env_id, **options)
+    agent = agents.load_agent("pretrained", env)
+    _, info = fly_policy(env, seed, lambda env, obs, info, first: agent.predict(obs)[0])
+    env.close()
+    return info
+
+
 def test_the_pretrained_easy_policy_is_the_one_made_for_the_easy_rung():
     """`pretrained` picks the policy made for the env being evaluated: on the Easy rung the
     recipe's PPO policy (no observation options: the registered env as it is), which captures
@@ -528,15 +539,8 @@ def test_the_pretrained_easy_policy_is_the_one_made_for_the_easy_rung():
     assert pretrained_path(easy)[1].name == "rendezvous2d-easy_ppo.zip"
     assert pretrained_path("DebrisGym/Rendezvous2D-v0")[1].name == "rendezvous2d_dagger.zip"
     assert observation_options("pretrained", easy) == {}
-    env = gym.make(easy)
-    agent = agents.load_agent("pretrained", env)
-    obs, info = env.reset(seed=20_000_000)
-    for _ in range(1000):
-        obs, _, terminated, truncated, info = env.step(agent.predict(obs)[0])
-        if terminated or truncated:
-            break
+    info = _fly_pretrained(easy, 20_000_000)
     assert info["is_success"] and not info["collision"]
-    env.close()
 
 
 @flies_old_ids
@@ -557,15 +561,8 @@ def test_the_pretrained_v1_policies_are_the_fine_tuned_ones(env_id, name):
     assert pretrained_path(env_id)[1].name == name
     options = observation_options("pretrained", env_id)
     assert options == {"obs_targets": 1, "obs_goal": True, "obs_other_targets": True}
-    env = gym.make(env_id, **options)
-    agent = agents.load_agent("pretrained", env)
-    obs, info = env.reset(seed=20_000_001)
-    for _ in range(1000):
-        obs, _, terminated, truncated, info = env.step(agent.predict(obs)[0])
-        if terminated or truncated:
-            break
+    info = _fly_pretrained(env_id, 20_000_001, **options)
     assert info["is_success"] and info["targets_captured"] == 3 and not info["collision"]
-    env.close()
 
 
 def test_dqn_policy_flies_discrete_and_continuous_envs(trained):

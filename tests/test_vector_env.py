@@ -18,7 +18,7 @@ from debris_gym.generators import FieldSpec, random_field
 from debris_gym.geometry import lidar_directions
 from debris_gym.scenario import Body, Scenario
 from tests.geometry_oracle import OracleField
-from tests.helpers import flies_old_ids, simple_scenario
+from tests.helpers import assert_same, assert_same_step, flies_old_ids, simple_scenario
 
 # some tests fly the free-space simple_scenario in envs with the default LEO orbit on purpose;
 # the native vector env is held to SyncVectorEnv on every ID, the v0 ones included
@@ -42,14 +42,6 @@ def make_pair(env_id: str, n: int, mode: AutoresetMode = AutoresetMode.NEXT_STEP
     return native, sync
 
 
-def assert_same(a, b, what: str) -> None:
-    a, b = np.asarray(a), np.asarray(b)
-    if a.dtype == bool or b.dtype == bool or np.issubdtype(a.dtype, np.integer):
-        np.testing.assert_array_equal(a, b, err_msg=what)
-    else:
-        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9, err_msg=what)
-
-
 def compare_run(
     env_id: str, n: int, steps: int, scale: float, seed: int = 0,
     mode: AutoresetMode = AutoresetMode.NEXT_STEP, **kwargs,
@@ -69,12 +61,7 @@ def compare_run(
             actions = (rng.uniform(-1, 1, (n, native.unwrapped.dim)) * scale).astype(np.float32)
         out_n = native.step(actions)
         out_s = sync.step(actions)
-        for name, a, b in zip(("obs", "reward", "terminated", "truncated"), out_n, out_s):
-            assert_same(a, b, f"{name} at step {step}")
-        for key in INFO_KEYS:
-            assert_same(out_n[4][key], out_s[4][key], f"info[{key!r}] at step {step}")
-        for term, value in out_n[4]["reward_terms"].items():
-            assert_same(value, out_s[4]["reward_terms"][term], f"reward term {term} step {step}")
+        assert_same_step(out_n, out_s, INFO_KEYS, f"step {step}")
         if "final_obs" in out_s[4]:
             final = out_s[4]["_final_obs"]
             assert_same(out_n[4]["_final_obs"], final, "final_obs mask")
