@@ -97,7 +97,6 @@ team and chaser; summary.json and the table summarise them; the title says so).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -143,18 +142,6 @@ def _run_dir(text: str) -> Path:
     if not path.is_dir():
         raise argparse.ArgumentTypeError(f"{path} is not a directory")
     return path
-
-
-def _json_object(text: str) -> dict[str, Any]:
-    try:
-        value = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise argparse.ArgumentTypeError(f"invalid JSON ({exc}): {text!r}") from None
-    if not isinstance(value, dict):
-        raise argparse.ArgumentTypeError(
-            f"must be a JSON object such as '{{\"n_obstacles\": 40}}', got {text!r}"
-        )
-    return value
 
 
 def _suite_names() -> list[str]:
@@ -238,7 +225,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--env-kwargs",
-        type=_json_object,
+        type=cli.json_object,
         default=None,
         metavar="JSON",
         help="extra gym.make keyword arguments as a JSON object, e.g. '{\"n_obstacles\": 40}'",

@@ -10,7 +10,6 @@ the recipe that uses it.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -24,16 +23,6 @@ examples:
 """
 
 
-def _json_object(text: str) -> dict:
-    try:
-        value = json.loads(text)
-    except json.JSONDecodeError as err:
-        raise argparse.ArgumentTypeError(f"not JSON: {err}") from None
-    if not isinstance(value, dict):
-        raise argparse.ArgumentTypeError(f"must be a JSON object, got {text!r}")
-    return value
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = cli.script_parser("starts.py", __doc__, EXAMPLES)
     parser.add_argument("--out", type=Path, required=True, metavar="FILE", help="the bank (.npz)")
@@ -44,7 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="env ID (default: %(default)s)",
     )
     parser.add_argument(
-        "--env-kwargs", type=_json_object, default=None, metavar="JSON",
+        "--env-kwargs", type=cli.json_object, default=None, metavar="JSON",
         help="gym.make keyword arguments as a JSON object",
     )  # fmt: skip
     parser.add_argument(

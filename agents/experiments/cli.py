@@ -1,18 +1,20 @@
 """Command-line pieces every script shares (``train.py``, ``evaluate.py``, ``sweep.py``,
-``imitate.py``, ``python -m bench``): the parser frame, integer options, the config-file
-options, Ctrl-C handling and the command line a run records."""
+``imitate.py``, ``starts.py``, ``python -m bench``): the parser frame, integer and JSON-object
+options, the config-file options, Ctrl-C handling and the command line a run records."""
 
 from __future__ import annotations
 
 import argparse
 import contextlib
 import decimal
+import json
 import shlex
 import signal
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 __all__ = [
     "IntegerOption",
@@ -22,6 +24,7 @@ __all__ = [
     "evaluate_command",
     "integer",
     "interrupt_on_signals",
+    "json_object",
     "refuse_suite",
     "script_parser",
 ]
@@ -90,6 +93,24 @@ class IntegerOption:
 def integer(low: int, high: int) -> IntegerOption:
     """The ``type=`` of an integer option in ``[low, high]`` (:class:`IntegerOption`)."""
     return IntegerOption(low, high)
+
+
+def json_object(text: str) -> dict[str, Any]:
+    """The ``type=`` of an option that takes a JSON object (``--env-kwargs``): its value.
+
+    Raises:
+        argparse.ArgumentTypeError: ``text`` is not JSON, or not a JSON object (argparse names
+            the option in front of the message).
+    """
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise argparse.ArgumentTypeError(f"invalid JSON ({exc}): {text!r}") from None
+    if not isinstance(value, dict):
+        raise argparse.ArgumentTypeError(
+            f"must be a JSON object such as '{{\"n_obstacles\": 40}}', got {text!r}"
+        )
+    return value
 
 
 def evaluate_command(env_id: str, agents: str) -> str:

@@ -1,28 +1,26 @@
-"""Learned policies (SB3 models saved by ``train.py``) behind the shared ``predict()`` interface.
+"""Loading learned policies (SB3 models saved by ``train.py``) for an env, and the registry of
+the pretrained ones shipped with the package.
 
 ``load_agent("ppo:runs/ppo/model.zip", env)`` (also ``ppo=…``, and ``sac``, ``td3``, ``dqn``)
-returns a :class:`LearnedAgent`; ``load_agent("ppo:runs/ppo", env)`` takes the run directory's
-``model.zip``, else its newest checkpoint (a warning names it); ``load_agent("pretrained", env)``
-the policy shipped in ``agents/pretrained/`` for that env. Loading
+returns a :class:`~agents.policies.learned_agent.LearnedAgent`; ``load_agent("ppo:runs/ppo",
+env)`` takes the run directory's ``model.zip``, else its newest checkpoint (a warning names it);
+``load_agent("pretrained", env)`` the policy shipped in ``agents/pretrained/`` for that env.
+Loading
 
 * checks the run's ``config.yaml`` first (its ``normalize`` and ``env_kwargs`` mappings, and warns
   when its ``env_id`` is not the env's: a policy flown on a task it was not trained for);
-* reads the VecNormalize statistics with an unpickler that only builds their own types, so a
+* checks the model's observation and action spaces against the env's (a clear error otherwise),
+  letting a DQN policy (trained with ``action="discrete"``) fly the default continuous env
+  through the env's discrete action table (coast, ±x, ±y, ±z at full thrust): so
+  ``evaluate.py --agents apf,dqn=model.zip`` compares it with the baselines on the same env;
+* finds the VecNormalize statistics saved next to the model (the
+  :func:`agents.policies.model_files.sidecar_path` name: ``vecnormalize.pkl`` beside ``model.zip``,
+  ``best_model_vecnormalize.pkl`` beside ``best_model.zip``, ``rl_model_vecnormalize_N_steps.pkl``
+  beside a checkpoint), read with an unpickler that only builds their own types, so a
   statistics file cannot run code (the model zip itself is read by Stable-Baselines3, which
   unpickles parts of it: a model is trusted like code).
 
-The agent
-
-* restores the VecNormalize observation statistics saved next to the model (the
-  :func:`agents.policies.model_files.sidecar_path` name: ``vecnormalize.pkl`` beside ``model.zip``,
-  ``best_model_vecnormalize.pkl`` beside ``best_model.zip``, ``rl_model_vecnormalize_N_steps.pkl``
-  beside a checkpoint) and normalises observations with them before calling the model, without
-  updating them;
-* checks the model's observation and action spaces against the env's (a clear error otherwise);
-* lets a DQN policy (trained with ``action="discrete"``) fly the default continuous env: discrete
-  action k becomes row k of the env's discrete action table (coast, ±x, ±y, ±z at full thrust),
-  which the env turns into exactly the same acceleration. So ``evaluate.py --agents
-  apf,dqn=model.zip`` compares it with the baselines on the same env.
+The agent that flies it is :mod:`agents.policies.learned_agent`'s.
 """
 
 from __future__ import annotations
@@ -35,11 +33,11 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
+from agents.policies.learned_agent import LearnedAgent, read_vecnormalize
 from agents.policies.model_files import (
     LEARNED_ALGOS,
     algo_class,
     find_model_file,
-    load_vecnormalize_pickle,
     read_config_mapping,
     sidecar_path,
 )
@@ -49,11 +47,9 @@ __all__ = [
     "PRETRAINED",
     "PRETRAINED_DIR",
     "PRETRAINED_POLICIES",
-    "LearnedAgent",
     "load_agent",
     "observation_options",
     "pretrained_path",
-    "read_vecnormalize",
     "run_config_path",
     "trained_env_id",
 ]
@@ -85,82 +81,6 @@ PRETRAINED_POLICIES: dict[str, tuple[str, str]] = {
 }
 """Env ID → (algorithm, file in :data:`PRETRAINED_DIR`). The v2 policies are residual ones
 (:data:`RESIDUAL`): they fly in the env made with :func:`observation_options`."""
-
-
-class LearnedAgent:
-    """An SB3 model acting through the shared ``predict()`` interface.
-
-    Args:
-        model: the loaded SB3 model.
-        algo: its algorithm name (``"ppo"``, …).
-        path: the model file.
-        obs_normalizer: a VecNormalize object (unpickled, no venv) whose frozen observation
-            statistics are applied before the model, or None.
-        observation_space: the env's single observation space.
-        action_table: for a discrete model in a continuous env, row k = continuous action of
-            discrete action k; else None.
-    """
-
-    episode_independent = True
-    """A feed-forward policy with frozen statistics: an episode depends on nothing before it."""
-
-    def __init__(
-        self,
-        model: Any,
-        algo: str,
-        path: Path,
-        obs_normalizer: Any,
-        observation_space: spaces.Space,
-        action_table: np.ndarray | None = None,
-    ) -> None:
-        self.model = model
-        self.algo = algo
-        self.name = algo
-        self.path = path
-        self.obs_normalizer = obs_normalizer
-        self.observation_space = observation_space
-        self.action_table = action_table
-
-    def normalize(self, observation: np.ndarray) -> np.ndarray:
-        """Observations as the model saw them in training (frozen VecNormalize statistics)."""
-        obs = np.asarray(observation, dtype=np.float32)
-        if self.obs_normalizer is None:
-            return obs
-        return np.asarray(self.obs_normalizer.normalize_obs(obs), dtype=np.float32)
-
-    def predict(
-        self,
-        observation: np.ndarray,
-        state: Any = None,
-        episode_start: np.ndarray | None = None,
-        deterministic: bool = True,
-    ) -> tuple[np.ndarray, Any]:
-        """SB3-style ``predict`` for one observation or a batch, answering in the same shape.
-
-        Raises:
-            ValueError: an observation whose shape is neither the env's nor a batch of it.
-        """
-        obs = np.asarray(observation, dtype=np.float32)
-        single_shape = self.observation_space.shape
-        single = obs.shape == single_shape
-        if not single and obs.shape[1:] != single_shape:
-            raise ValueError(
-                f"observation shape {obs.shape} is neither {single_shape} nor a batch of it"
-            )
-        batch = self.normalize(obs[None] if single else obs)
-        action, state = self.model.predict(
-            batch, state=state, episode_start=episode_start, deterministic=deterministic
-        )
-        if self.action_table is not None:
-            action = self.action_table[np.asarray(action, dtype=np.int64)].astype(np.float32)
-        return (action[0] if single else action), state
-
-    def __repr__(self) -> str:
-        norm = "VecNormalize obs" if self.obs_normalizer is not None else "raw obs"
-        return f"LearnedAgent({self.algo}, {self.path}, {norm})"
-
-
-# --------------------------------------------------------------------------------------------------
 
 
 def _env_spaces(env: Any) -> tuple[spaces.Space, spaces.Space]:
@@ -382,62 +302,6 @@ def _load_normalizer(path: Path, observation_space: spaces.Space) -> Any:
             f"{stats}: VecNormalize statistics of shape {mean_shape} do not fit observations of "
             f"shape {observation_space.shape}"
         )
-    return normalizer
-
-
-def read_vecnormalize(stats: Path) -> Any:
-    """Unpickle the VecNormalize statistics file ``stats`` (no venv attached), allowing only the
-    types such statistics are made of (:func:`~agents.policies.model_files.
-    load_vecnormalize_pickle`): a file that names any other function or class is refused before
-    anything in it runs.
-
-    Raises:
-        ValueError: the file is empty, truncated, not a pickle, or holds something other than
-            Stable-Baselines3 VecNormalize statistics (the message names the file).
-    """
-    from stable_baselines3.common.vec_env import VecNormalize
-
-    fix = (
-        "re-copy it from the training run (train.py writes it beside every model it saves), or "
-        "delete it if the run did not normalise observations"
-    )
-    try:
-        normalizer = load_vecnormalize_pickle(stats)
-    except Exception as exc:  # a damaged pickle fails in many ways (EOFError, UnpicklingError, …)
-        raise ValueError(
-            f"{stats}: not readable VecNormalize statistics ({type(exc).__name__}: {exc}); {fix}"
-        ) from None
-    if not isinstance(normalizer, VecNormalize):
-        raise ValueError(
-            f"{stats}: holds a {type(normalizer).__name__}, not VecNormalize statistics; {fix}"
-        )
-    # A VecNormalize object whose statistics are missing or corrupt would fail only later, on
-    # the first observation; its own attributes are read from vars() because VecNormalize
-    # forwards unknown attributes to its (absent) venv.
-    state = vars(normalizer)
-    try:
-        norm_obs = bool(state["norm_obs"])
-        if norm_obs:
-            mean = np.asarray(state["obs_rms"].mean, dtype=float)
-            var = np.asarray(state["obs_rms"].var, dtype=float)
-            clip, eps = float(state["clip_obs"]), float(state["epsilon"])
-    except (AttributeError, KeyError, TypeError, ValueError) as exc:
-        raise ValueError(
-            f"{stats}: incomplete VecNormalize statistics ({type(exc).__name__}: {exc}); {fix}"
-        ) from None
-    if norm_obs:
-        bad = (
-            mean.shape != var.shape
-            or not (np.all(np.isfinite(mean)) and np.all(np.isfinite(var)))
-            or np.any(var < 0)
-            or not (clip > 0 and eps > 0)
-        )
-        if bad:
-            raise ValueError(
-                f"{stats}: corrupt VecNormalize statistics (observation means and variances must "
-                "be finite and of one shape, variances >= 0, clip_obs and epsilon > 0); "
-                f"{fix}"
-            )
     return normalizer
 
 

@@ -120,7 +120,24 @@ class ShieldFilter:
         return correction.astype(np.asarray(action).dtype, copy=False)
 
 
-class ShieldedAgent:
+class _FilterReadout:
+    """The shield and this episode's counters of the :class:`ShieldFilter` a filtering class
+    keeps in ``self.filter``."""
+
+    filter: ShieldFilter
+
+    @property
+    def shield(self) -> SafetyShield:
+        """The shield."""
+        return self.filter.shield
+
+    @property
+    def stats(self) -> ShieldStats:
+        """This episode's counters."""
+        return self.filter.stats
+
+
+class ShieldedAgent(_FilterReadout):
     """Any ``predict()`` agent with its actions filtered by a :class:`SafetyShield`.
 
     Counts per episode in :attr:`stats` (reset when ``episode_start`` says so, or when the env
@@ -138,16 +155,6 @@ class ShieldedAgent:
             raise TypeError(f"agent must have a predict() method, got {type(agent).__name__}")
         self.agent = agent
         self.filter = ShieldFilter(env, params)
-
-    @property
-    def shield(self) -> SafetyShield:
-        """The shield."""
-        return self.filter.shield
-
-    @property
-    def stats(self) -> ShieldStats:
-        """This episode's counters."""
-        return self.filter.stats
 
     @property
     def episode_independent(self) -> bool:
@@ -207,7 +214,7 @@ class TeamShield:
         return {k: self.filters[k].filter(a) for k, a in actions.items()}
 
 
-class ShieldWrapper(gym.Wrapper):
+class ShieldWrapper(_FilterReadout, gym.Wrapper):
     """A single DebrisGym env whose actions pass through a :class:`SafetyShield` first: train
     with the shield on. ``info`` gains ``shield_intervened`` (this step) and the episode's
     counters (:meth:`ShieldStats.as_info`).
@@ -221,16 +228,6 @@ class ShieldWrapper(gym.Wrapper):
         unwrap(env)  # a DebrisGym env, or a clear TypeError
         super().__init__(env)
         self.filter = ShieldFilter(env, params)
-
-    @property
-    def shield(self) -> SafetyShield:
-        """The shield."""
-        return self.filter.shield
-
-    @property
-    def stats(self) -> ShieldStats:
-        """This episode's counters."""
-        return self.filter.stats
 
     def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
         """Reset the env and the episode's counters."""

@@ -17,20 +17,20 @@ decision times).
 from __future__ import annotations
 
 import importlib.util
-import os
-from collections.abc import Callable, Mapping
 from typing import Any
 
 from agents.experiments.distributed import INSTALL_HINT, require_ray
 from agents.experiments.evaluation.command import UsageError
 from agents.experiments.evaluation.failures import AgentFailure
-from agents.experiments.evaluation.records import EpisodeRecord
 from agents.experiments.evaluation.runner import EvaluationJob, check_replay
 from agents.experiments.evaluation.workers import (
     IN_FLIGHT,
     EpisodeWorker,
+    Finished,
+    RecordSink,
     Unit,
     UnitQueue,
+    WorkerBackend,
     check_workers,
     plan_units,
 )
@@ -66,8 +66,10 @@ class RayRemote:
         return RayBackend(address, workers)
 
 
-class RayBackend:
-    """Fly an evaluation's episodes on Ray actors (see the module docstring).
+class RayBackend(WorkerBackend):
+    """Fly an evaluation's episodes on Ray actors (see the module docstring); its
+    :meth:`~agents.experiments.evaluation.workers.WorkerBackend.fly` stops its workers and, if
+    it started it, the local Ray, when interrupted (Ctrl-C) or failing.
 
     Args:
         address: the Ray cluster to join (``"auto"``, ``"HOST:6379"``, ``"ray://HOST:10001"``,
@@ -90,47 +92,90 @@ class RayBackend:
         workers: int | None = None,
         module_dir: str | None = None,
     ) -> None:
+        super().__init__(workers, module_dir)
         self.address = address
-        self.workers = check_workers(workers)
-        self.module_dir = os.getcwd() if module_dir is None else module_dir
 
-    def fly(
-        self,
-        job: EvaluationJob,
-        done: Mapping[tuple[str, int], EpisodeRecord],
-        on_record: Callable[[EpisodeRecord], None],
-        on_start: Callable[[], None] | None = None,
-    ) -> None:
-        """Fly every unfinished episode of ``job``; ``on_record`` gets each record in this
-        process as it arrives, ``on_start`` is called once Ray and the actors are up (see
-        :class:`~agents.experiments.evaluation.runner.EpisodeBackend`: what Ray prints when it
-        starts lands above the progress bar). Interrupted (Ctrl-C) or failing, it stops its
-        workers and, if it started it, the local Ray."""
-        ray = require_ray("evaluate.py --backend ray")
-        todo = len(job.specs) * job.episodes - len(done)
-        if todo == 0:
-            if on_start is not None:
-                on_start()
-            return
-        started = not ray.is_initialized()
-        if started:
-            _init_ray(ray, self.address, self.workers)
-        actors: list[Any] = []
-        try:
-            cpus = int(ray.cluster_resources().get("CPU", 1))
-            count = max(1, min(self.workers or cpus, todo))
-            remote = ray.remote(num_cpus=1, max_restarts=0)(EpisodeWorker)
-            actors = [remote.remote(job, self.module_dir) for _ in range(count)]
-            flags = ray.get([actor.independence.remote() for actor in actors])
-            if on_start is not None:
-                on_start()
-            shared, streams = plan_units(job, done, flags[0])
-            _dispatch(ray, actors, shared, streams, done, on_record)
-        finally:
-            for actor in actors:
-                ray.kill(actor)
-            if started:
-                ray.shutdown()
+    def before_flying(self) -> None:
+        """Refuse to fly without Ray, episodes left or not.
+
+        Raises:
+            ImportError: Ray is not installed (naming the extra that installs it).
+        """
+        require_ray("evaluate.py --backend ray")
+
+    def pool(self, job: EvaluationJob, todo: int) -> _RayPool:
+        """The actors (not started) for ``todo`` episodes of ``job``."""
+        return _RayPool(require_ray("evaluate.py --backend ray"), self, job, todo)
+
+
+class _RayPool:
+    """The Ray actors of one :meth:`RayBackend.fly` call, and the local Ray if it starts one
+    (what Ray prints when it starts lands above the progress bar: ``fly`` calls ``on_start``
+    after :meth:`start`)."""
+
+    def __init__(self, ray: Any, backend: RayBackend, job: EvaluationJob, todo: int) -> None:
+        self.ray = ray
+        self.backend = backend
+        self.job = job
+        self.todo = todo
+        self.count = 0
+        self.actors: list[Any] = []
+        self.started = False  # whether this pool started the local Ray (and stops it)
+
+    def start(self) -> dict[str, bool]:
+        """Join Ray (or start a local one), start the actors and wait until each has built
+        its agents; {agent label: episode-independent}."""
+        ray, backend = self.ray, self.backend
+        if not ray.is_initialized():
+            _init_ray(ray, backend.address, backend.workers)
+            self.started = True
+        cpus = int(ray.cluster_resources().get("CPU", 1))
+        self.count = max(1, min(backend.workers or cpus, self.todo))
+        remote = ray.remote(num_cpus=1, max_restarts=0)(EpisodeWorker)
+        self.actors = [remote.remote(self.job, backend.module_dir) for _ in range(self.count)]
+        flags = ray.get([actor.independence.remote() for actor in self.actors])
+        return flags[0]
+
+    def run(self, queue: UnitQueue, done: Finished, on_record: RecordSink) -> None:
+        """Keep every actor busy until all units are flown (Ray runs one caller's calls on an
+        actor in submission order, so a stream is flown in order)."""
+        ray, actors = self.ray, self.actors
+        pending: dict[Any, tuple[int, Unit]] = {}
+        load = [0] * len(actors)
+
+        def refill(k: int) -> None:
+            while load[k] < IN_FLIGHT:
+                unit = queue.next_for(k)
+                if unit is None:
+                    return
+                pending[actors[k].fly.remote(unit.label, unit.episode)] = (k, unit)
+                load[k] += 1
+
+        for k in range(len(actors)):
+            refill(k)
+        while pending:
+            ready, _ = ray.wait(list(pending), num_returns=1)
+            k, unit = pending.pop(ready[0])
+            load[k] -= 1
+            try:
+                record = ray.get(ready[0])
+            except Exception as exc:  # Ray wraps what the actor raised; an agent's failure is
+                cause = getattr(exc, "cause", None)  # reported as in the local run
+                if isinstance(cause, AgentFailure):
+                    raise cause from None
+                raise
+            if unit.replay:
+                check_replay(done[(unit.label, unit.episode)], record)
+            else:
+                on_record(record)
+            refill(k)
+
+    def stop(self) -> None:
+        """Kill the actors; stop the local Ray if this pool started it."""
+        for actor in self.actors:
+            self.ray.kill(actor)
+        if self.started:
+            self.ray.shutdown()
 
 
 def _init_ray(ray: Any, address: str | None, workers: int | None) -> None:
@@ -146,45 +191,3 @@ def _init_ray(ray: Any, address: str | None, workers: int | None) -> None:
     else:
         kwargs["address"] = address
     ray.init(**kwargs)
-
-
-def _dispatch(
-    ray: Any,
-    actors: list[Any],
-    shared: list[Unit],
-    streams: list[list[Unit]],
-    done: Mapping[tuple[str, int], EpisodeRecord],
-    on_record: Callable[[EpisodeRecord], None],
-) -> None:
-    """Keep every worker busy until all units are flown (:class:`UnitQueue`; Ray runs one
-    caller's calls on an actor in submission order, so a stream is flown in order)."""
-    queue = UnitQueue(len(actors), shared, streams)
-    pending: dict[Any, tuple[int, Unit]] = {}
-    load = [0] * len(actors)
-
-    def refill(k: int) -> None:
-        while load[k] < IN_FLIGHT:
-            unit = queue.next_for(k)
-            if unit is None:
-                return
-            pending[actors[k].fly.remote(unit.label, unit.episode)] = (k, unit)
-            load[k] += 1
-
-    for k in range(len(actors)):
-        refill(k)
-    while pending:
-        ready, _ = ray.wait(list(pending), num_returns=1)
-        k, unit = pending.pop(ready[0])
-        load[k] -= 1
-        try:
-            record = ray.get(ready[0])
-        except Exception as exc:  # Ray wraps what the actor raised; an agent's failure is
-            cause = getattr(exc, "cause", None)  # reported as in the local run
-            if isinstance(cause, AgentFailure):
-                raise cause from None
-            raise
-        if unit.replay:
-            check_replay(done[(unit.label, unit.episode)], record)
-        else:
-            on_record(record)
-        refill(k)

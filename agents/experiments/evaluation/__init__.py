@@ -7,7 +7,8 @@ specs         what to evaluate: baseline names, ``ppo=PATH``, ``pretrained``, yo
               ``LABEL=MODULE:ATTR`` or a policy object; building each for an env
 runner        flying every agent on the same seeded episodes (:func:`evaluate_agents`)
 episode       one episode flown and recorded (:func:`run_episode`)
-workers       episodes apart from where they run: the worker, the plan that shares them out
+workers       episodes apart from where they run: the worker, the plan that shares them out,
+              the run's frame on any backend of workers (:class:`WorkerBackend`)
 pool          the local process pool (``evaluate.py --workers N``; :class:`ProcessBackend`)
 failures      an agent failing mid-run, an output that cannot be written
 records       what a run produced (episode records, trajectories, the whole run)

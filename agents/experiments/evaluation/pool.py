@@ -40,20 +40,19 @@ import signal
 import sys
 import traceback
 from collections import deque
-from collections.abc import Callable, Mapping
 from multiprocessing.connection import Connection, wait
 from typing import Any
 
 from agents.experiments.evaluation.failures import AgentFailure
-from agents.experiments.evaluation.records import EpisodeRecord
 from agents.experiments.evaluation.runner import EvaluationJob, check_replay
 from agents.experiments.evaluation.workers import (
     IN_FLIGHT,
     EpisodeWorker,
+    Finished,
+    RecordSink,
     Unit,
     UnitQueue,
-    check_workers,
-    plan_units,
+    WorkerBackend,
 )
 
 __all__ = ["ProcessBackend", "WorkerCrash", "available_cores"]
@@ -102,9 +101,12 @@ def _serve(conn: Connection, job: EvaluationJob, module_dir: str | None) -> None
         conn.close()
 
 
-class ProcessBackend:
+class ProcessBackend(WorkerBackend):
     """Fly an evaluation's episodes in worker processes on this machine (see the module
-    docstring).
+    docstring). Its :meth:`~agents.experiments.evaluation.workers.WorkerBackend.fly` raises
+    :class:`AgentFailure` when an agent fails in a worker (or its worker dies while flying
+    it), :class:`WorkerCrash` when a worker fails outside any agent's code, and ``ValueError``
+    when the job cannot be sent to another process (:meth:`pool`).
 
     Args:
         workers: worker processes; None: one per available core (:func:`available_cores`).
@@ -116,32 +118,13 @@ class ProcessBackend:
         ValueError: ``workers`` is not None or an integer >= 1.
     """
 
-    def __init__(self, workers: int | None = None, module_dir: str | None = None) -> None:
-        self.workers = check_workers(workers)
-        self.module_dir = os.getcwd() if module_dir is None else module_dir
-
-    def fly(
-        self,
-        job: EvaluationJob,
-        done: Mapping[tuple[str, int], EpisodeRecord],
-        on_record: Callable[[EpisodeRecord], None],
-        on_start: Callable[[], None] | None = None,
-    ) -> None:
-        """Fly every unfinished episode of ``job``; ``on_record`` gets each record in this
-        process as it arrives, ``on_start`` is called once the workers are up. Interrupted
-        (Ctrl-C) or failing, it stops its workers before it returns.
+    def pool(self, job: EvaluationJob, todo: int) -> _Pool:
+        """The worker processes (not started) for ``todo`` episodes of ``job``.
 
         Raises:
-            AgentFailure: an agent failed in a worker (or its worker died while flying it).
-            WorkerCrash: a worker failed outside any agent's code.
             ValueError: ``job`` cannot be sent to another process (an agent handed in from
                 Python that cannot be pickled, such as a lambda).
         """
-        todo = len(job.specs) * job.episodes - len(done)
-        if todo == 0:
-            if on_start is not None:
-                on_start()
-            return
         try:
             pickle.dumps(job)
         except Exception as exc:
@@ -150,16 +133,7 @@ class ProcessBackend:
                 f"{exc}); an agent handed in from Python must be picklable (a class or function "
                 "defined at a module's top level), or fly in this process (one worker)"
             ) from exc
-        count = min(self.workers or available_cores(), todo)
-        pool = _Pool(job, count, self.module_dir)
-        try:
-            flags = pool.start()
-            if on_start is not None:
-                on_start()
-            shared, streams = plan_units(job, done, flags)
-            pool.run(UnitQueue(count, shared, streams), done, on_record)
-        finally:
-            pool.stop()
+        return _Pool(job, min(self.workers or available_cores(), todo), self.module_dir)
 
 
 class _Pool:
@@ -200,12 +174,7 @@ class _Pool:
                 waiting.discard(k)
         return flags
 
-    def run(
-        self,
-        queue: UnitQueue,
-        done: Mapping[tuple[str, int], EpisodeRecord],
-        on_record: Callable[[EpisodeRecord], None],
-    ) -> None:
+    def run(self, queue: UnitQueue, done: Finished, on_record: RecordSink) -> None:
         """Send every unit of ``queue`` and hand each record on as it comes back."""
         for k in range(self.count):
             self._refill(k, queue)

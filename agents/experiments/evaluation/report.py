@@ -30,6 +30,7 @@ __all__ = [
     "episodes_csv",
     "format_number",
     "markdown_cell",
+    "shield_table",
     "summary_markdown",
     "to_json",
     "write_outputs",
@@ -157,20 +158,31 @@ def _paired_tables(summary: dict[str, Any], n: int) -> list[str]:
     return lines
 
 
-def _shield_table(summary: dict[str, Any]) -> list[str]:
-    """The shield's interventions per agent (nothing for an unshielded run)."""
-    if summary.get("shield") is None:
-        return []
+def shield_table(
+    entries: Mapping[str, dict[str, Any]],
+    who: str = "agent",
+    over: str = "",
+    decisions: str = "all decisions",
+) -> list[str]:
+    """The shield's interventions as Markdown lines (a blank line first): one row per entry
+    (label → its summary entry with the ``shield_*`` keys).
+
+    Args:
+        entries: the rows, in order.
+        who: the first column's title (what a row is: an agent, a team).
+        over: words after "per episode" saying what a count sums over (a team: its chasers).
+        decisions: whose decisions the share is of.
+    """
     lines = [
         "",
-        "Safety shield: commands replaced per episode (95 % bootstrap interval), their share "
-        "of all decisions, and their size ‖u_safe − u_cmd‖ / max_accel (a fraction of the "
+        f"Safety shield: commands replaced per episode{over} (95 % bootstrap interval), their "
+        f"share of {decisions}, and their size ‖u_safe − u_cmd‖ / max_accel (a fraction of the "
         "thrust limit; decision times above include the shield).",
         "",
-        "| agent | interventions / episode | share of decisions | mean size | max size |",
+        f"| {who} | interventions / episode | share of decisions | mean size | max size |",
         "|---|---|---|---|---|",
     ]
-    for label, e in summary["agents"].items():
+    for label, e in entries.items():
         lines.append(
             f"| {markdown_cell(label)} | {_with_ci(e, 'shield_interventions_mean')} "
             f"| {format_number(e['shield_intervention_share'])} "
@@ -224,7 +236,8 @@ def summary_markdown(summary: dict[str, Any]) -> str:
             + "; ".join(f"{label}: {', '.join(cols)}" for label, cols in constant.items())
             + ".",
         ]
-    lines += _shield_table(summary)
+    if summary.get("shield") is not None:
+        lines += shield_table(summary["agents"])
     lines += _paired_tables(summary, n)
     for label, message in (summary.get("warnings") or {}).items():
         lines += ["", f"Warning — {label}: {message}"]

@@ -17,24 +17,46 @@ declare the attribute) may carry state from one episode to the next: its episode
 order by one worker, which first re-flies, unrecorded, the finished episodes before its last
 unfinished one — what the in-process loop does on ``--resume`` — so its records are the
 in-process loop's too (:func:`plan_units`, :class:`UnitQueue`).
+
+Both backends are a :class:`WorkerBackend`: the run's frame (nothing to fly, start the workers,
+share the work out, stop them whatever happens) is written once there, and each backend supplies
+its :class:`WorkerPool`.
 """
 
 from __future__ import annotations
 
+import os
 import warnings
 from collections import deque
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 from agents.experiments.evaluation.episode import run_episode
 from agents.experiments.evaluation.records import EpisodeRecord
 from agents.experiments.evaluation.runner import EvaluationJob, build_agent_env
 
-__all__ = ["IN_FLIGHT", "EpisodeWorker", "Unit", "UnitQueue", "check_workers", "plan_units"]
+__all__ = [
+    "IN_FLIGHT",
+    "EpisodeWorker",
+    "Finished",
+    "RecordSink",
+    "Unit",
+    "UnitQueue",
+    "WorkerBackend",
+    "WorkerPool",
+    "check_workers",
+    "plan_units",
+]
 
 IN_FLIGHT = 2
 """Episodes queued on each worker at a time: the next one is already there when one ends."""
+
+Finished = Mapping[tuple[str, int], EpisodeRecord]
+"""The records of an evaluation's finished episodes, by (agent label, episode)."""
+
+RecordSink = Callable[[EpisodeRecord], None]
+"""What a backend hands each new record to, in the driver's process, as it arrives."""
 
 
 def check_workers(workers: int | None) -> int | None:
@@ -159,3 +181,91 @@ class UnitQueue:
 
     def __len__(self) -> int:
         return len(self.shared) + sum(len(own) for own in self.own)
+
+
+class WorkerPool(Protocol):
+    """The workers of one :meth:`WorkerBackend.fly` call: started, sent the units, stopped."""
+
+    count: int
+    """How many workers there are (known once :meth:`start` has returned)."""
+
+    def start(self) -> dict[str, bool]:
+        """Start the workers and wait until each has built its agents; {agent label: whether
+        its episodes are independent} (:meth:`EpisodeWorker.independence`)."""
+        ...
+
+    def run(self, queue: UnitQueue, done: Finished, on_record: RecordSink) -> None:
+        """Fly every unit of ``queue`` (worker k's from :meth:`UnitQueue.next_for`), handing
+        each new record to ``on_record`` as it arrives and checking each replayed one against
+        its record in ``done``.
+
+        Raises:
+            AgentFailure: an agent failed in a worker.
+        """
+        ...
+
+    def stop(self) -> None:
+        """Stop every worker at once (what is in flight is dropped); also after a failed or
+        interrupted :meth:`start`."""
+        ...
+
+
+class WorkerBackend:
+    """An :class:`~agents.experiments.evaluation.runner.EpisodeBackend` whose episodes are flown
+    by long-lived workers, each around an :class:`EpisodeWorker`, with the work shared out by
+    :func:`plan_units` and :class:`UnitQueue`; a subclass supplies the workers
+    (:meth:`pool`).
+
+    Args:
+        workers: how many workers; None: the subclass's default. Never more than there are
+            episodes to fly.
+        module_dir: where the workers look for a ``MODULE:ATTR`` policy's module first (default:
+            this process's working directory, where ``evaluate.py`` finds them).
+
+    Raises:
+        ValueError: ``workers`` is not None or an integer >= 1.
+    """
+
+    def __init__(self, workers: int | None = None, module_dir: str | None = None) -> None:
+        self.workers = check_workers(workers)
+        self.module_dir = os.getcwd() if module_dir is None else module_dir
+
+    def fly(
+        self,
+        job: EvaluationJob,
+        done: Finished,
+        on_record: RecordSink,
+        on_start: Callable[[], None] | None = None,
+    ) -> None:
+        """Fly every unfinished episode of ``job``; ``on_record`` gets each record in this
+        process as it arrives, ``on_start`` is called once the workers are up (at once when
+        nothing is left to fly). Interrupted (Ctrl-C) or failing, it stops its workers before
+        it returns.
+
+        Raises:
+            AgentFailure: an agent failed in a worker.
+        """
+        self.before_flying()
+        todo = len(job.specs) * job.episodes - len(done)
+        if todo == 0:
+            if on_start is not None:
+                on_start()
+            return
+        pool = self.pool(job, todo)
+        try:
+            independent = pool.start()
+            if on_start is not None:
+                on_start()
+            shared, streams = plan_units(job, done, independent)
+            pool.run(UnitQueue(pool.count, shared, streams), done, on_record)
+        finally:
+            pool.stop()
+
+    def before_flying(self) -> None:
+        """What a backend checks first in every :meth:`fly`, episodes left or not (nothing by
+        default)."""
+
+    def pool(self, job: EvaluationJob, todo: int) -> WorkerPool:
+        """The workers, not started yet, that fly the ``todo`` (>= 1) unfinished episodes of
+        ``job`` (every subclass supplies its own)."""
+        raise NotImplementedError

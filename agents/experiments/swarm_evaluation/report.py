@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.experiments.evaluation.report import format_number, markdown_cell
+from agents.experiments.evaluation.report import format_number, markdown_cell, shield_table
 from agents.experiments.evaluation.statistics import (
     bootstrap_interval,
     mcnemar_exact,
@@ -216,27 +216,11 @@ def _shielded_title(summary: dict[str, Any]) -> str:
 
 
 def _shield_lines(summary: dict[str, Any]) -> list[str]:
-    """The shield's table (nothing for an unshielded run)."""
+    """The shield's table of the teams it flew with (nothing for an unshielded run)."""
     if summary.get("shield") is None:
         return []
-    lines = [
-        "",
-        "Safety shield: commands replaced per episode over the chasers (95 % bootstrap "
-        "interval), their share of the chasers' decisions, and their size ‖u_safe − u_cmd‖ / "
-        "max_accel (a fraction of the thrust limit; decision times above include the shield).",
-        "",
-        "| team | interventions / episode | share of decisions | mean size | max size |",
-        "|---|---|---|---|---|",
-    ]
-    for label, e in summary["teams"].items():
-        if "shield_interventions_mean" not in e:
-            continue
-        lines.append(
-            f"| {markdown_cell(label)} | {_ci(e, 'shield_interventions_mean')} | "
-            f"{format_number(e['shield_intervention_share'])} | "
-            f"{format_number(e['shield_size_mean'])} | {format_number(e['shield_size_max'])} |"
-        )
-    return lines
+    shielded = {k: e for k, e in summary["teams"].items() if "shield_interventions_mean" in e}
+    return shield_table(shielded, "team", " over the chasers", "the chasers' decisions")
 
 
 PAPER_CONNECTIVITY = "paper (Fig. 4, N = 6: about 30; Fig. 7, N = 48: 25)"

@@ -36,13 +36,14 @@ from stable_baselines3.common.vec_env import VecNormalize
 from agents.experiments.config_files import ConfigError, load_config_file
 from agents.experiments.training.anchored import AnchoredPPO
 from agents.experiments.training.config import TrainConfig
-from agents.experiments.training.sb3_kwargs import algo_kwargs, policy_kwargs
+from agents.experiments.training.sb3_kwargs import construct_model, policy_kwargs
 from agents.experiments.training.widen import (
     observation_columns,
     widen_running_stats,
     widen_state_dict,
 )
-from agents.policies.learned import OBSERVATION_KEYS, read_vecnormalize
+from agents.policies.learned import OBSERVATION_KEYS
+from agents.policies.learned_agent import read_vecnormalize
 from agents.policies.model_files import FINAL_MODEL, sidecar_path
 from debris_gym.files import save_atomic
 
@@ -478,24 +479,20 @@ def build_finetune_model(
     assert config.init.path is not None
     init_model = _load_init_model(Path(config.init.path) / FINAL_MODEL, source)
     kwargs = _policy_kwargs(config, init_model, source)
-    try:
-        model = AnchoredPPO(
-            config.policy,
-            train_env,
-            critic_warmup=config.init.critic_warmup,
-            anchor_coef=config.init.anchor_coef,
-            anchor_decay=config.init.anchor_decay,
-            policy_kwargs=kwargs,
-            seed=seed,
-            device=device,
-            tensorboard_log=tensorboard_log,
-            verbose=0,
-            **algo_kwargs(config, int(train_env.action_space.shape[0])),
-        )
-    except (AssertionError, ValueError, TypeError, KeyError) as exc:
-        raise ConfigError(
-            f"{source}: SB3 PPO rejects config keys 'algo_kwargs' / 'policy_kwargs': {exc}"
-        ) from None
+    model = construct_model(
+        AnchoredPPO,
+        config,
+        train_env,
+        source,
+        kwargs,
+        "PPO",
+        critic_warmup=config.init.critic_warmup,
+        anchor_coef=config.init.anchor_coef,
+        anchor_decay=config.init.anchor_decay,
+        seed=seed,
+        device=device,
+        tensorboard_log=tensorboard_log,
+    )
     init_config = Path(config.init.path) / "config.yaml"
     reference = _widened(init_model.policy, model.policy, init_columns(config, init_config))
     model.policy.load_state_dict(reference.state_dict())

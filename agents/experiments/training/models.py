@@ -18,7 +18,7 @@ import numpy as np
 from agents.experiments.config_files import ConfigError
 from agents.experiments.training.config import EVAL_SEED, OFF_POLICY, TrainConfig
 from agents.experiments.training.finetune import build_finetune_model, finetune_train_env
-from agents.experiments.training.sb3_kwargs import algo_kwargs, policy_kwargs
+from agents.experiments.training.sb3_kwargs import construct_model, policy_kwargs
 from agents.policies.model_files import algo_class
 
 __all__ = [
@@ -200,31 +200,16 @@ def build_model(
         )
     cls = algo_class(config.algo)
     check_replay_buffer_fits(config, train_env, source)
-    try:
-        return cls(
-            config.policy,
-            train_env,
-            policy_kwargs=policy_kwargs(config),
-            seed=seed,
-            device=device,
-            tensorboard_log=tensorboard_log,
-            verbose=0,
-            **algo_kwargs(config, int(np.prod(train_env.action_space.shape or (1,)))),
-        )
-    except (AssertionError, ValueError, TypeError, KeyError) as exc:
-        raise ConfigError(
-            f"{source}: SB3 {cls.__name__} rejects config keys 'algo_kwargs' / 'policy_kwargs' "
-            f"({config.algo_kwargs} / {config.policy_kwargs}): {exc}"
-        ) from None
-    except (MemoryError, RuntimeError) as exc:  # torch's allocator raises RuntimeError
-        if isinstance(exc, RuntimeError) and "allocate" not in str(exc):
-            raise
-        raise ConfigError(
-            f"{source}: the {cls.__name__} model of config keys 'policy_kwargs' / 'algo_kwargs' "
-            f"({config.policy_kwargs} / {config.algo_kwargs}) does not fit in this machine's "
-            f"memory ({str(exc).splitlines()[0]}); use smaller layers (policy_kwargs.net_arch) "
-            "or a smaller buffer_size"
-        ) from None
+    return construct_model(
+        cls,
+        config,
+        train_env,
+        source,
+        policy_kwargs(config),
+        seed=seed,
+        device=device,
+        tensorboard_log=tensorboard_log,
+    )
 
 
 def machine_memory_bytes() -> int | None:
