@@ -316,28 +316,10 @@ def reference_frame(reference, inv_ballistic, j2, atmosphere, out):
     """The LVLH frame record of the reference at the ECI state ``reference`` (6,), whose
     inverse ballistic coefficient is ``inv_ballistic`` (m²/kg), into ``out``
     (:data:`FRAME_WIDTH`,): x̂, ŷ, ẑ (ECI unit vectors) and ω (rad/s, ECI)."""
-    px, py, pz = _perturbation(
-        reference[0],
-        reference[1],
-        reference[2],
-        reference[3],
-        reference[4],
-        reference[5],
-        inv_ballistic,
-        j2,
-        atmosphere,
-    )
-    f = _frame(
-        reference[0],
-        reference[1],
-        reference[2],
-        reference[3],
-        reference[4],
-        reference[5],
-        px,
-        py,
-        pz,
-    )
+    x, y, z = reference[0], reference[1], reference[2]
+    vx, vy, vz = reference[3], reference[4], reference[5]
+    px, py, pz = _perturbation(x, y, z, vx, vy, vz, inv_ballistic, j2, atmosphere)
+    f = _frame(x, y, z, vx, vy, vz, px, py, pz)
     for k in range(FRAME_WIDTH):
         out[k] = f[k]
 
