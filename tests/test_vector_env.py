@@ -483,6 +483,33 @@ def test_fields_drawn_ahead_are_the_fields_drawn_at_reset_time():
     plain.close()
 
 
+def test_a_row_that_restarts_before_its_gathered_draw_is_handed_over_gets_its_own_field():
+    """The rows to draw ahead are gathered over a few steps before the worker is woken
+    (``field_supply.GATHER_CALLS``): with episodes of 2 steps every row restarts before its
+    next field was handed over, so it is drawn at the restart, from the word a draw at reset
+    time uses; the episodes equal those of ``draw_ahead=False``."""
+    from debris_gym.envs import field_supply
+
+    assert field_supply.GATHER_CALLS > 2  # else this test would not reach the path
+    n, rng = 8, np.random.default_rng(11)
+    default = debris_gym.ENV_SPECS["DebrisGym/Rendezvous2D-v2"]["kwargs"]
+    kwargs = dict(num_envs=n, max_episode_steps=2, **default)
+    ahead = DebrisFieldVectorEnv(**kwargs, draw_ahead=True)
+    plain = DebrisFieldVectorEnv(**kwargs, draw_ahead=False)
+    np.testing.assert_array_equal(ahead.reset(seed=4)[0], plain.reset(seed=4)[0])
+    words = set()
+    for _ in range(20):
+        actions = rng.uniform(-1, 1, (n, 2))
+        a, p = ahead.step(actions), plain.step(actions)
+        for x, y in zip(a[:4], p[:4]):
+            np.testing.assert_array_equal(x, y)
+        words.update(ahead.shell.supply.taken_words.tolist())
+    assert ahead.scenarios[:] == plain.scenarios[:]
+    assert len(words) > 4 * n  # the rows went through many fields
+    ahead.close()
+    plain.close()
+
+
 def test_a_vector_env_refused_at_construction_is_collected_quietly():
     """A constructor that refuses its options leaves a half-built env, which gymnasium's
     ``VectorEnv.__del__`` (gymnasium < 1.3) closes when it is collected: that close must not

@@ -6,13 +6,15 @@ word of it (:class:`~debris_gym.orbit_fields.OrbitDrawer`), a frozen (v0) field 
 block of its uniform numbers (:func:`~debris_gym.generators.random_fields`). So the field of a
 row's k-th episode does not depend on when it is drawn, nor on which other rows draw with it.
 
-That is what lets :class:`FieldSupply` draw moving fields ahead: when a row takes a field, the
-supply takes the row's next word at once (the *pending* word, already out of the generator) and
-hands its field to a worker thread, which draws it while the missions fly, straight into the
-row's slot of a store of drawn fields (one call of compiled code that releases the GIL: the
-worker holds Python's lock only to enter and leave it, so that it seldom keeps the missions'
-thread waiting). The row's next reset finds the field ready and pays only for copying it into
-the batch. The pending word is part of the row's random state: a reset that fails puts it back
+That is what lets :class:`FieldSupply` draw moving fields ahead: the rows that took a field are
+gathered over a few steps (:data:`GATHER_CALLS`) and handed to a worker thread in one job, which
+takes each row's next word (the *pending* word, then out of the generator) and draws its field
+while the missions fly, straight into the row's slot of a store of drawn fields (one call of
+compiled code that releases the GIL: the worker holds Python's lock only to enter and leave it,
+and each wake-up of the worker makes the missions' thread wait for that lock once, hence the
+gathering). The row's next reset finds the field ready and pays only for copying it into the
+batch; a row that restarts before its field was handed over draws it then, from the same word.
+The pending word is part of the row's random state: a reset that fails puts it back
 with the generator's state, and a reset that changes the mission draws the new mission's field
 from the same word — so the fields are those a draw at reset time gives, the same for the same
 seed with or without drawing ahead (tested).
@@ -35,6 +37,13 @@ from debris_gym.orbit_fields import DrawnOrbits, OrbitDrawer, orbit_drawer
 from debris_gym.scenario import Scenario
 
 __all__ = ["FieldSupply", "SupplyState"]
+
+GATHER_CALLS = 4
+"""Calls of :meth:`FieldSupply.draw_ahead` whose rows are gathered into one job before the
+worker is woken: each wake-up makes the missions' thread wait once for Python's lock."""
+
+GATHER_ROWS = 128
+"""Rows that wake the worker at once, however few calls gathered them."""
 
 
 @dataclass(frozen=True)
@@ -85,6 +94,8 @@ class FieldSupply:
         self._ready_drawer: OrbitDrawer | None = None
         self._store: DrawnOrbits | None = None
         self._worker: _Worker | None = None
+        self._gathered: list[np.ndarray] = []  # rows to draw ahead, not yet handed over
+        self._gathered_calls = 0
         self._paper: Scenario | None = None
         self.configure(config)
 
@@ -193,26 +204,33 @@ class FieldSupply:
     def take_drawn(self, rows: np.ndarray) -> FieldArrays | None:
         """The next fields of the rows ``rows`` as :meth:`take` gives them, but as the whole
         store of fields drawn ahead (row i of it is row i's field: load the rows ``rows`` of
-        it), or None when some row's field was not drawn ahead (then nothing changed: call
-        :meth:`take`). Spares the copy of the rows out of the store."""
+        it), or None when that cannot be (then nothing changed but the store: call
+        :meth:`take`). A row whose field is not drawn yet (its draw still gathered, see
+        :data:`GATHER_CALLS`) is drawn into the store here. Spares the copy of the rows out of
+        the store."""
         if not self._ahead or self.paper or not self.moving or self._store is None:
             return None
-        if self._ready_drawer is not self.drawer():
+        drawer = self.drawer()
+        if self._ready_drawer is not drawer:
             return None
         self.wait()
-        pending = self._pending[rows]
-        if not pending.all():
-            return None
-        words = self._words[rows]
         store = self._store
-        if not (self._ready[rows].all() and (self._ready_words[rows] == words).all()):
-            return None
+        ready = self._ready[rows] & self._pending[rows]
+        ready &= self._ready_words[rows] == self._words[rows]
+        if not ready.all():  # draw them now, from the words a draw at take time uses
+            missing = rows[~ready]
+            words = self._next_words(missing)
+            self._words[missing] = words
+            self._pending[missing] = True
+            self._ready_words[missing] = words
+            self._ready[missing] = True
+            drawer.draw_rows(words, missing, store)
         if not store.placed[rows].all():
             return None
+        self.taken_words[rows] = self._words[rows]
         self._pending[rows] = False
         self._ready[rows] = False
-        self.taken_words[rows] = words
-        return _drawn_fields(store, self.drawer(), None)
+        return _drawn_fields(store, drawer, None)
 
     def _taken_ready(self, rows: np.ndarray, words: np.ndarray) -> bool:
         """Were the fields of ``words`` drawn ahead for ``rows`` (waits for the worker)? Their
@@ -262,9 +280,18 @@ class FieldSupply:
         if self._ready_drawer is not drawer:  # a new mission: what was drawn ahead is stale
             self.wait()
             self._ready[:] = False
+            self._gathered, self._gathered_calls = [], 0
             self._ready_drawer = drawer
             self._store = drawer.empty(self.num)
-        rows = np.array(rows, dtype=np.int64)
+        self._gathered.append(np.array(rows, dtype=np.int64))
+        self._gathered_calls += 1
+        if (
+            self._gathered_calls < GATHER_CALLS
+            and sum(len(r) for r in self._gathered) < GATHER_ROWS
+        ):
+            return
+        rows = np.unique(np.concatenate(self._gathered))
+        self._gathered, self._gathered_calls = [], 0
         self._ready[rows] = True
         if self._worker is None:
             self._worker = _Worker()
@@ -307,7 +334,7 @@ class FieldSupply:
         # threads do not pickle: a copy draws its fields when taken, the same fields
         self.wait()
         state = self.__dict__.copy()
-        state.update(_worker=None, _store=None, _ready_drawer=None)
+        state.update(_worker=None, _store=None, _ready_drawer=None, _gathered=[], _gathered_calls=0)
         state["_ready"] = np.zeros(self.num, dtype=bool)
         return state
 
