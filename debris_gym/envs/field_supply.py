@@ -95,6 +95,7 @@ class FieldSupply:
         self._store: DrawnOrbits | None = None
         self._worker: _Worker | None = None
         self._gathered: list[np.ndarray] = []  # rows to draw ahead, not yet handed over
+        self._in_flight = np.zeros(num, dtype=bool)  # rows of jobs not yet waited for
         self._gathered_calls = 0
         self._paper: Scenario | None = None
         self.configure(config)
@@ -213,11 +214,15 @@ class FieldSupply:
         drawer = self.drawer()
         if self._ready_drawer is not drawer:
             return None
-        self.wait()
+        # wait for the worker only when it holds some of these rows, or a row must be drawn
+        # here (the worker and this thread share the drawer's working arrays)
+        if self._in_flight[rows].any():
+            self.wait()
         store = self._store
         ready = self._ready[rows] & self._pending[rows]
         ready &= self._ready_words[rows] == self._words[rows]
         if not ready.all():  # draw them now, from the words a draw at take time uses
+            self.wait()
             missing = rows[~ready]
             words = self._next_words(missing)
             self._words[missing] = words
@@ -293,6 +298,7 @@ class FieldSupply:
         rows = np.unique(np.concatenate(self._gathered))
         self._gathered, self._gathered_calls = [], 0
         self._ready[rows] = True
+        self._in_flight[rows] = True
         if self._worker is None:
             self._worker = _Worker()
         self._worker.submit(self._draw_next, drawer, rows)
@@ -322,6 +328,7 @@ class FieldSupply:
         """Wait for the worker (fields drawn ahead that found no valid try are not ``placed``:
         their rows draw again when taken, and raise then)."""
         if self._worker is not None:
+            self._in_flight[:] = False  # done or failed: either way not in the worker's hands
             self._worker.wait()
 
     def close(self) -> None:
@@ -336,6 +343,7 @@ class FieldSupply:
         state = self.__dict__.copy()
         state.update(_worker=None, _store=None, _ready_drawer=None, _gathered=[], _gathered_calls=0)
         state["_ready"] = np.zeros(self.num, dtype=bool)
+        state["_in_flight"] = np.zeros(self.num, dtype=bool)
         return state
 
 
