@@ -224,8 +224,7 @@ class FieldSupply:
         if not ready.all():  # draw them now, from the words a draw at take time uses
             self.wait()
             missing = rows[~ready]
-            words = self._next_words(missing)
-            self._words[missing] = words
+            words = self._next_words(missing)  # now in _words, no longer pending
             self._pending[missing] = True
             self._ready_words[missing] = words
             self._ready[missing] = True

@@ -417,9 +417,10 @@ class MissionShell:
         self, value: Any, pinned: Scenario | None, fields: FieldArrays | None
     ) -> np.ndarray:
         """Initial chaser states checked against the fields this reset installs."""
-        scenario = pinned if pinned is not None or fields is not None else self._paper()
+        if pinned is None and fields is None:  # the paper world
+            pinned = self._paper()
         return checked_initial_states(
-            value, self.num, self.chasers, self.config, self.supply.spec.field_size, scenario,
+            value, self.num, self.chasers, self.config, self.supply.spec.field_size, pinned,
             fields,
         )  # fmt: skip
 
