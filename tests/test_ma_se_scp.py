@@ -130,3 +130,44 @@ def test_a_moving_field_falls_back_to_the_bodies_alone_with_their_own_margins(mo
     assert all(bodies == margins for bodies, margins in calls)
     assert [m.stats["teammate_fallbacks"] for m in team.members] == [1, 1]
     env.close()
+
+
+def _chain_is_free(chain, geometry, margins, mates, teammate_radius):
+    """Every sphere of ``chain`` clear of the bodies (closed-form signed distances less the
+    margins) and of the teammates' spheres, and every two consecutive spheres overlapping."""
+    gaps = geometry.signed_distance(chain.centers) - margins[None]
+    assert np.all(gaps.min(axis=1) >= chain.radii - 1e-6)
+    if len(mates):
+        apart = np.linalg.norm(chain.centers[:, None] - mates[None], axis=-1) - teammate_radius
+        # the first sphere is the chaser's own position, the last its slot: they may be given
+        # a floor radius inside a teammate's sphere, the others are free of them
+        assert np.all(apart[1:-1].min(axis=1) >= chain.radii[1:-1] - 1e-6)
+    steps = np.linalg.norm(np.diff(chain.centers, axis=0), axis=1)
+    assert np.all(steps < chain.radii[:-1] + chain.radii[1:])
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_exploration_connects_six_chasers_on_the_reconfigure_dock_lattice(seed):
+    """The Reconfigure IDs' dock slots are 12 m apart = 2 (r_col + r_max) with the team's
+    cruise: uniform samples in the 1 000 m field alone left a start stranded within 300
+    iterations; with the local samples every graph connects, the slots go by the graphs'
+    path costs, and every chaser's chain to its slot keeps clear of the bodies and of the
+    other chasers' spheres."""
+    env = swarm.make("DebrisGym/Reconfigure3D-v0")
+    team = MASESCPTeam(env, measure_alone=False)
+    start_episode(env, team, seed)
+    team.predict({})  # the episode starts: the prepared graphs are taken over
+    record = team.last_exploration
+    assert record is not None and record.connected_shared
+    assert record.r_max == pytest.approx(4.0) and record.iterations_shared < 300
+    graphs = team.graphs
+    assert graphs is not None and graphs.assigned is not None
+    view = team.views[0]
+    cfg = view.config
+    margins = np.full(view.geometry.n_bodies, cfg.chaser_radius + 0.002 * view.scenario.size)
+    for k in range(env.core.chasers):
+        chain, _ = graphs.chain_to(k, int(graphs.assigned[k]))
+        assert chain.success
+        mates = np.delete(graphs.positions, k, axis=0)
+        _chain_is_free(chain, view.geometry, margins, mates, graphs.params.teammate_radius)
+    env.close()

@@ -4,6 +4,7 @@ wall of circles, sphere clearances in closed form, and brute-force assignments."
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 
@@ -208,6 +209,80 @@ def test_node_sharing_needs_fewer_iterations_than_exploring_alone():
     assert np.mean(shared) <= 0.75 * np.mean(alone)
 
 
+def _tight_lattice_case():
+    """Seven 3D agents on a planar hexagonal lattice of pitch 2 (r_col + r_max) = 12 m (the
+    Reconfigure IDs' dock pitch) in a 1 000 m box, their goals on a ring 400 m away: each start's
+    free sphere is 6 m, so no other agent places a node within 6 m of it."""
+    ring = np.r_[[[0.0, 0.0, 0.0]], [[12 * math.cos(a), 12 * math.sin(a), 0.0]
+                                     for a in np.arange(6) * math.pi / 3]]  # fmt: skip
+    starts = ring - [400.0, 0.0, 0.0]
+    angles = np.arange(7) * 2 * math.pi / 7
+    goals = np.c_[40 * np.cos(angles), 40 * np.sin(angles), np.zeros(7)]
+    field = Spheres([[0.0, 0.0, 0.0], [-200.0, 0.0, 150.0]], [20.0, 60.0], dim=3)
+    low, high = np.full(3, -500.0), np.full(3, 500.0)
+    return field, starts, goals, low, high
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_local_bias_connects_a_tight_lattice_that_uniform_samples_leave_stranded(seed):
+    """Uniform samples in a 1 000 m box almost never fall within reach of a start whose free
+    sphere is 6 m; with half of a stranded agent's samples drawn near its start every graph
+    connects (checked by Dijkstra on each agent's own graph), and stays out of the spheres."""
+    field, starts, goals, low, high = _tight_lattice_case()
+    margins = np.full(2, 1.0)
+    base = _params(r_max=4.0, max_iterations=150, expansion={"narrow_cost": 2.0})
+    stranded = explore(field, starts, goals, margins, np.random.default_rng(seed), base,
+                       low=low, high=high)  # fmt: skip
+    assert not stranded.connected
+    biased = explore(field, starts, goals, margins, np.random.default_rng(seed),
+                     dataclasses.replace(base, local_bias=0.5), low=low, high=high)  # fmt: skip
+    assert biased.connected
+    assert np.isfinite(biased.costs).all()
+    g = biased.graphs
+    for i in range(len(starts)):
+        mine = np.flatnonzero(g.owners == i)
+        others = np.delete(starts, i, axis=0)
+        gaps = np.linalg.norm(g.centers[mine][:, None] - others[None], axis=-1)
+        assert gaps.min() >= g.params.teammate_radius + g.params.expansion.min_radius - 1e-9
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), agent=st.integers(0, 6))
+def test_local_biased_samples_lie_in_the_ball_around_the_start_and_in_the_bounds(seed, agent):
+    field, starts, goals, low, high = _tight_lattice_case()
+    high = high.copy()
+    high[2] = 3.0  # a bound that cuts the ball: samples are clipped into the box
+    p = dataclasses.replace(_params(r_max=4.0), local_bias=1.0)
+    g = SwarmGraphs(field, starts, goals, np.full(2, 1.0), p, low=low, high=high)
+    rng = np.random.default_rng(seed)
+    points = np.array([g._local_sample(agent, rng) for _ in range(20)])
+    reach = 3.0 * p.teammate_radius
+    assert np.all(np.linalg.norm(points - starts[agent], axis=1) <= reach + 1e-9)
+    assert np.all((points >= low) & (points <= high))
+
+
+def test_an_agent_whose_chain_fails_samples_near_its_position_and_its_goal_until_it_has_one():
+    field, starts, goals, low, high = _tight_lattice_case()
+    p = dataclasses.replace(_params(r_max=4.0), local_bias=1.0)
+    g = SwarmGraphs(field, starts, goals, np.full(2, 1.0), p, low=low, high=high)
+    g.reached[:] = True  # as after a connected exploration: only a failed chain makes samples local
+    g.assigned = np.arange(7)
+    g.move(starts + np.array([0.0, 0.0, 30.0]))
+    chain, _ = g.chain_to(3, 3)  # nothing but the starts and the goals yet: no path
+    assert not chain.success and g.stranded[3] and not g.stranded[2]
+    rng = np.random.default_rng(5)
+    reach = 3.0 * p.teammate_radius
+    points = np.array([g._local_sample(3, rng) for _ in range(200)])
+    near = np.minimum(np.linalg.norm(points - g.positions[3], axis=1),
+                      np.linalg.norm(points - goals[3], axis=1))  # fmt: skip
+    assert np.all(near <= reach + 1e-9)
+    for _ in range(400):
+        g.iterate(rng)
+        if g.chain_to(3, 3)[0].success:
+            break
+    assert not g.stranded[3]
+
+
 # --- assignment ---------------------------------------------------------------------------------
 
 
@@ -243,7 +318,8 @@ def test_the_hungarian_assignment_totals_the_brute_force_optimum(costs):
 @pytest.mark.parametrize(
     ("kwargs", "name"),
     [({"r_col": -1.0}, "r_col"), ({"r_max": math.nan}, "r_max"), ({"r_col": True}, "r_col"),
-     ({"max_iterations": 0}, "max_iterations"), ({"share_nodes": 1}, "share_nodes")],
+     ({"max_iterations": 0}, "max_iterations"), ({"share_nodes": 1}, "share_nodes"),
+     ({"local_bias": 1.5}, "local_bias"), ({"local_bias": math.nan}, "local_bias")],
 )  # fmt: skip
 def test_bad_parameters_raise_naming_them(kwargs, name):
     with pytest.raises(ValueError, match=name):

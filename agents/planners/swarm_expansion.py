@@ -11,7 +11,9 @@ the trajectory programme. Agent i keeps a graph G^i = (V^i, E^i) of body-free sp
   to the bodies, so every node radius of V^i shrinks to its distance to them (lines 8–16; a
   teammate already closer than r_col + r_max — agents that start tighter than the paper's
   eq. 1 allows — is a sphere reaching to ``min_radius`` short of the agent); a
-  sample is drawn uniformly in the bounds, the nearest node of V^i found, and the new node is
+  sample is drawn uniformly in the bounds (or, for a stranded agent and with probability
+  ``local_bias``, near its start, its unreached goals or its position: the paper leaves the
+  sampler open), the nearest node of V^i found, and the new node is
   the sample if it lies in that node's sphere, else the point of the sphere's surface nearest
   the sample (``Steer``, lines 17–19); it joins V^i with its radius (``MinDistObs``, line 20);
   two nodes are joined by an edge when their spheres overlap (lines 21–27);
@@ -38,6 +40,7 @@ Everything here is a pure function of the field and the generator passed in; not
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -83,6 +86,11 @@ class SwarmParams:
             (edges and their cost), ``goal_bias`` (probability that a sample is a goal drawn
             uniformly; the paper samples the workspace only: 0 by default) and ``max_nodes``
             (the pool's size: no node is added past it).
+        local_bias: probability that the sample of an agent not yet connected is local,
+            uniform in the ball of radius 3 (r_col + r_max) around one of its
+            :meth:`SwarmGraphs.local_anchors` (its start while that reaches no goal, then the
+            goals it does not reach; after a failed :meth:`SwarmGraphs.chain_to`, its position
+            and its assigned goal); 0: every sample uniform in the bounds (the paper).
     """
 
     r_col: float
@@ -92,6 +100,7 @@ class SwarmParams:
     expansion: ExpansionParams = field(
         default_factory=lambda: ExpansionParams(goal_bias=0.0, max_nodes=20_000)
     )
+    local_bias: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("r_col", "r_max"):
@@ -110,6 +119,10 @@ class SwarmParams:
             raise ValueError(f"max_iterations must be an integer >= 1, got {self.max_iterations!r}")
         if not isinstance(self.expansion, ExpansionParams):
             raise ValueError(f"expansion must be an ExpansionParams, got {self.expansion!r}")
+        if isinstance(self.local_bias, bool) or not (
+            isinstance(self.local_bias, (int, float)) and 0.0 <= self.local_bias <= 1.0
+        ):
+            raise ValueError(f"local_bias must be in [0, 1], got {self.local_bias!r}")
 
     @property
     def teammate_radius(self) -> float:
@@ -183,6 +196,10 @@ class SwarmGraphs:
         self.assigned: np.ndarray | None = None
         """(N,) each agent's goal once assigned (None before)."""
         self.iterations = 0
+        self.reached = np.zeros((n, n), dtype=bool)
+        """(N, N) whether agent i's start reaches goal j in G^i (kept by :func:`explore`)."""
+        self.stranded = np.zeros(n, dtype=bool)
+        """(N,) the agents whose last :meth:`chain_to` found no path."""
         cap = 2 * n + 64
         self._centers = np.empty((cap, d))
         self._clearance = np.empty(cap)  # body and wall clearance, the same for every agent
@@ -383,6 +400,12 @@ class SwarmGraphs:
         for i in active.tolist():
             if ex.goal_bias > 0 and rng.random() < ex.goal_bias:
                 sample = goals[rng.integers(n)].copy()
+            elif (
+                self.params.local_bias > 0
+                and (self.stranded[i] or not self.reached[i].all())
+                and rng.random() < self.params.local_bias
+            ):
+                sample = self._local_sample(i, rng)
             else:
                 sample = self.low + rng.random(self.dim) * (self.high - self.low)
             nodes = np.flatnonzero(self._known[i, : self._size])
@@ -423,6 +446,28 @@ class SwarmGraphs:
         self._fresh = added.tolist()
         return len(added)
 
+    def local_anchors(self, agent: int) -> np.ndarray:
+        """(A, dim) the points (m) the agent's local samples are drawn around: a
+        :attr:`stranded` agent's position and its assigned goal; else its start while that
+        reaches no goal, then every goal its start does not reach yet."""
+        if self.stranded[agent] and self.assigned is not None:
+            goal = self._centers[self.goal_nodes[self.assigned[agent]]]
+            return np.stack([self.positions[agent], goal])
+        if not self.reached[agent].any():
+            return self._centers[self.start_nodes[agent : agent + 1]]
+        return self._centers[self.goal_nodes[~self.reached[agent]]]
+
+    def _local_sample(self, agent: int, rng: np.random.Generator) -> np.ndarray:
+        """A sample uniform in the ball of radius 3 (r_col + r_max) around one of the agent's
+        :meth:`local_anchors` (drawn uniformly), clipped into the bounds."""
+        anchors = self.local_anchors(agent)
+        center = anchors[rng.integers(len(anchors))]
+        reach = 3.0 * max(self.params.teammate_radius, self.params.expansion.min_radius)
+        direction = rng.normal(size=self.dim)
+        direction /= max(float(np.linalg.norm(direction)), 1e-12)
+        point = center + direction * reach * rng.random() ** (1.0 / self.dim)
+        return np.clip(point, self.low, self.high)
+
     def move(self, positions: np.ndarray, present: np.ndarray | None = None) -> None:
         """The agents' current positions Y (m) and which of them are spheres to the others."""
         positions = np.asarray(positions, dtype=float)
@@ -454,14 +499,16 @@ class SwarmGraphs:
         target = int(self.goal_nodes[goal])
         g = self.graph(agent, {target: floor}, self.positions[agent], floor)
         chain = shortest_chain(g, g.n_nodes - 1, target)
+        self.stranded[agent] = not chain.success
         return chain, int(self._known[agent, : self._size].sum()) + 1
 
 
 def _all_connected(graphs: SwarmGraphs, done: np.ndarray) -> bool:
     n = graphs.n_agents
     for i in np.flatnonzero(~done):
-        if np.isfinite(graphs.path_costs(int(i))).sum() == n:
-            done[i] = True
+        reached = np.isfinite(graphs.path_costs(int(i)))
+        graphs.reached[i] = reached
+        done[i] = reached.sum() == n
     return bool(done.all())
 
 
@@ -548,7 +595,7 @@ def compare_sharing(
     from ``numpy.random.default_rng(seed)`` (the paper's measurement, Fig. 4 and 7)."""
     out = []
     for share in (True, False):
-        p = SwarmParams(params.r_col, params.r_max, share, params.max_iterations, params.expansion)
+        p = dataclasses.replace(params, share_nodes=share)
         rng = np.random.default_rng(seed)
         out.append(explore(geometry, starts, goals, margins, rng, p, low=low, high=high))
     return SharingComparison(*out)

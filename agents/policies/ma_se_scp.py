@@ -29,13 +29,18 @@ does (:class:`~agents.policies.team.TeamOfSingles`); the default is the envs' ba
 (at most ⌈T / K⌉ targets each): the total-cost optimum often sends one chaser to every target.
 
 r_max, "the maximum distance an agent travels in one time instant", is by default the
-distance the programme's cruise speed covers between two plans. The paper asks every two starts
-and every two goals to be r_col + r_max apart (its eq. 1–2); the swarm envs' dock lattice is
-tighter (5 m against 12 m at 1 m/s and 10 s steps), so a teammate already closer than
+distance the programme's cruise speed covers between two plans: :data:`CRUISE_SPEED` × the env
+step × ``replan_every``, 4 m in the v2 world, so the teammate spheres (r_col + r_max = 6 m) are
+half the Reconfigure IDs' 12 m slot pitch and every start and slot keeps a free sphere as wide.
+The paper asks every two starts and every two goals to be r_col + r_max apart (its eq. 1–2);
+the capture missions' dock lattice is tighter (5 m), so a teammate already closer than
 r_col + r_max to the chaser, or to the chaser's goal, is a sphere reaching to ``min_radius``
 short of it: the chaser may move away, not closer, and can still reach its goal. The
 programme's speed is not capped: r_max is the plan's cruise, not a hard bound, and the MPC
-tracker may fly faster for a while.
+tracker may fly faster for a while. Uniform samples in a large field rarely fall near a start
+hemmed in by its neighbours' spheres: a stranded chaser draws half its samples near its start,
+its unreached slots or, in flight, its position and slot (``local_bias``,
+:class:`~agents.planners.swarm_expansion.SwarmParams`).
 """
 
 from __future__ import annotations
@@ -65,7 +70,12 @@ from agents.policies.shield import ShieldParams
 from agents.policies.shielded import ShieldStats, TeamShield
 from agents.policies.team import check_team_env, team_field
 
-__all__ = ["ExplorationRecord", "MASESCPTeam", "SwarmMember", "TeammateSpheres"]
+__all__ = ["CRUISE_SPEED", "ExplorationRecord", "MASESCPTeam", "SwarmMember", "TeammateSpheres"]
+
+CRUISE_SPEED = 0.4
+"""The programme's cruise speed (m/s) in a team: at the v2 world's 10 s step it makes
+r_max = 4 m, so the teammate spheres (r_col + r_max = 6 m at r_col = 2 m) are half the
+Reconfigure IDs' 12 m slot pitch and every start and goal keeps a free sphere as wide."""
 
 
 class TeammateSpheres:
@@ -133,6 +143,7 @@ class SwarmMember(SESCPAgent):
 
     name = "ma-se-scp"
     keep_arrival = False
+    programme_substeps = 6
     replans_frozen_field = True
 
     def __init__(self, view: ChaserView, team: MASESCPTeam, **params: Any) -> None:
@@ -217,6 +228,8 @@ class MASESCPTeam:
             speed times ``replan_every`` env steps.
         share_nodes: share new nodes (the paper); False flies with each chaser's own graph.
         max_iterations: cap on the exploration's iterations.
+        local_bias: probability that a stranded chaser's sample is local
+            (:class:`~agents.planners.swarm_expansion.SwarmParams`).
         measure_alone: also run the exploration without sharing, for the record.
         seed: seed of every sampler (chaser k's own expansions: ``seed + k``).
         expansion: spherical-expansion tunables (``min_radius`` and the edge rule are used
@@ -243,6 +256,7 @@ class MASESCPTeam:
         r_max: float | None = None,
         share_nodes: bool = True,
         max_iterations: int = 300,
+        local_bias: float = 0.5,
         measure_alone: bool = True,
         seed: int = 0,
         expansion: ExpansionParams | None = None,
@@ -262,11 +276,12 @@ class MASESCPTeam:
         self.env, self.rule = env, rule
         self.replan_every, self.r_max = replan_every, r_max
         self.share_nodes, self.max_iterations = bool(share_nodes), int(max_iterations)
+        self.local_bias = local_bias
         self.measure_alone, self.seed = bool(measure_alone), seed
         self.agents: list[str] = list(env.possible_agents)
         self._index = {a: k for k, a in enumerate(self.agents)}
         self.views = [ChaserView(core, k) for k in range(core.chasers)]
-        self.scp_base = scp or SCPParams(sphere_penalty=100.0)
+        self.scp_base = scp or SCPParams(sphere_penalty=100.0, cruise_speed=CRUISE_SPEED)
         self.members = [
             SwarmMember(view, self, expansion=expansion, scp=self.scp_base, seed=seed + k, **params)
             for k, view in enumerate(self.views)
@@ -392,7 +407,9 @@ class MASESCPTeam:
         if r_max is None:
             r_max = self.scp_base.cruise_speed * scenario.dt * self.replan_every
         ex = dataclasses.replace(self.members[0].expansion_params, goal_bias=0.0, max_nodes=20_000)
-        self.params = SwarmParams(r_col, r_max, self.share_nodes, self.max_iterations, ex)
+        self.params = SwarmParams(
+            r_col, r_max, self.share_nodes, self.max_iterations, ex, local_bias=self.local_bias
+        )
 
     def _explore(
         self, scenario: Any, starts: np.ndarray, goals: np.ndarray

@@ -152,6 +152,9 @@ class SESCPAgent(MPCPathAgent):
 
     name = "se-scp"
 
+    programme_substeps = 2
+    """Env steps per step of the trajectory programme when ``scp.step`` is None."""
+
     keep_arrival = True
     """Whether a re-plan toward the same goal keeps the arrival time of the first plan (a
     shrinking horizon) instead of a fresh time allocation."""
@@ -204,7 +207,9 @@ class SESCPAgent(MPCPathAgent):
 
     def prepare(self, scenario: Scenario) -> None:
         self._rng = np.random.default_rng(self.seed)
-        step = self.scp_params.step if self.scp_params.step is not None else 2.0 * scenario.dt
+        step = self.scp_params.step
+        if step is None:
+            step = self.programme_substeps * scenario.dt
         ratio = round(step / scenario.dt)
         if ratio < 1 or abs(ratio * scenario.dt - step) > 1e-9 * step:
             raise ValueError(f"scp step must be a whole number of env steps, got {step!r} s")
