@@ -64,7 +64,7 @@ def test_every_flying_chaser_replans_at_every_decision_and_the_pair_stays_apart(
 @pytest.mark.parametrize(
     ("kwargs", "name"),
     [({"replan_every": 0}, "replan_every"), ({"r_max": -1.0}, "r_max"),
-     ({"rule": "fastest"}, "rule"), ({"seed": -1}, "seed")],
+     ({"rule": "fastest"}, "rule"), ({"seed": -1}, "seed"), ({"local_bias": 2.0}, "local_bias")],
 )  # fmt: skip
 def test_bad_team_parameters_raise_naming_them(kwargs, name):
     env = _env()

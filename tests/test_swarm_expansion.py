@@ -17,10 +17,10 @@ from agents.planners.spherical_expansion import ExpansionParams
 from agents.planners.swarm_expansion import (
     SwarmGraphs,
     SwarmParams,
-    assign_goals,
     compare_sharing,
     explore,
 )
+from agents.planners.team_assignment import assign_goals
 
 
 class Spheres:

@@ -29,7 +29,7 @@ The radii, the steering, the edge rule and the edge cost are the single-agent on
 The goals are then shared out (line 30, ``DistributedAssignment``): the paper leaves the method
 open (it cites linear programming and auctions); here it is the optimal assignment of the
 N × N graph path costs, the Hungarian method of :func:`scipy.optimize.linear_sum_assignment`,
-computed centrally (:func:`assign_goals`).
+computed centrally (:func:`agents.planners.team_assignment.assign_goals`).
 
 Every body radius is the same for every agent (they share the field), so a node's clearance to
 the bodies is computed once, and each agent's radius is that clearance cut by its teammates'
@@ -46,7 +46,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
@@ -65,7 +64,6 @@ __all__ = [
     "SharingComparison",
     "SwarmGraphs",
     "SwarmParams",
-    "assign_goals",
     "compare_sharing",
     "explore",
 ]
@@ -599,32 +597,3 @@ def compare_sharing(
         rng = np.random.default_rng(seed)
         out.append(explore(geometry, starts, goals, margins, rng, p, low=low, high=high))
     return SharingComparison(*out)
-
-
-def assign_goals(costs: np.ndarray) -> tuple[np.ndarray, float]:
-    """The optimal assignment of goals to agents on the graph path costs: least total cost,
-    one goal each (the Hungarian method, :func:`scipy.optimize.linear_sum_assignment`; the
-    paper's ``DistributedAssignment`` leaves the method open).
-
-    Args:
-        costs: (N, N) path cost (m) of agent i to goal j, ≥ 0; inf where there is no path.
-
-    Returns:
-        (N,) the goal of each agent, and the total cost (inf when no assignment avoids an inf).
-
-    Raises:
-        ValueError: not square, NaN or negative costs.
-    """
-    costs = np.asarray(costs, dtype=float)
-    if costs.ndim != 2 or costs.shape[0] != costs.shape[1] or costs.shape[0] < 1:
-        raise ValueError(f"costs must be a square (N, N) array, got shape {costs.shape}")
-    if np.any(np.isnan(costs)) or np.any(costs < 0):
-        raise ValueError("costs must be >= 0 (inf for no path), without NaN")
-    finite = np.isfinite(costs)
-    # an inf cost becomes more than any assignment of finite costs could total
-    big = (costs[finite].sum() + 1.0) * (costs.shape[0] + 1) if finite.any() else 1.0
-    rows, cols = linear_sum_assignment(np.where(finite, costs, big))
-    goal = np.empty(costs.shape[0], dtype=np.int64)
-    goal[rows] = cols
-    total = float(costs[rows, cols].sum())
-    return goal, total

@@ -52,6 +52,7 @@ __all__ = [
     "TeamAssignment",
     "TeamField",
     "assign",
+    "assign_goals",
     "assignment_cost",
     "auction_assignment",
     "greedy_assignment",
@@ -330,6 +331,32 @@ def _matching(cost: np.ndarray) -> np.ndarray:
     out = np.empty(cost.shape[0], dtype=np.int64)
     out[rows] = cols
     return out
+
+
+def assign_goals(costs: np.ndarray) -> tuple[np.ndarray, float]:
+    """The optimal assignment of goals to agents on the graph path costs: least total cost,
+    one goal each (the Hungarian method, :func:`scipy.optimize.linear_sum_assignment`; the
+    paper's ``DistributedAssignment`` leaves the method open).
+
+    Args:
+        costs: (N, N) path cost (m) of agent i to goal j, ≥ 0; inf where there is no path.
+
+    Returns:
+        (N,) the goal of each agent, and the total cost (inf when no assignment avoids an inf).
+
+    Raises:
+        ValueError: not square, NaN or negative costs.
+    """
+    costs = np.asarray(costs, dtype=float)
+    if costs.ndim != 2 or costs.shape[0] != costs.shape[1] or costs.shape[0] < 1:
+        raise ValueError(f"costs must be a square (N, N) array, got shape {costs.shape}")
+    if np.any(np.isnan(costs)) or np.any(costs < 0):
+        raise ValueError("costs must be >= 0 (inf for no path), without NaN")
+    finite = np.isfinite(costs)
+    # an inf cost becomes more than any assignment of finite costs could total
+    big = (costs[finite].sum() + 1.0) * (costs.shape[0] + 1) if finite.any() else 1.0
+    goal = _matching(np.where(finite, costs, big))
+    return goal, float(costs[np.arange(len(goal)), goal].sum())
 
 
 def _bottleneck(legs: np.ndarray) -> np.ndarray:

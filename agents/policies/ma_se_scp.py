@@ -60,10 +60,9 @@ from agents.planners.swarm_expansion import (
     Exploration,
     SwarmGraphs,
     SwarmParams,
-    assign_goals,
     explore,
 )
-from agents.planners.team_assignment import TeamAssignment, assign
+from agents.planners.team_assignment import TeamAssignment, assign, assign_goals
 from agents.policies.chaser_view import ChaserView
 from agents.policies.se_scp import SESCPAgent
 from agents.policies.shield import ShieldParams
@@ -273,6 +272,10 @@ class MASESCPTeam:
             raise ValueError(f"r_max must be finite and >= 0 m or None, got {r_max!r}")
         if not (isinstance(seed, int) and seed >= 0):
             raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+        if isinstance(local_bias, bool) or not (
+            isinstance(local_bias, (int, float)) and 0.0 <= local_bias <= 1.0
+        ):
+            raise ValueError(f"local_bias must be in [0, 1], got {local_bias!r}")
         self.env, self.rule = env, rule
         self.replan_every, self.r_max = replan_every, r_max
         self.share_nodes, self.max_iterations = bool(share_nodes), int(max_iterations)
@@ -304,7 +307,7 @@ class MASESCPTeam:
         """The assignment on the field the swarm holds now. A reconfiguration on a frozen
         field under a least-total rule (``balanced``, ``optimal``): the exploration runs here
         and the slots go by the optimal assignment of its graph path costs
-        (:func:`~agents.planners.swarm_expansion.assign_goals`; its cost is still reported on
+        (:func:`~agents.planners.team_assignment.assign_goals`; its cost is still reported on
         the straight legs, as the other teams'); otherwise the rule's own assignment."""
         field = team_field(self.views)
         scenario = self.views[0].scenario
