@@ -7,7 +7,7 @@ Each seed draws a frozen field of ``DebrisGym/Rendezvous3D-v2`` (``debris_motion
 the N agents start on the swarm envs' dock lattice around its dock (pitch ``--pitch`` m) and
 the N goals lie on a Fibonacci shell ``--shell`` m above the surface of target 0 (the "central
 body"); a seed whose goals fall in a body is skipped. Both explorations
-(:func:`agents.planners.swarm_expansion.compare_sharing`) draw from the seed's generator, with
+(:func:`agents.planners.swarm_exploration.compare_sharing`) draw from the seed's generator, with
 r_col = 2 m, r_max = 10 m (one 10 s step at 1 m/s), the "se-scp" sphere margins, a cap of
 ``--cap`` iterations. Prints one line per seed and the means.
 """
@@ -29,7 +29,8 @@ def main(argv: list[str] | None = None) -> None:
     import gymnasium as gym
 
     from agents.planners.spherical_expansion import node_radii
-    from agents.planners.swarm_expansion import SwarmParams, compare_sharing
+    from agents.planners.swarm_expansion import SwarmParams
+    from agents.planners.swarm_exploration import compare_sharing
     from debris_gym.geometry import FieldGeometry
     from debris_gym.swarm.config import dock_slots
 

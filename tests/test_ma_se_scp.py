@@ -64,7 +64,8 @@ def test_every_flying_chaser_replans_at_every_decision_and_the_pair_stays_apart(
 @pytest.mark.parametrize(
     ("kwargs", "name"),
     [({"replan_every": 0}, "replan_every"), ({"r_max": -1.0}, "r_max"),
-     ({"rule": "fastest"}, "rule"), ({"seed": -1}, "seed"), ({"local_bias": 2.0}, "local_bias")],
+     ({"rule": "fastest"}, "rule"), ({"seed": -1}, "seed"), ({"local_bias": 2.0}, "local_bias"),
+     ({"flight_pool": -1}, "flight_pool"), ({"flight_pool": 1.5}, "flight_pool")],
 )  # fmt: skip
 def test_bad_team_parameters_raise_naming_them(kwargs, name):
     env = _env()
@@ -170,4 +171,79 @@ def test_the_exploration_connects_six_chasers_on_the_reconfigure_dock_lattice(se
         assert chain.success
         mates = np.delete(graphs.positions, k, axis=0)
         _chain_is_free(chain, view.geometry, margins, mates, graphs.params.teammate_radius)
+    env.close()
+
+
+@pytest.mark.parametrize(("pool", "expect_growth"), [(0, False), (None, True), (10**6, True)])
+def test_in_flight_every_chaser_grows_the_graphs_until_the_pool_is_full(pool, expect_growth):
+    """At the first decisions after the exploration every chain to a slot exists (no chaser
+    is stranded): below ``flight_pool`` (or without one: the paper) every flying chaser draws
+    a sample; past it only stranded chasers would, so the pool stays as explored."""
+    env = swarm.make("DebrisGym/Reconfigure3D-v0")
+    team = MASESCPTeam(env, measure_alone=False, flight_pool=pool)
+    observations, _, _ = start_episode(env, team, 0)
+    team.predict({a: observations[a] for a in env.agents})
+    graphs = team.graphs
+    assert graphs is not None and not graphs.stranded.any()
+    explored = graphs.n_nodes
+    observations, *_ = env.step(team.predict({a: observations[a] for a in env.agents}))
+    grown = graphs.n_nodes - explored
+    if expect_growth:
+        assert 0 < grown <= env.core.chasers
+    else:
+        assert grown == 0 and not graphs.stranded.any()
+    env.close()
+
+
+@pytest.mark.parametrize("expansion", [True, False])
+def test_a_chaser_its_graph_strands_grows_its_own_chain_among_the_teammates(monkeypatch, expansion):
+    """When the shared graph holds no chain from chaser 0 to its slot, it plans with a
+    spherical expansion from its position among the bodies and its teammates' spheres (the
+    chain checked against the closed-form signed distances), or holds when that is off."""
+    env = swarm.make("DebrisGym/Reconfigure3D-v0")
+    team = MASESCPTeam(env, measure_alone=False, stranded_expansion=expansion)
+    observations, _, _ = start_episode(env, team, 1)
+    team.predict({})  # the prepared graphs are taken over
+    graphs = team.graphs
+    assert graphs is not None
+    original_chain_to = type(graphs).chain_to
+
+    def strand_chaser_zero(self, agent, goal, floor=None):
+        chain, nodes = original_chain_to(self, agent, goal, floor)
+        if agent != 0:
+            return chain, nodes
+        self.stranded[agent] = True
+        d = self.dim
+        return SphereChain(False, np.zeros(0, int), np.zeros((0, d)), np.zeros(0), np.inf), nodes
+
+    grown = []
+    original_sphere_chain = SESCPAgent.sphere_chain
+
+    def recording(self, start, goal, geometry, margins, *rest):
+        chain, nodes = original_sphere_chain(self, start, goal, geometry, margins, *rest)
+        grown.append((self.team.members.index(self), chain, geometry, margins))
+        return chain, nodes
+
+    monkeypatch.setattr(type(graphs), "chain_to", strand_chaser_zero)
+    monkeypatch.setattr(SESCPAgent, "sphere_chain", recording)
+    team.predict({a: observations[a] for a in env.agents})
+    zero = team.members[0]
+    others = team.members[1:]
+    assert all("own_expansions" not in m.stats and "holds" not in m.stats for m in others)
+    if not expansion:
+        assert zero.stats.get("holds") == 1 and "own_expansions" not in zero.stats
+        assert grown == []
+        env.close()
+        return
+    assert zero.stats["own_expansions"] == 1 and "holds" not in zero.stats
+    ((who, chain, spheres, margins),) = grown
+    assert who == 0 and chain.success and len(chain.radii) >= 2
+    mates = np.delete(team.positions(), 0, axis=0)
+    assert isinstance(spheres, TeammateSpheres) and np.allclose(spheres.centers, mates)
+    view = team.views[0]
+    body_margins = margins[: view.geometry.n_bodies]
+    _chain_is_free(chain, view.geometry, body_margins, mates, graphs.params.teammate_radius)
+    slot = graphs.centers[graphs.goal_nodes[graphs.assigned[0]]]
+    assert np.allclose(chain.centers[-1], slot)
+    assert np.allclose(chain.centers[0], view.chaser_state[:3])
     env.close()

@@ -12,14 +12,11 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy.sparse.csgraph import dijkstra
 
 from agents.planners.spherical_expansion import ExpansionParams
-from agents.planners.swarm_expansion import (
-    SwarmGraphs,
-    SwarmParams,
-    compare_sharing,
-    explore,
-)
+from agents.planners.swarm_expansion import SwarmGraphs, SwarmParams
+from agents.planners.swarm_exploration import compare_sharing, explore
 from agents.planners.team_assignment import assign_goals
 
 
@@ -169,6 +166,49 @@ def test_a_chain_keeps_out_of_the_teammates_spheres():
     for a, b in itertools.pairwise(chain.centers):
         for other in starts[1:]:
             assert _segment_gap(a, b, other) >= p.r_col + p.r_max - 1e-6
+
+
+_EXPLORED: dict[int, SwarmGraphs] = {}
+
+
+def _explored_field(seed: int) -> SwarmGraphs:
+    """Four agents explored to connection among five circles (cached per seed)."""
+    if seed not in _EXPLORED:
+        field = Spheres([[0.0, 0.0], [50.0, 40.0], [-45.0, 50.0], [40.0, -50.0], [-50.0, -40.0]],
+                        [25.0, 15.0, 15.0, 12.0, 12.0])  # fmt: skip
+        starts = np.array([[-85.0, -85.0], [85.0, -85.0], [-85.0, 85.0], [85.0, 85.0]])
+        goals = starts[::-1] * 0.9
+        p = _params(r_max=4.0, expansion={"narrow_cost": 2.0})
+        found = explore(field, starts, goals, np.full(5, 2.0), np.random.default_rng(seed), p,
+                        low=BOX[0], high=BOX[1])  # fmt: skip
+        for _ in range(40):  # a denser pool than the first connection gives
+            found.graphs.iterate(np.random.default_rng(seed + 1))
+        _EXPLORED[seed] = found.graphs
+    return _EXPLORED[seed]
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 2),
+    agent=st.integers(0, 3),
+    goal=st.integers(0, 3),
+    moves=st.lists(st.floats(-60.0, 60.0), min_size=8, max_size=8),
+)
+def test_the_chain_to_a_goal_is_the_least_chain_of_the_whole_graph(seed, agent, goal, moves):
+    """:meth:`SwarmGraphs.chain_to` searches an ellipsoid around the agent and its goal first;
+    its chain must cost what Dijkstra finds in the agent's whole graph (no region), for agents
+    moved anywhere (their spheres cutting the pool), and fail exactly when that does."""
+    graphs = _explored_field(seed)
+    starts = graphs.centers[graphs.start_nodes]
+    graphs.move(np.clip(starts + np.reshape(moves, (4, 2)), -95.0, 95.0))
+    chain, _ = graphs.chain_to(agent, goal)
+    floor = graphs.params.expansion.min_radius
+    target = int(graphs.goal_nodes[goal])
+    whole = graphs.graph(agent, {target: floor}, graphs.positions[agent], floor)
+    dist = dijkstra(whole.adjacency, indices=whole.n_nodes - 1)
+    assert chain.success == bool(np.isfinite(dist[target]))
+    if chain.success:
+        assert chain.cost == pytest.approx(dist[target], rel=1e-9)
 
 
 def test_nodes_are_shared_one_iteration_later_and_only_when_sharing():

@@ -487,13 +487,15 @@ def _solve(
             add(sp.hstack([sign * thrust, -sp.identity(n_s)]), np.full(n_u, -np.inf),
                 np.zeros(n_u))  # fmt: skip
     else:
+        # the epigraph s_k ≥ n·ũ_k of every facet n, with s_k ≤ thrust_fraction·h, holds ũ_k
+        # in the thrust polytope as well: one row per facet and step, not two
         normals, h = _polytope(d, thrust_facets)
         per = sp.kron(sp.identity(T), sp.csr_matrix(normals), format="csr")
         rows = per.shape[0]
-        add(sp.hstack([per, sp.csr_matrix((rows, n_s))]), np.full(rows, -np.inf),
-            np.full(rows, params.thrust_fraction * h))  # fmt: skip
         ones = sp.kron(sp.identity(T), sp.csr_matrix(np.ones((thrust_facets, 1))), format="csr")
         add(sp.hstack([per, -ones]), np.full(rows, -np.inf), np.zeros(rows))
+        add(sp.hstack([sp.csr_matrix((n_s, n_u)), sp.identity(n_s)]), np.full(n_s, -np.inf),
+            np.full(n_s, params.thrust_fraction * h))  # fmt: skip
     # spheres: N (p[k] − c_j) ≤ r_j h − tolerance for each sphere point k must lie in
     normals, h = _polytope(d, sphere_facets)
     coef, bound, owner = [], [], []

@@ -19,7 +19,11 @@ the trajectory programme. Agent i keeps a graph G^i = (V^i, E^i) of body-free sp
   two nodes are joined by an edge when their spheres overlap (lines 21–27);
 * F^i_connected is the number of goals agent i's start reaches in G^i (``MinPath``: Dijkstra,
   :func:`scipy.sparse.csgraph.dijkstra`, lines 32–38); the exploration is over when
-  Σ_ℓ F^ℓ_connected = N² (line 29).
+  Σ_ℓ F^ℓ_connected = N² (line 29; the loop is :func:`agents.planners.swarm_exploration.explore`);
+* in flight (line 45) the chain from the agent's position Y^i to its goal is searched first
+  among the nodes that a chain at most half again as long as the straight line may visit (an
+  ellipsoid: an edge costs at least its length), then, when none is found there, in the whole
+  graph: the same least chain at a fraction of the edges.
 
 The radii, the steering, the edge rule and the edge cost are the single-agent ones of
 :mod:`agents.planners.spherical_expansion` (:func:`node_radii`, :func:`joinable`,
@@ -40,7 +44,6 @@ Everything here is a pure function of the field and the generator passed in; not
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -59,14 +62,7 @@ from agents.planners.spherical_expansion import (
     shortest_chain,
 )
 
-__all__ = [
-    "Exploration",
-    "SharingComparison",
-    "SwarmGraphs",
-    "SwarmParams",
-    "compare_sharing",
-    "explore",
-]
+__all__ = ["SwarmGraphs", "SwarmParams"]
 
 
 @dataclass(frozen=True)
@@ -288,6 +284,7 @@ class SwarmGraphs:
         floor: dict[int, float] | None = None,
         extra: np.ndarray | None = None,
         extra_radius: float | None = None,
+        region: np.ndarray | None = None,
     ) -> SphereGraph:
         """G^agent over the whole pool (nodes not in V^agent have no edge), as a
         :class:`SphereGraph` (its ``connected`` is not computed: False).
@@ -298,15 +295,23 @@ class SwarmGraphs:
             extra: (dim,) a point (m) added as node M (after the pool), in G^agent alone: the
                 agent's current position Y^i (line 52).
             extra_radius: least radius (m) of ``extra``.
+            region: (M,) bool: only these nodes of the pool get edges (None: all).
         """
         ex = self.params.expansion
         m = self._size
-        radius = self.radii(agent)
+        v, w = self._pairs
+        dist = self._pair_dist
+        if region is None:
+            radius = self.radii(agent)
+        else:
+            inside = np.flatnonzero(region)
+            radius = np.full(m, -1.0)
+            radius[inside] = self.radii(agent, inside)
+            keep = region[v] & region[w]
+            v, w, dist = v[keep], w[keep], dist[keep]
         for node, least in (floor or {}).items():
             radius[node] = max(radius[node], least)
         known = self._known[agent, :m]
-        v, w = self._pairs
-        dist = self._pair_dist
         ok = known[v] & known[w] & (radius[v] > 0) & (radius[w] > 0)
         ok &= joinable(dist, radius[v], radius[w], ex)
         v, w = v[ok], w[ok]
@@ -495,105 +500,28 @@ class SwarmGraphs:
         """
         floor = self.params.expansion.min_radius if floor is None else float(floor)
         target = int(self.goal_nodes[goal])
-        g = self.graph(agent, {target: floor}, self.positions[agent], floor)
+        here = self.positions[agent]
+        # an edge costs at least its length, so every node of a chain costing at most
+        # ``bound`` lies in the ellipsoid of foci Y^i and the goal whose distances to them sum
+        # to ``bound``: the search there finds the least chain whenever it costs that little
+        goal_point = self._centers[target]
+        bound = _ELLIPSOID_STRETCH * float(np.linalg.norm(goal_point - here)) + 4.0 * max(
+            self.params.teammate_radius, self.params.expansion.min_radius
+        )
+        pool = self.centers
+        region = (
+            np.linalg.norm(pool - here, axis=1) + np.linalg.norm(pool - goal_point, axis=1) <= bound
+        )
+        g = self.graph(agent, {target: floor}, here, floor, region=region)
         chain = shortest_chain(g, g.n_nodes - 1, target)
+        if not (chain.success and chain.cost <= bound):
+            g = self.graph(agent, {target: floor}, here, floor)
+            chain = shortest_chain(g, g.n_nodes - 1, target)
         self.stranded[agent] = not chain.success
         return chain, int(self._known[agent, : self._size].sum()) + 1
 
 
-def _all_connected(graphs: SwarmGraphs, done: np.ndarray) -> bool:
-    n = graphs.n_agents
-    for i in np.flatnonzero(~done):
-        reached = np.isfinite(graphs.path_costs(int(i)))
-        graphs.reached[i] = reached
-        done[i] = reached.sum() == n
-    return bool(done.all())
-
-
-@dataclass(frozen=True)
-class Exploration:
-    """What :func:`explore` found.
-
-    Attributes:
-        iterations: iterations run (the first at which Σ F_connected = N², or the cap).
-        connected: whether every agent's start reaches every goal.
-        nodes_per_agent: (N,) |V^i| at the end.
-        costs: (N, N) graph path cost (m) from agent i's start to goal j (inf: no path).
-        share_nodes: whether nodes were shared.
-        graphs: the graphs, to go on with (execution phase).
-    """
-
-    iterations: int
-    connected: bool
-    nodes_per_agent: np.ndarray
-    costs: np.ndarray
-    share_nodes: bool
-    graphs: SwarmGraphs = field(repr=False)
-
-
-def explore(
-    geometry: Any,
-    starts: np.ndarray,
-    goals: np.ndarray,
-    margins: np.ndarray,
-    rng: np.random.Generator,
-    params: SwarmParams,
-    *,
-    low: np.ndarray,
-    high: np.ndarray,
-) -> Exploration:
-    """Run the spherical expansion of every agent (the agents at their starts) until every
-    graph connects its start to every goal, or ``params.max_iterations``.
-
-    Arguments as :class:`SwarmGraphs`; ``rng`` draws every sample.
-    """
-    graphs = SwarmGraphs(geometry, starts, goals, margins, params, low=low, high=high)
-    done = np.zeros(graphs.n_agents, dtype=bool)
-    connected = False
-    while graphs.iterations < params.max_iterations:
-        graphs.iterate(rng)
-        if _all_connected(graphs, done):
-            connected = True
-            break
-    costs = np.array([graphs.path_costs(i) for i in range(graphs.n_agents)])
-    return Exploration(
-        iterations=graphs.iterations,
-        connected=connected,
-        nodes_per_agent=graphs.nodes_per_agent(),
-        costs=costs,
-        share_nodes=params.share_nodes,
-        graphs=graphs,
-    )
-
-
-@dataclass(frozen=True)
-class SharingComparison:
-    """The same exploration with and without node sharing (one seed each, the same seed).
-
-    Attributes:
-        shared, alone: the two explorations.
-    """
-
-    shared: Exploration
-    alone: Exploration
-
-
-def compare_sharing(
-    geometry: Any,
-    starts: np.ndarray,
-    goals: np.ndarray,
-    margins: np.ndarray,
-    seed: int,
-    params: SwarmParams,
-    *,
-    low: np.ndarray,
-    high: np.ndarray,
-) -> SharingComparison:
-    """Iterations until every graph is connected, with and without node sharing, both drawn
-    from ``numpy.random.default_rng(seed)`` (the paper's measurement, Fig. 4 and 7)."""
-    out = []
-    for share in (True, False):
-        p = dataclasses.replace(params, share_nodes=share)
-        rng = np.random.default_rng(seed)
-        out.append(explore(geometry, starts, goals, margins, rng, p, low=low, high=high))
-    return SharingComparison(*out)
+_ELLIPSOID_STRETCH = 1.5
+"""The chain a :meth:`SwarmGraphs.chain_to` search looks for first costs at most this times
+the straight distance (plus four teammate radii); a dearer or missing one is searched for in
+the whole graph."""

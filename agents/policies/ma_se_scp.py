@@ -56,12 +56,8 @@ import numpy as np
 from agents.planners.mission import Goal
 from agents.planners.scp import SCPParams
 from agents.planners.spherical_expansion import ExpansionParams, SphereChain
-from agents.planners.swarm_expansion import (
-    Exploration,
-    SwarmGraphs,
-    SwarmParams,
-    explore,
-)
+from agents.planners.swarm_expansion import SwarmGraphs, SwarmParams
+from agents.planners.swarm_exploration import Exploration, explore
 from agents.planners.team_assignment import TeamAssignment, assign, assign_goals
 from agents.policies.chaser_view import ChaserView
 from agents.policies.se_scp import SESCPAgent
@@ -69,12 +65,28 @@ from agents.policies.shield import ShieldParams
 from agents.policies.shielded import ShieldStats, TeamShield
 from agents.policies.team import check_team_env, team_field
 
-__all__ = ["CRUISE_SPEED", "ExplorationRecord", "MASESCPTeam", "SwarmMember", "TeammateSpheres"]
+__all__ = [
+    "CRUISE_SPEED",
+    "FLIGHT_POOL",
+    "ExplorationRecord",
+    "MASESCPTeam",
+    "SwarmMember",
+    "TeammateSpheres",
+]
 
 CRUISE_SPEED = 0.4
 """The programme's cruise speed (m/s) in a team: at the v2 world's 10 s step it makes
 r_max = 4 m, so the teammate spheres (r_col + r_max = 6 m at r_col = 2 m) are half the
 Reconfigure IDs' 12 m slot pitch and every start and goal keeps a free sphere as wide."""
+
+
+FLIGHT_POOL = 5000
+"""Pool size (nodes) up to which every flying chaser keeps sampling, as the paper's expansion
+step does at every iteration; past it only the stranded chasers (no chain to their slot) do.
+The samples of the flight make the chains of a small pool shorter (six chasers explore about
+200 nodes and fly on about 1 500), but every node costs every later search of every chaser,
+and the candidate edges grow with the square of the pool: 48 chasers explore about 3 000 and
+would add 48 a step."""
 
 
 class TeammateSpheres:
@@ -169,10 +181,11 @@ class SwarmMember(SESCPAgent):
         goal_radius: float,
     ) -> tuple[SphereChain, int]:
         """Toward the final goal on a frozen field: the path in the chaser's own graph from its
-        position (lines 40–45); otherwise a spherical expansion for this plan among the bodies
-        and the teammates' spheres. No path: on a frozen field a one-sphere chain at the
-        chaser (stop and wait for the teammates to move; the next decision re-plans); on a
-        moving field the "se-scp" chain among the bodies alone."""
+        position (lines 40–45); otherwise, or when that graph holds no path and
+        ``team.stranded_expansion`` is set, a spherical expansion for this plan from the
+        chaser among the bodies and the teammates' spheres. Still no path: on a frozen field
+        a one-sphere chain at the chaser (stop and wait for the teammates to move; the next
+        decision re-plans); on a moving field the "se-scp" chain among the bodies alone."""
         team, floor = self.team, self.expansion_params.min_radius
         mates = team.teammates(self.index)
         rho = team.params.teammate_radius if team.params is not None else 0.0
@@ -187,16 +200,22 @@ class SwarmMember(SESCPAgent):
             start_radius = max(min(start_radius, gap), floor)
             goal_gap = float(np.min(np.linalg.norm(mates - goal.point, axis=1) - radii))
             goal_radius = max(min(goal_radius, goal_gap), floor)
+        spheres = TeammateSpheres(geometry, mates, radii)
+        spheres_margins = np.concatenate([margins, np.zeros(len(mates))])
+        chain = None
         if goal.kind == "dock" and team.graphs is not None:
             assert team.graphs.assigned is not None
             slot = int(team.graphs.assigned[self.index])
             chain, nodes = team.graphs.chain_to(self.index, slot, floor)
-        else:
-            spheres = TeammateSpheres(geometry, mates, radii)
+            if not chain.success and team.stranded_expansion:
+                # amid a crowd of teammates the graph's nodes are cut by their spheres while
+                # free space is left between them: grow a tree from where the chaser is
+                self.stats["own_expansions"] = self.stats.get("own_expansions", 0) + 1
+                chain = None
+        if chain is None:
             chain, nodes = super().sphere_chain(
-                start, goal, spheres, np.concatenate([margins, np.zeros(len(mates))]),
-                low, high, start_radius, goal_radius,
-            )  # fmt: skip
+                start, goal, spheres, spheres_margins, low, high, start_radius, goal_radius
+            )
         if not chain.success and self.motion is not None:
             # a moving field: a chain held in the goal's frame would drift with the goal; fly
             # the "se-scp" chain among the bodies alone, the teammates left to the re-plans
@@ -229,6 +248,13 @@ class MASESCPTeam:
         max_iterations: cap on the exploration's iterations.
         local_bias: probability that a stranded chaser's sample is local
             (:class:`~agents.planners.swarm_expansion.SwarmParams`).
+        flight_pool: in flight every chaser draws a sample at each decision (the paper: the
+            expansion step runs every iteration) while the pool holds fewer nodes than this;
+            past it only the chasers whose last chain found no path do (:data:`FLIGHT_POOL`);
+            None: every chaser, always.
+        stranded_expansion: when a chaser's graph holds no chain from its position to its
+            slot, plan with a spherical expansion grown for this plan from its position among
+            the bodies and the teammates' spheres (as "se-scp" does); False: hold and wait.
         measure_alone: also run the exploration without sharing, for the record.
         seed: seed of every sampler (chaser k's own expansions: ``seed + k``).
         expansion: spherical-expansion tunables (``min_radius`` and the edge rule are used
@@ -256,6 +282,8 @@ class MASESCPTeam:
         share_nodes: bool = True,
         max_iterations: int = 300,
         local_bias: float = 0.5,
+        flight_pool: int | None = FLIGHT_POOL,
+        stranded_expansion: bool = True,
         measure_alone: bool = True,
         seed: int = 0,
         expansion: ExpansionParams | None = None,
@@ -276,6 +304,12 @@ class MASESCPTeam:
             isinstance(local_bias, (int, float)) and 0.0 <= local_bias <= 1.0
         ):
             raise ValueError(f"local_bias must be in [0, 1], got {local_bias!r}")
+        if flight_pool is not None and (
+            isinstance(flight_pool, bool) or not (isinstance(flight_pool, int) and flight_pool >= 0)
+        ):
+            raise ValueError(f"flight_pool must be an integer >= 0 or None, got {flight_pool!r}")
+        self.flight_pool = flight_pool
+        self.stranded_expansion = bool(stranded_expansion)
         self.env, self.rule = env, rule
         self.replan_every, self.r_max = replan_every, r_max
         self.share_nodes, self.max_iterations = bool(share_nodes), int(max_iterations)
@@ -356,8 +390,9 @@ class MASESCPTeam:
         if self.graphs is not None:
             self.graphs.move(self.positions(), self.present())
             flying = np.array([self._index[a] for a in names], dtype=np.int64)
-            if len(flying):
-                self.graphs.iterate(self._rng, flying)
+            if self.flight_pool is not None and self.graphs.n_nodes >= self.flight_pool:
+                flying = flying[self.graphs.stranded[flying]]
+            self.graphs.iterate(self._rng, flying)
         actions = {
             self._index[a]: np.asarray(self.members[self._index[a]].predict(observations[a])[0])
             for a in names
