@@ -247,3 +247,25 @@ def test_a_chaser_its_graph_strands_grows_its_own_chain_among_the_teammates(monk
     assert np.allclose(chain.centers[-1], slot)
     assert np.allclose(chain.centers[0], view.chaser_state[:3])
     env.close()
+
+
+def test_the_flight_script_reports_every_step_it_is_asked_for(capsys):
+    """docs/swarm_flight.py: a line per ``--every`` steps with the distance to the slots, then
+    the outcome line."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "docs" / "swarm_flight.py"
+    spec = importlib.util.spec_from_file_location("swarm_flight", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    module.main(["--env", "DebrisGym/Reconfigure2D-v0", "--chasers", "3", "--seed", "0",
+                 "--steps", "4", "--every", "2"])  # fmt: skip
+    lines = capsys.readouterr().out.splitlines()
+    steps = [line for line in lines if line.startswith("step ")]
+    assert [line.split(":")[0] for line in steps] == ["step 2", "step 4"]
+    assert all("to slot mean" in line for line in steps)
+    assert lines[-1].startswith("team success False, reconfigured 0/3, steps 4")
+    with pytest.raises(SystemExit):
+        module.main(["--every", "0"])
