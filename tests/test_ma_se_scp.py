@@ -4,6 +4,8 @@ the team name and connectivity lines of the report."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -65,7 +67,8 @@ def test_every_flying_chaser_replans_at_every_decision_and_the_pair_stays_apart(
     ("kwargs", "name"),
     [({"replan_every": 0}, "replan_every"), ({"r_max": -1.0}, "r_max"),
      ({"rule": "fastest"}, "rule"), ({"seed": -1}, "seed"), ({"local_bias": 2.0}, "local_bias"),
-     ({"flight_pool": -1}, "flight_pool"), ({"flight_pool": 1.5}, "flight_pool")],
+     ({"flight_pool": -1}, "flight_pool"), ({"flight_pool": 1.5}, "flight_pool"),
+     ({"detour": 0.9}, "detour"), ({"detour": math.inf}, "detour")],
 )  # fmt: skip
 def test_bad_team_parameters_raise_naming_them(kwargs, name):
     env = _env()
@@ -201,7 +204,7 @@ def test_a_chaser_its_graph_strands_grows_its_own_chain_among_the_teammates(monk
     spherical expansion from its position among the bodies and its teammates' spheres (the
     chain checked against the closed-form signed distances), or holds when that is off."""
     env = swarm.make("DebrisGym/Reconfigure3D-v0")
-    team = MASESCPTeam(env, measure_alone=False, stranded_expansion=expansion)
+    team = MASESCPTeam(env, measure_alone=False, stranded_expansion=expansion, detour=None)
     observations, _, _ = start_episode(env, team, 1)
     team.predict({})  # the prepared graphs are taken over
     graphs = team.graphs
@@ -269,3 +272,52 @@ def test_the_flight_script_reports_every_step_it_is_asked_for(capsys):
     assert lines[-1].startswith("team success False, reconfigured 0/3, steps 4")
     with pytest.raises(SystemExit):
         module.main(["--every", "0"])
+
+
+@pytest.mark.parametrize("detour", [1.0, None])
+def test_a_chaser_whose_graph_chain_detours_also_grows_its_own_and_flies_the_cheaper(
+    monkeypatch, detour
+):
+    """With ``detour`` the chasers whose graph chain costs more than ``detour`` times the
+    straight distance to the slot plus 4 (r_col + r_max) (computed here from the graphs) grow
+    a chain of their own among their teammates' spheres; the cheaper one is flown and it keeps
+    clear of the bodies and the teammates. Without it nobody does."""
+    env = swarm.make("DebrisGym/Reconfigure3D-v0")
+    team = MASESCPTeam(env, measure_alone=False, detour=detour)
+    observations, _, _ = start_episode(env, team, 0)
+    team.predict({})
+    graphs = team.graphs
+    assert graphs is not None and graphs.assigned is not None
+    rho = graphs.params.teammate_radius
+    detouring = set()
+    for k in range(env.core.chasers):
+        chain, _ = graphs.chain_to(k, int(graphs.assigned[k]))
+        slot = graphs.centers[graphs.goal_nodes[graphs.assigned[k]]]
+        straight = float(np.linalg.norm(slot - graphs.positions[k]))
+        if chain.success and chain.cost > 1.0 * straight + 4.0 * rho:
+            detouring.add(k)
+    assert detouring  # the dock lattice's chains leave by the exits the exploration found
+    grown = {}
+    original = SESCPAgent.sphere_chain
+
+    def recording(self, start, goal, geometry, margins, *rest):
+        chain, nodes = original(self, start, goal, geometry, margins, *rest)
+        grown[self.team.members.index(self)] = (chain, geometry, margins)
+        return chain, nodes
+
+    monkeypatch.setattr(SESCPAgent, "sphere_chain", recording)
+    team.predict({a: observations[a] for a in env.agents})
+    if detour is None:
+        assert grown == {} and all("detours" not in m.stats for m in team.members)
+        env.close()
+        return
+    assert set(grown) == detouring
+    view = team.views[0]
+    for k, (chain, _, margins) in grown.items():
+        member = team.members[k]
+        assert member.stats["detours"] == 1
+        if chain.success:
+            mates = np.delete(team.positions(), k, axis=0)
+            body_margins = margins[: view.geometry.n_bodies]
+            _chain_is_free(chain, view.geometry, body_margins, mates, rho)
+    env.close()

@@ -67,6 +67,7 @@ from agents.policies.team import check_team_env, team_field
 
 __all__ = [
     "CRUISE_SPEED",
+    "DETOUR",
     "FLIGHT_POOL",
     "ExplorationRecord",
     "MASESCPTeam",
@@ -79,6 +80,13 @@ CRUISE_SPEED = 0.4
 r_max = 4 m, so the teammate spheres (r_col + r_max = 6 m at r_col = 2 m) are half the
 Reconfigure IDs' 12 m slot pitch and every start and goal keeps a free sphere as wide."""
 
+
+DETOUR = 1.2
+"""The graph chain's cost, over the straight distance to the slot, past which a chaser also
+grows a chain of its own and flies the cheaper. The shortest chains of a swarm that left its
+starts in a crowd share the few exits the exploration found from it (the pool was grown while
+every teammate sphere stood at its start), and the chasers queue there; a chain grown from the
+chaser among its teammates' current spheres leaves straight between them."""
 
 FLIGHT_POOL = 5000
 """Pool size (nodes) up to which every flying chaser keeps sampling, as the paper's expansion
@@ -181,11 +189,13 @@ class SwarmMember(SESCPAgent):
         goal_radius: float,
     ) -> tuple[SphereChain, int]:
         """Toward the final goal on a frozen field: the path in the chaser's own graph from its
-        position (lines 40–45); otherwise, or when that graph holds no path and
-        ``team.stranded_expansion`` is set, a spherical expansion for this plan from the
-        chaser among the bodies and the teammates' spheres. Still no path: on a frozen field
-        a one-sphere chain at the chaser (stop and wait for the teammates to move; the next
-        decision re-plans); on a moving field the "se-scp" chain among the bodies alone."""
+        position (lines 40–45), or the chain of a spherical expansion for this plan from the
+        chaser among the bodies and the teammates' spheres where that is cheaper and the
+        graph's detours (``team.detour``); otherwise, or when that graph holds no path and
+        ``team.stranded_expansion`` is set, the expansion's chain alone. Still no path: on a
+        frozen field a one-sphere chain at the chaser (stop and wait for the teammates to move;
+        the next decision re-plans); on a moving field the "se-scp" chain among the bodies
+        alone."""
         team, floor = self.team, self.expansion_params.min_radius
         mates = team.teammates(self.index)
         rho = team.params.teammate_radius if team.params is not None else 0.0
@@ -207,6 +217,21 @@ class SwarmMember(SESCPAgent):
             assert team.graphs.assigned is not None
             slot = int(team.graphs.assigned[self.index])
             chain, nodes = team.graphs.chain_to(self.index, slot, floor)
+            straight = float(np.linalg.norm(goal.point - start))
+            if (
+                chain.success
+                and team.detour is not None
+                and chain.cost > team.detour * straight + 4.0 * rho
+            ):
+                # the graph's shortest chains from a crowd share its few exits: a chain grown
+                # from the chaser may go straight out between its neighbours
+                own, own_nodes = super().sphere_chain(
+                    start, goal, spheres, spheres_margins, low, high, start_radius, goal_radius
+                )
+                self.stats["detours"] = self.stats.get("detours", 0) + 1
+                if own.success and own.cost < chain.cost:
+                    self.stats["detours_replaced"] = self.stats.get("detours_replaced", 0) + 1
+                    chain, nodes = own, own_nodes
             if not chain.success and team.stranded_expansion:
                 # amid a crowd of teammates the graph's nodes are cut by their spheres while
                 # free space is left between them: grow a tree from where the chaser is
@@ -255,6 +280,9 @@ class MASESCPTeam:
         stranded_expansion: when a chaser's graph holds no chain from its position to its
             slot, plan with a spherical expansion grown for this plan from its position among
             the bodies and the teammates' spheres (as "se-scp" does); False: hold and wait.
+        detour: when the graph's chain costs more than this times the straight distance to
+            the slot (plus 4 (r_col + r_max)), a spherical expansion for this plan is grown too
+            and the cheaper chain flown (:data:`DETOUR`); None: the graph's chain always.
         measure_alone: also run the exploration without sharing, for the record.
         seed: seed of every sampler (chaser k's own expansions: ``seed + k``).
         expansion: spherical-expansion tunables (``min_radius`` and the edge rule are used
@@ -284,6 +312,7 @@ class MASESCPTeam:
         local_bias: float = 0.5,
         flight_pool: int | None = FLIGHT_POOL,
         stranded_expansion: bool = True,
+        detour: float | None = DETOUR,
         measure_alone: bool = True,
         seed: int = 0,
         expansion: ExpansionParams | None = None,
@@ -310,6 +339,12 @@ class MASESCPTeam:
             raise ValueError(f"flight_pool must be an integer >= 0 or None, got {flight_pool!r}")
         self.flight_pool = flight_pool
         self.stranded_expansion = bool(stranded_expansion)
+        if detour is not None and (
+            isinstance(detour, bool)
+            or not (isinstance(detour, (int, float)) and math.isfinite(detour) and detour >= 1.0)
+        ):
+            raise ValueError(f"detour must be finite and >= 1 or None, got {detour!r}")
+        self.detour = None if detour is None else float(detour)
         self.env, self.rule = env, rule
         self.replan_every, self.r_max = replan_every, r_max
         self.share_nodes, self.max_iterations = bool(share_nodes), int(max_iterations)
