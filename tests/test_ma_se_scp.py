@@ -169,6 +169,8 @@ def test_the_exploration_connects_six_chasers_on_the_reconfigure_dock_lattice(se
     view = team.views[0]
     cfg = view.config
     margins = np.full(view.geometry.n_bodies, cfg.chaser_radius + 0.002 * view.scenario.size)
+    # an arrived chaser stands still: r_col and the bodies' keep-out
+    assert graphs.params.parked_radius == pytest.approx(2.0 + 0.002 * view.scenario.size)
     for k in range(env.core.chasers):
         chain, _ = graphs.chain_to(k, int(graphs.assigned[k]))
         assert chain.success

@@ -211,6 +211,25 @@ def test_the_chain_to_a_goal_is_the_least_chain_of_the_whole_graph(seed, agent, 
         assert chain.cost == pytest.approx(dist[target], rel=1e-9)
 
 
+def test_an_agent_that_has_arrived_is_a_sphere_of_the_parked_radius():
+    """r_max is the distance an agent travels per step: a parked agent's sphere is
+    ``parked_radius``, the flying ones' r_col + r_max, both cut to ``min_radius`` short of a
+    teammate already closer (closed form here), and a node's radius is its gap to them."""
+    field = Spheres(np.zeros((0, 2)), np.zeros(0))
+    starts = np.array([[0.0, 0.0], [30.0, 0.0], [0.0, 30.0], [0.0, 5.0]])
+    goals = np.array([[80.0, 80.0], [-80.0, 80.0], [80.0, -80.0], [-80.0, -80.0]])
+    p = _params(r_max=4.0, parked_radius=3.0)  # r_col 2: flying spheres 6 m
+    graphs = SwarmGraphs(field, starts, goals, np.zeros(0), p, low=BOX[0], high=BOX[1])
+    assert graphs.teammate_radii(0).tolist() == [0.0, 6.0, 6.0, 4.0]  # 5 m away, less 1 m
+    graphs.move(starts, parked=np.array([False, True, False, True]))
+    assert graphs.teammate_radii(0).tolist() == [0.0, 3.0, 6.0, 3.0]
+    point = np.array([[15.0, 0.0]])
+    gap = min(15.0 - 3.0, math.hypot(15.0, 30.0) - 6.0, math.hypot(15.0, 5.0) - 3.0)
+    assert graphs._teammate_gap(0, point)[0] == pytest.approx(gap)
+    with pytest.raises(ValueError, match="parked"):
+        graphs.move(starts, parked=np.ones(3, dtype=bool))
+
+
 def test_nodes_are_shared_one_iteration_later_and_only_when_sharing():
     field = Spheres(np.zeros((0, 2)), np.zeros(0))
     starts = np.array([[-80.0, -80.0], [80.0, -80.0]])
@@ -359,7 +378,8 @@ def test_the_hungarian_assignment_totals_the_brute_force_optimum(costs):
     ("kwargs", "name"),
     [({"r_col": -1.0}, "r_col"), ({"r_max": math.nan}, "r_max"), ({"r_col": True}, "r_col"),
      ({"max_iterations": 0}, "max_iterations"), ({"share_nodes": 1}, "share_nodes"),
-     ({"local_bias": 1.5}, "local_bias"), ({"local_bias": math.nan}, "local_bias")],
+     ({"local_bias": 1.5}, "local_bias"), ({"local_bias": math.nan}, "local_bias"),
+     ({"parked_radius": -1.0}, "parked_radius"), ({"parked_radius": math.inf}, "parked_radius")],
 )  # fmt: skip
 def test_bad_parameters_raise_naming_them(kwargs, name):
     with pytest.raises(ValueError, match=name):

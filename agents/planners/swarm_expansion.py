@@ -85,6 +85,9 @@ class SwarmParams:
             :meth:`SwarmGraphs.local_anchors` (its start while that reaches no goal, then the
             goals it does not reach; after a failed :meth:`SwarmGraphs.chain_to`, its position
             and its assigned goal); 0: every sample uniform in the bounds (the paper).
+        parked_radius: radius (m) of the sphere of an agent that has arrived and stands still
+            (:attr:`SwarmGraphs.parked`: r_max is the distance it travels per step, 0);
+            None: r_col + r_max like the others.
     """
 
     r_col: float
@@ -95,6 +98,7 @@ class SwarmParams:
         default_factory=lambda: ExpansionParams(goal_bias=0.0, max_nodes=20_000)
     )
     local_bias: float = 0.0
+    parked_radius: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("r_col", "r_max"):
@@ -117,6 +121,12 @@ class SwarmParams:
             isinstance(self.local_bias, (int, float)) and 0.0 <= self.local_bias <= 1.0
         ):
             raise ValueError(f"local_bias must be in [0, 1], got {self.local_bias!r}")
+        parked = self.parked_radius
+        if parked is not None and (
+            isinstance(parked, bool)
+            or not (isinstance(parked, (int, float)) and math.isfinite(parked) and parked >= 0)
+        ):
+            raise ValueError(f"parked_radius must be finite and >= 0 m or None, got {parked!r}")
 
     @property
     def teammate_radius(self) -> float:
@@ -187,6 +197,8 @@ class SwarmGraphs:
         """(N, dim) the agents' current positions Y^ℓ (m)."""
         self.present = np.ones(n, dtype=bool)
         """(N,) the agents whose positions are spheres to the others."""
+        self.parked = np.zeros(n, dtype=bool)
+        """(N,) the present agents that have arrived and stand still (``parked_radius``)."""
         self.assigned: np.ndarray | None = None
         """(N,) each agent's goal once assigned (None before)."""
         self.iterations = 0
@@ -345,7 +357,8 @@ class SwarmGraphs:
         return SphereGraph(centers.copy(), radius, adjacency, False, self.iterations)
 
     def teammate_radii(self, agent: int) -> np.ndarray:
-        """(N,) radius (m) of each agent's sphere in G^agent: r_col + r_max, or for a teammate
+        """(N,) radius (m) of each agent's sphere in G^agent: r_col + r_max (``parked_radius``
+        for a :attr:`parked` one), or for a teammate
         already closer than that (starts tighter than the paper's eq. 1) its distance less
         ``min_radius``, so the agent stays outside it and may move away; likewise a teammate
         closer than that to the agent's assigned goal (:attr:`assigned`; goals tighter than
@@ -355,7 +368,10 @@ class SwarmGraphs:
             goal = self._centers[self.goal_nodes[self.assigned[agent]]]
             gaps = np.minimum(gaps, np.linalg.norm(self.positions - goal, axis=1))
         least = self.params.expansion.min_radius
-        radii = np.clip(np.minimum(self.params.teammate_radius, gaps - least), 0.0, None)
+        full = np.full(self.n_agents, self.params.teammate_radius)
+        if self.params.parked_radius is not None:
+            full[self.parked] = self.params.parked_radius
+        radii = np.clip(np.minimum(full, gaps - least), 0.0, None)
         radii[agent] = 0.0
         radii[~self.present] = 0.0
         return radii
@@ -471,8 +487,14 @@ class SwarmGraphs:
         point = center + direction * reach * rng.random() ** (1.0 / self.dim)
         return np.clip(point, self.low, self.high)
 
-    def move(self, positions: np.ndarray, present: np.ndarray | None = None) -> None:
-        """The agents' current positions Y (m) and which of them are spheres to the others."""
+    def move(
+        self,
+        positions: np.ndarray,
+        present: np.ndarray | None = None,
+        parked: np.ndarray | None = None,
+    ) -> None:
+        """The agents' current positions Y (m), which of them are spheres to the others and
+        which of those have arrived and stand still (:attr:`parked`)."""
         positions = np.asarray(positions, dtype=float)
         if positions.shape != self.positions.shape or not np.all(np.isfinite(positions)):
             raise ValueError(f"positions must be {self.positions.shape}, finite")
@@ -482,6 +504,11 @@ class SwarmGraphs:
             if present.shape != (self.n_agents,):
                 raise ValueError(f"present must have shape ({self.n_agents},)")
             self.present = present.copy()
+        if parked is not None:
+            parked = np.asarray(parked, dtype=bool)
+            if parked.shape != (self.n_agents,):
+                raise ValueError(f"parked must have shape ({self.n_agents},)")
+            self.parked = parked.copy()
 
     def chain_to(
         self, agent: int, goal: int, floor: float | None = None

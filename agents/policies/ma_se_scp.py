@@ -198,7 +198,7 @@ class SwarmMember(SESCPAgent):
         alone."""
         team, floor = self.team, self.expansion_params.min_radius
         mates = team.teammates(self.index)
-        rho = team.params.teammate_radius if team.params is not None else 0.0
+        rho = team.teammate_radii(self.index)
         # a teammate already closer than r_col + r_max to the chaser or its goal reaches to
         # ``floor`` short of it
         near = np.minimum(
@@ -221,7 +221,8 @@ class SwarmMember(SESCPAgent):
             if (
                 chain.success
                 and team.detour is not None
-                and chain.cost > team.detour * straight + 4.0 * rho
+                and team.params is not None
+                and chain.cost > team.detour * straight + 4.0 * team.params.teammate_radius
             ):
                 # the graph's shortest chains from a crowd share its few exits: a chain grown
                 # from the chaser may go straight out between its neighbours
@@ -423,7 +424,8 @@ class MASESCPTeam:
         self._episode = key
         names = [a for a in observations if self.views[self._index[a]].flying]
         if self.graphs is not None:
-            self.graphs.move(self.positions(), self.present())
+            present = self.present()
+            self.graphs.move(self.positions(), present, present & ~self.flying())
             flying = np.array([self._index[a] for a in names], dtype=np.int64)
             if self.flight_pool is not None and self.graphs.n_nodes >= self.flight_pool:
                 flying = flying[self.graphs.stranded[flying]]
@@ -461,11 +463,27 @@ class MASESCPTeam:
         rows = [v.row for v in self.views]
         return np.array([v.flying for v in self.views]) | np.asarray(m.success)[rows]
 
+    def flying(self) -> np.ndarray:
+        """(N,) the chasers still flying."""
+        return np.array([v.flying for v in self.views])
+
     def teammates(self, k: int) -> np.ndarray:
         """(P, dim) the positions (m) of the chasers other than ``k`` still in the field."""
         mask = self.present()
         mask[k] = False
         return self.positions()[mask]
+
+    def teammate_radii(self, k: int) -> np.ndarray:
+        """(P,) the sphere radius (m) of each of :meth:`teammates`: r_col + r_max, or the
+        ``parked_radius`` of one that has arrived (none before an episode's setup)."""
+        mask = self.present()
+        mask[k] = False
+        if self.params is None:
+            return np.zeros(int(mask.sum()))
+        radii = np.full(len(mask), self.params.teammate_radius)
+        if self.params.parked_radius is not None:
+            radii[~self.flying()] = self.params.parked_radius
+        return radii[mask]
 
     # --- the exploration ----------------------------------------------------------------------
 
@@ -480,9 +498,14 @@ class MASESCPTeam:
         if r_max is None:
             r_max = self.scp_base.cruise_speed * scenario.dt * self.replan_every
         ex = dataclasses.replace(self.members[0].expansion_params, goal_bias=0.0, max_nodes=20_000)
+        # a chaser that has arrived stands still (r_max = 0): kept out of as the debris are,
+        # by r_col and the keep-out "se-scp" gives its spheres (0.2 % of the field by default)
+        member0 = self.members[0]
+        margin = member0.margin if member0.margin is not None else 0.002 * scenario.size
         self.params = SwarmParams(
-            r_col, r_max, self.share_nodes, self.max_iterations, ex, local_bias=self.local_bias
-        )
+            r_col, r_max, self.share_nodes, self.max_iterations, ex, local_bias=self.local_bias,
+            parked_radius=r_col + margin,
+        )  # fmt: skip
 
     def _explore(
         self, scenario: Any, starts: np.ndarray, goals: np.ndarray
