@@ -40,7 +40,10 @@ programme's speed is not capped: r_max is the plan's cruise, not a hard bound, a
 tracker may fly faster for a while. Uniform samples in a large field rarely fall near a start
 hemmed in by its neighbours' spheres: a stranded chaser draws half its samples near its start,
 its unreached slots or, in flight, its position and slot (``local_bias``,
-:class:`~agents.planners.swarm_expansion.SwarmParams`).
+:class:`~agents.planners.swarm_expansion.SwarmParams`). A chaser that has arrived stands
+still: its sphere is r_col and the bodies' keep-out (``parked_radius``), so the slots inside
+a formation stay reachable. In flight a graph chain that detours, or none, is weighed against
+a spherical expansion grown from the chaser (``detour``, ``stranded_expansion``).
 """
 
 from __future__ import annotations
