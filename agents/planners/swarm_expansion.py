@@ -133,6 +133,14 @@ class SwarmParams:
         """r_col + r_max (m): the sphere each teammate's current position is."""
         return float(self.r_col) + float(self.r_max)
 
+    def sphere_radii(self, parked: np.ndarray) -> np.ndarray:
+        """(N,) each agent's sphere (m): r_col + r_max, ``parked_radius`` where ``parked``."""
+        parked = np.asarray(parked, dtype=bool)
+        radii = np.full(parked.shape, self.teammate_radius)
+        if self.parked_radius is not None:
+            radii[parked] = self.parked_radius
+        return radii
+
 
 def _points(name: str, value: Any, dim: int | None = None) -> np.ndarray:
     array = np.asarray(value, dtype=float)
@@ -368,9 +376,7 @@ class SwarmGraphs:
             goal = self._centers[self.goal_nodes[self.assigned[agent]]]
             gaps = np.minimum(gaps, np.linalg.norm(self.positions - goal, axis=1))
         least = self.params.expansion.min_radius
-        full = np.full(self.n_agents, self.params.teammate_radius)
-        if self.params.parked_radius is not None:
-            full[self.parked] = self.params.parked_radius
+        full = self.params.sphere_radii(self.parked)
         radii = np.clip(np.minimum(full, gaps - least), 0.0, None)
         radii[agent] = 0.0
         radii[~self.present] = 0.0
@@ -499,16 +505,12 @@ class SwarmGraphs:
         if positions.shape != self.positions.shape or not np.all(np.isfinite(positions)):
             raise ValueError(f"positions must be {self.positions.shape}, finite")
         self.positions = positions.copy()
-        if present is not None:
-            present = np.asarray(present, dtype=bool)
-            if present.shape != (self.n_agents,):
-                raise ValueError(f"present must have shape ({self.n_agents},)")
-            self.present = present.copy()
-        if parked is not None:
-            parked = np.asarray(parked, dtype=bool)
-            if parked.shape != (self.n_agents,):
-                raise ValueError(f"parked must have shape ({self.n_agents},)")
-            self.parked = parked.copy()
+        for name, mask in (("present", present), ("parked", parked)):
+            if mask is not None:
+                mask = np.array(mask, dtype=bool)
+                if mask.shape != (self.n_agents,):
+                    raise ValueError(f"{name} must have shape ({self.n_agents},)")
+                setattr(self, name, mask)
 
     def chain_to(
         self, agent: int, goal: int, floor: float | None = None

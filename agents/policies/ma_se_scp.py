@@ -464,7 +464,7 @@ class MASESCPTeam:
         """(N,) the chasers still in the field: flying, or ended at their goal."""
         m = self.env.core.shell.batch_in_use.missions
         rows = [v.row for v in self.views]
-        return np.array([v.flying for v in self.views]) | np.asarray(m.success)[rows]
+        return self.flying() | np.asarray(m.success)[rows]
 
     def flying(self) -> np.ndarray:
         """(N,) the chasers still flying."""
@@ -483,10 +483,7 @@ class MASESCPTeam:
         mask[k] = False
         if self.params is None:
             return np.zeros(int(mask.sum()))
-        radii = np.full(len(mask), self.params.teammate_radius)
-        if self.params.parked_radius is not None:
-            radii[~self.flying()] = self.params.parked_radius
-        return radii[mask]
+        return self.params.sphere_radii(~self.flying())[mask]
 
     # --- the exploration ----------------------------------------------------------------------
 
