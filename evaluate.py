@@ -87,11 +87,14 @@ swarm-2d-v0, reconfigure-3d-v0); the run writes episodes.csv (one row per team x
 team success, per-chaser outcomes, debris and teammate collisions, min separation, Δv, time,
 the assignment with its tour cost and gap to the optimal, decision time per chaser),
 assignments.csv (every rule on every field), summary.json, summary.md and trajectory plots
-(--plots N), and videos (--video N), in one process (default --out runs/eval-swarm).
+(--plots N), and videos (--video N), in one process, or on --workers N processes (the same
+records apart from the timing columns; default --out runs/eval-swarm). Every finished episode
+is journaled in DIR/unfinished/, so a run stopped by Ctrl-C or a failing team is finished by
+--resume DIR (a 48-chaser reconfiguration episode takes about half an hour).
 With --shield every chaser of every team flies behind a safety shield of its own that counts
 its teammates as bodies on their predicted tracks (shield_interventions in episodes.csv, per
 team and chaser; summary.json and the table summarise them; the title says so).
---paper, --resume, --backend ray and several --workers do not apply and are refused.
+--paper and --backend ray do not apply and are refused.
 """
 
 from __future__ import annotations
@@ -293,8 +296,9 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="N",
         help="processes flying the episodes, >= 1: local worker processes (default: one per "
         "core; 1 = this process alone; --video records in this process) or, with --backend "
-        "ray, Ray workers (default: one per CPU of the cluster). The results are the same "
-        "whatever the count",
+        "ray, Ray workers (default: one per CPU of the cluster); on swarm IDs, processes "
+        "each flying whole team episodes (default 1). The results are the same whatever the "
+        "count",
     )
     parser.add_argument(
         "--no-progress",
@@ -332,7 +336,10 @@ def main(argv: list[str] | None = None) -> int:
 
     arguments = vars(args)
     robustness = arguments.pop("robustness")
-    if is_swarm_id(args.env) or (args.env is None and is_swarm_suite(args.suite)):
+    from agents.experiments.swarm_evaluation.journal import is_swarm_journal
+
+    swarm_resume = args.resume is not None and is_swarm_journal(args.resume)
+    if swarm_resume or is_swarm_id(args.env) or (args.env is None and is_swarm_suite(args.suite)):
         if robustness:
             parser.error("argument --robustness: swarms fly the exact world only")
         return _swarm(parser, args)
@@ -373,18 +380,23 @@ def _robustness(options: Any, run: Any) -> str:
 def _swarm(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     """``--env SWARM_ID``: teams on the swarm IDs (agents.experiments.swarm_evaluation)."""
     from agents.experiments.evaluation.plan import UsageError
-    from agents.experiments.swarm_evaluation import SwarmEvaluateOptions, run_swarm_evaluation
+    from agents.experiments.swarm_evaluation import (
+        SwarmEvaluateOptions,
+        SwarmRunStopped,
+        run_swarm_evaluation,
+    )
 
     try:
         text = run_swarm_evaluation(SwarmEvaluateOptions.from_arguments(vars(args)))
     except UsageError as exc:
         parser.error(f"argument {exc.flag}: {exc}")
-    except KeyboardInterrupt:
-        print("\ninterrupted: nothing written", file=sys.stderr)
+    except SwarmRunStopped as exc:
+        print(f"\n{exc.message()}", file=sys.stderr)
+        return 130 if exc.interrupted else 1
+    except KeyboardInterrupt:  # before the first episode began
+        kept = f"{args.resume}/unfinished/ is unchanged" if args.resume else "nothing saved"
+        print(f"\ninterrupted before any episode ran; {kept}", file=sys.stderr)
         return 130
-    except RuntimeError as exc:
-        print(f"\nerror: {exc}\nstopped: nothing written", file=sys.stderr)
-        return 1
     print(text, end="")
     return 0
 

@@ -442,7 +442,7 @@ def test_every_kind_of_team_takes_the_shield(name):
 @pytest.mark.parametrize(
     ("extra", "flag"),
     [
-        (["--workers", "2"], "--workers"),
+        (["--backend", "ray"], "--backend"),
         (["--resume", "somewhere"], "--resume"),
         (["--agents", "apf-mpc"], "--agents"),
         (["--env-kwargs", '{"assignment": "free"}'], "--env-kwargs"),

@@ -135,7 +135,11 @@ class EvaluationJournal:
 
     def append(self, record: EpisodeRecord) -> None:
         """Add a finished episode: one line, written whole and flushed to disk."""
-        line = (json.dumps(record_to_json(record), separators=(",", ":")) + "\n").encode()
+        self._append_line(record_to_json(record))
+
+    def _append_line(self, data: dict[str, Any]) -> None:
+        """Append ``data`` as one JSON line, written whole and flushed to disk."""
+        line = (json.dumps(data, separators=(",", ":")) + "\n").encode()
         with deferred_interrupts():
             with open(self.episodes_path, "ab") as fh:
                 fh.write(line)
@@ -183,27 +187,44 @@ class EvaluationJournal:
         Raises:
             JournalError: a damaged line before the last one, or a line that is not a record.
         """
+        records = []
+        for number, data in self._read_lines():
+            try:
+                records.append(record_from_json(data))
+            except (KeyError, TypeError, ValueError, IndexError) as exc:
+                raise JournalError(
+                    f"{self.episodes_path}, line {number}: not an episode record "
+                    f"({type(exc).__name__}: {exc}); delete the line to run that episode again"
+                ) from None
+        return records
+
+    def _read_lines(self) -> list[tuple[int, Any]]:
+        """Every whole line of ``episodes.jsonl`` as ``(line number, parsed JSON)``; sets
+        :attr:`count`. A last line cut short by a kill is dropped.
+
+        Raises:
+            JournalError: the file is unreadable, or a whole line is not JSON.
+        """
         path = self.episodes_path
         if not path.is_file():
+            self.count = 0
             return []
         try:
             text = path.read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as exc:
             raise JournalError(f"{path}: not readable ({exc})") from None
-        lines = text.split("\n")
-        complete, tail = lines[:-1], lines[-1]  # a whole record ends with a newline
-        del tail  # cut short by a kill: the episode is run again
-        records = []
+        complete = text.split("\n")[:-1]  # a whole line ends with a newline
+        lines = []
         for number, line in enumerate(complete, start=1):
             try:
-                records.append(record_from_json(json.loads(line)))
-            except (json.JSONDecodeError, KeyError, TypeError, ValueError, IndexError) as exc:
+                lines.append((number, json.loads(line)))
+            except json.JSONDecodeError as exc:
                 raise JournalError(
-                    f"{path}, line {number}: not an episode record ({type(exc).__name__}: "
-                    f"{exc}); delete the line to run that episode again"
+                    f"{path}, line {number}: not JSON ({exc}); delete the line to run that "
+                    "episode again"
                 ) from None
-        self.count = len(records)
-        return records
+        self.count = len(lines)
+        return lines
 
     def remove(self) -> None:
         """Delete the journal (after the run's outputs are committed)."""
