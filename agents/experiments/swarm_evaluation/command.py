@@ -41,6 +41,7 @@ from agents.experiments.run_directory import (
     RunDirectoryLock,
 )
 from agents.experiments.swarm_evaluation.flight import (
+    BuiltTeam,
     Flight,
     Mission,
     TeamFailed,
@@ -222,12 +223,6 @@ class SwarmEvaluateOptions:
         """The shield every team flies behind (None: unshielded)."""
         return ShieldParams() if self.shield else None
 
-    @property
-    def recorded(self) -> int:
-        """Episodes of each team that are drawn (plots or videos)."""
-        plots = DEFAULT_SWARM_PLOTS if self.plots is None else self.plots
-        return max(plots, self.video)
-
 
 def _lock(out: Path | None, flag: str = "--out") -> tuple[Path, RunDirectoryLock]:
     if out is not None:
@@ -361,7 +356,7 @@ def run_swarm_evaluation(options: SwarmEvaluateOptions) -> str:
     flight = Flight(
         env_id=env_id, env_kwargs=dict(options.env_kwargs or {}), specs=tuple(specs),
         missions=tuple(missions), max_steps=options.max_steps, plots=plots,
-        video=options.video, shield=options.shield_params, out=Path("."),
+        video=options.video, shield=options.shield_params,
     )  # fmt: skip
     named = options.agents is not None
     teams, skipped = build_teams(flight, named, lambda line: print(line, file=sys.stderr))
@@ -452,7 +447,7 @@ def run_swarm_evaluation(options: SwarmEvaluateOptions) -> str:
 
 def _fly(
     flight: Flight,
-    teams: list[Any],
+    teams: list[BuiltTeam],
     tasks: list[tuple[int, int]],
     journal: SwarmJournal,
     finished: list[FinishedEpisode],

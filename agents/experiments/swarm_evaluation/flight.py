@@ -41,7 +41,7 @@ from debris_gym.scenario import Scenario
 from debris_gym.swarm import checked_options
 from debris_gym.swarm import make as make_swarm
 
-__all__ = ["BuiltTeam", "Flight", "Mission", "build_teams", "fly_tasks"]
+__all__ = ["BuiltTeam", "Flight", "Mission", "TeamFailed", "build_teams", "fly_one", "fly_tasks"]
 
 
 class Mission(NamedTuple):
@@ -72,7 +72,7 @@ class Flight:
         plots: draw a trajectory plot of each team's first ``plots`` episodes.
         video: record each team's first ``video`` episodes (mp4 in ``out/videos/``).
         shield: the safety shield every team flies behind (None: unshielded).
-        out: the output directory (videos).
+        out: the output directory (videos); None until the run has taken its lock.
     """
 
     env_id: str
@@ -83,7 +83,7 @@ class Flight:
     plots: int
     video: int
     shield: ShieldParams | None
-    out: Path
+    out: Path | None = None
 
     @property
     def recorded(self) -> int:
@@ -172,6 +172,8 @@ def fly_one(built: BuiltTeam, flight: Flight, i: int) -> tuple[FinishedEpisode, 
     if frames is not None and i < flight.plots:
         picture = png_bytes(frames.last)
     if frames is not None and i < flight.video:
+        if flight.out is None:
+            raise ValueError("a flight that records videos needs its output directory (out)")
         write_video(flight.out, label, i, frames.frames)
     plot = plot_name(i, label) if picture is not None else None
     return FinishedEpisode(record, rules, plot), picture
