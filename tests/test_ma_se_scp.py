@@ -5,6 +5,7 @@ the team name and connectivity lines of the report."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -323,3 +324,37 @@ def test_a_chaser_whose_graph_chain_detours_also_grows_its_own_and_flies_the_che
             body_margins = margins[: view.geometry.n_bodies]
             _chain_is_free(chain, view.geometry, body_margins, mates, rho)
     env.close()
+
+
+STRAGGLERS = Path(__file__).parent / "data" / "reconfigure3d_48_seed3_stragglers.npy"
+
+
+def _fly_stragglers(steps: int, **team_kwargs) -> tuple[bool, float, float]:
+    """The 48-chaser reconfiguration of seed 3 restarted where, without thinned chains, two
+    chasers stood still 26 m and 14 m short of their slots among 46 parked teammates.
+
+    Returns:
+        team success, min inter-chaser separation (m) and r_col (m).
+    """
+    env = swarm.make("DebrisGym/Reconfigure3D-v0", n_chasers=48, assignment="given")
+    team = MASESCPTeam(env, measure_alone=False, **team_kwargs)
+    env.reset(seed=3)
+    chosen = team.choose_assignment()
+    states = np.load(STRAGGLERS)
+    observations, _ = env.reset(
+        seed=3, options={"assignment": chosen.targets(), "chaser_state": states}
+    )
+    for _ in range(steps):
+        if not env.agents:
+            break
+        observations, *_ = env.step(team.predict({a: observations[a] for a in env.agents}))
+    r_col = 2.0 * env.core.config.chaser_radius
+    return bool(env.core.team_success()[0]), float(env.core.min_separation()[0]), r_col
+
+
+def test_two_stragglers_among_parked_teammates_reach_their_slots():
+    # 46 chasers start inside their slots' capture radius and end at once; chasers 0 and 25
+    # each have a free straight line to their slot but a chain of 8 and 14 spheres
+    success, separation, r_col = _fly_stragglers(60)
+    assert success
+    assert separation >= r_col

@@ -13,9 +13,13 @@ from hypothesis import strategies as st
 
 from agents.planners.spherical_expansion import (
     ExpansionParams,
+    SphereChain,
     chain_waypoints,
+    edge_cost,
     expand_spheres,
+    joinable,
     shortest_chain,
+    thin_chain,
 )
 from debris_gym.geometry import FieldGeometry
 from debris_gym.scenario import Body, Scenario
@@ -197,3 +201,81 @@ def test_margins_of_the_wrong_length_are_refused():
             geometry, np.zeros(2), np.ones(2), np.zeros(1), np.random.default_rng(0),
             low=scen.low, high=scen.high,
         )  # fmt: skip
+
+
+# --- thin_chain ---------------------------------------------------------------------------------
+
+
+def _chain(centers, radii) -> SphereChain:
+    centers, radii = np.asarray(centers, float), np.asarray(radii, float)
+    n = len(radii)
+    return SphereChain(True, np.arange(n, dtype=np.int64), centers, radii, 0.0)
+
+
+def test_thin_chain_skips_a_sphere_its_neighbours_overlap_past():
+    params = ExpansionParams(min_overlap=0.1, polytope_factor=1.0)
+    # spheres 0 and 2 are 9 m apart with radii 5 + 5: joined (9 <= 10 - 0.1), 1 is skipped;
+    # 2 and 3 are 9.95 m apart: not joinable past 3, which is the last anyway
+    chain = _chain([[0, 0], [4.5, 0], [9, 0], [18.95, 0]], [5, 1, 5, 5])
+    thin = thin_chain(chain, params)
+    assert thin.nodes.tolist() == [0, 2, 3]
+    expected = edge_cost(
+        np.array([[0, 0], [9, 0]]), np.array([5, 5]), np.array([[9, 0], [18.95, 0]]),
+        np.array([5, 5]), params.narrow_cost,
+    ).sum()  # fmt: skip
+    assert thin.cost == pytest.approx(expected)
+
+
+def test_thin_chain_collapses_tiny_steps_converging_on_the_goal():
+    # an expansion grown toward a goal 12 m off ends in spheres a few millimetres apart
+    steps = np.concatenate([[0.0, 1.3, 3.3, 6.4, 9.1, 10.4], 11.7 - 0.5 ** np.arange(1, 9)])
+    centers = np.stack([steps, np.zeros_like(steps), np.zeros_like(steps)], axis=1)
+    radii = np.concatenate([[1.4, 2.0, 3.2, 5.7, 6.5, 5.7], np.full(8, 5.05)])
+    thin = thin_chain(_chain(centers, radii), ExpansionParams())
+    assert len(thin.radii) <= 4 < len(radii)
+    assert thin.nodes[0] == 0 and thin.nodes[-1] == len(radii) - 1
+
+
+def test_thin_chain_leaves_failed_and_short_chains_alone():
+    params = ExpansionParams()
+    empty = SphereChain(False, np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0), math.inf)
+    assert thin_chain(empty, params) is empty
+    pair = _chain([[0, 0], [3, 0]], [2, 2])
+    assert thin_chain(pair, params) is pair
+
+
+@st.composite
+def _joined_chains(draw):
+    """Chains whose consecutive spheres are joinable, as a graph's shortest chain's are."""
+    params = ExpansionParams(min_overlap=draw(st.floats(0.0, 0.5)), polytope_factor=1.0)
+    n = draw(st.integers(3, 12))
+    radii = np.array(draw(st.lists(st.floats(0.8, 10.0), min_size=n, max_size=n)))
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    centers = [np.zeros(3)]
+    for j in range(1, n):
+        reach = max(radii[j - 1] + radii[j] - params.min_overlap, 0.0)
+        direction = rng.normal(size=3)
+        direction /= np.linalg.norm(direction)
+        centers.append(centers[-1] + direction * reach * rng.uniform(0.0, 1.0))
+    return _chain(np.array(centers), radii), params
+
+
+@settings(max_examples=200, deadline=None)
+@given(_joined_chains())
+def test_thin_chain_keeps_joined_spheres_of_the_chain_and_skips_all_it_can(case):
+    chain, params = case
+    thin = thin_chain(chain, params)
+    kept = thin.nodes
+    assert kept[0] == 0 and kept[-1] == len(chain.radii) - 1
+    assert np.all(np.diff(kept) > 0)
+    np.testing.assert_array_equal(thin.centers, chain.centers[kept])
+    np.testing.assert_array_equal(thin.radii, chain.radii[kept])
+    c, r = chain.centers, chain.radii
+    for a, b in zip(kept[:-1], kept[1:], strict=True):
+        assert joinable(np.linalg.norm(c[b] - c[a]), r[a], r[b], params)
+        # the farthest joinable sphere is the next one kept
+        later = np.arange(b + 1, len(r))
+        assert not np.any(joinable(np.linalg.norm(c[later] - c[a], axis=1), r[later], r[a], params))
+    a, b = kept[:-1], kept[1:]
+    expected = edge_cost(c[a], r[a], c[b], r[b], params.narrow_cost).sum()
+    assert thin.cost == pytest.approx(float(expected))

@@ -41,6 +41,7 @@ __all__ = [
     "joinable",
     "node_radii",
     "shortest_chain",
+    "thin_chain",
 ]
 
 
@@ -351,6 +352,36 @@ def shortest_chain(graph: SphereGraph, source: int = 0, target: int = 1) -> Sphe
         cost=float(dist[target]),
         info=info,
     )
+
+
+def thin_chain(chain: SphereChain, params: ExpansionParams) -> SphereChain:
+    """The chain with the spheres it can skip left out: from each kept sphere, the farthest
+    later one it could be joined to by an edge (:func:`joinable`) comes next.
+
+    Every kept sphere is one of the chain's and every kept pair overlaps as a graph edge needs,
+    so the corridor stays inside the original one. A time allocation gives the trajectory at
+    least one step per sphere; a chain that converges on its goal in many tiny steps (an
+    expansion grown toward a goal a few metres away) would otherwise stretch a short hop over
+    many steps, whose slow reference the tracker cannot tell from station keeping.
+
+    Returns:
+        the thinned chain, its cost the sum of its edge costs (:func:`edge_cost`); a failed
+        chain or one of two spheres or fewer unchanged.
+    """
+    c, r = chain.centers, chain.radii
+    if not chain.success or len(r) <= 2:
+        return chain
+    keep, i, last = [0], 0, len(r) - 1
+    while i < last:
+        later = np.arange(i + 1, last + 1)
+        ok = joinable(np.linalg.norm(c[later] - c[i], axis=1), r[later], r[i], params)
+        # the next sphere stays a candidate: the chain joined it to this one already
+        i = int(later[ok][-1]) if ok.any() else i + 1
+        keep.append(i)
+    index = np.asarray(keep, dtype=np.int64)
+    cost = edge_cost(c[index[:-1]], r[index[:-1]], c[index[1:]], r[index[1:]], params.narrow_cost)
+    nodes = chain.nodes[index] if len(chain.nodes) == len(r) else chain.nodes
+    return SphereChain(True, nodes, c[index].copy(), r[index].copy(), float(cost.sum()), chain.info)
 
 
 def lens_point(c1: np.ndarray, r1: float, c2: np.ndarray, r2: float) -> np.ndarray:

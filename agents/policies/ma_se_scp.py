@@ -58,7 +58,7 @@ import numpy as np
 
 from agents.planners.mission import Goal
 from agents.planners.scp import SCPParams
-from agents.planners.spherical_expansion import ExpansionParams, SphereChain
+from agents.planners.spherical_expansion import ExpansionParams, SphereChain, thin_chain
 from agents.planners.swarm_expansion import SwarmGraphs, SwarmParams
 from agents.planners.swarm_exploration import Exploration, explore
 from agents.planners.team_assignment import TeamAssignment, assign, assign_goals
@@ -198,7 +198,7 @@ class SwarmMember(SESCPAgent):
         ``team.stranded_expansion`` is set, the expansion's chain alone. Still no path: on a
         frozen field a one-sphere chain at the chaser (stop and wait for the teammates to move;
         the next decision re-plans); on a moving field the "se-scp" chain among the bodies
-        alone."""
+        alone. With ``team.thin_chains`` the chain flown skips the spheres it can."""
         team, floor = self.team, self.expansion_params.min_radius
         mates = team.teammates(self.index)
         rho = team.teammate_radii(self.index)
@@ -259,6 +259,8 @@ class SwarmMember(SESCPAgent):
                 True, np.zeros(1, dtype=np.int64), np.asarray(start, float).reshape(1, d),
                 np.array([start_radius]), 0.0,
             )  # fmt: skip
+        if team.thin_chains:
+            chain = thin_chain(chain, self.expansion_params)
         return chain, nodes
 
 
@@ -287,6 +289,8 @@ class MASESCPTeam:
         detour: when the graph's chain costs more than this times the straight distance to
             the slot (plus 4 (r_col + r_max)), a spherical expansion for this plan is grown too
             and the cheaper chain flown (:data:`DETOUR`); None: the graph's chain always.
+        thin_chains: fly every chain with the spheres it can skip left out
+            (:func:`~agents.planners.spherical_expansion.thin_chain`); False: as found.
         measure_alone: also run the exploration without sharing, for the record.
         seed: seed of every sampler (chaser k's own expansions: ``seed + k``).
         expansion: spherical-expansion tunables (``min_radius`` and the edge rule are used
@@ -317,6 +321,7 @@ class MASESCPTeam:
         flight_pool: int | None = FLIGHT_POOL,
         stranded_expansion: bool = True,
         detour: float | None = DETOUR,
+        thin_chains: bool = True,
         measure_alone: bool = True,
         seed: int = 0,
         expansion: ExpansionParams | None = None,
@@ -349,6 +354,7 @@ class MASESCPTeam:
         ):
             raise ValueError(f"detour must be finite and >= 1 or None, got {detour!r}")
         self.detour = None if detour is None else float(detour)
+        self.thin_chains = bool(thin_chains)
         self.env, self.rule = env, rule
         self.replan_every, self.r_max = replan_every, r_max
         self.share_nodes, self.max_iterations = bool(share_nodes), int(max_iterations)
