@@ -380,8 +380,9 @@ def thin_chain(chain: SphereChain, params: ExpansionParams) -> SphereChain:
         keep.append(i)
     index = np.asarray(keep, dtype=np.int64)
     cost = edge_cost(c[index[:-1]], r[index[:-1]], c[index[1:]], r[index[1:]], params.narrow_cost)
-    nodes = chain.nodes[index] if len(chain.nodes) == len(r) else chain.nodes
-    return SphereChain(True, nodes, c[index].copy(), r[index].copy(), float(cost.sum()), chain.info)
+    return SphereChain(
+        True, chain.nodes[index], c[index].copy(), r[index].copy(), float(cost.sum()), chain.info
+    )
 
 
 def lens_point(c1: np.ndarray, r1: float, c2: np.ndarray, r2: float) -> np.ndarray:
